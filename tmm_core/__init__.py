@@ -1,0 +1,18 @@
+"""Transfer-matrix method (TMM) solver for flexible planar linkages, after Shin (1986).
+
+Pure numpy/scipy, no I/O. Units are SI throughout; see :mod:`tmm_core.matrices` for the state
+vector and sign convention.
+"""
+from .errors import (AssemblyError, BucklingError, ConvergenceError, InputError, SingularStructureError,
+                     TMMError)
+from .kinematics import (FourBarGeometry, FourBarMotion, LinkMotion, SliderCrankGeometry, SliderCrankMotion,
+                         fourbar_motion, slider_crank_motion)
+from .matrices import field_matrix, frame_rotation, point_matrix, rigid_element_matrix, spring_matrix
+from .mechanism import FourBarMechanism, Link
+from .post import bending_axial_strain, distortion, soderberg, static_safety_factor, surface_strains, surface_stresses
+from .riccati import chain_product, chain_states, condense_chain
+from .sections import Material, Section
+from .statics import StaticSolution, external_resultant, solve_static
+from .structure import Joint, LoadCase, Member, Structure, solve_linear
+
+__all__ = [name for name in dir() if not name.startswith("_")]

@@ -1,0 +1,86 @@
+"""Post-processing: surface stresses and strains, distortion, safety factors.
+
+Faces: "top" is the local +y surface (y = +h/2), "bottom" the -y surface. With the sign
+convention of :mod:`tmm_core.matrices` the surface stress is ``sigma = N/A - M y / I``, so
+``sigma_top = N/A - M/Z`` and ``sigma_bottom = N/A + M/Z``; tension is positive. (Shin writes
+``N/A + M/Z`` for the top with his clockwise-positive M.)
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .errors import require_positive
+from .structure import MemberResult
+
+
+def _side_sections(member):
+    """Per node, the segment index used for the left and the right side: (n+1, 2)."""
+    n = member.n_segments
+    j = np.arange(n + 1)
+    return np.stack([np.clip(j - 1, 0, n - 1), np.clip(j, 0, n - 1)], -1)
+
+
+def surface_stresses(result: MemberResult):
+    """``(sigma_top, sigma_bottom)`` [Pa], each ``(..., n+1, 2)`` (node, left/right side)."""
+    m = result.member
+    seg = _side_sections(m)
+    A = np.array([s.area_m2 for s in m.sections])[seg]
+    Z = np.array([s.section_modulus_m3 for s in m.sections])[seg]
+    axial = result.N / A
+    bending = result.M / Z
+    return axial - bending, axial + bending
+
+
+def surface_strains(result: MemberResult):
+    """Surface strains ``(eps_top, eps_bottom)`` [-], ``(..., n+1, 2)``, tension positive."""
+    m = result.member
+    E = np.array([mat.E_Pa for mat in m.materials])[_side_sections(m)]
+    top, bottom = surface_stresses(result)
+    return top / E, bottom / E
+
+
+def bending_axial_strain(eps_top, eps_bottom):
+    """Bending = (top - bottom)/2 and axial = (top + bottom)/2 strain (architecture convention)."""
+    return 0.5 * (eps_top - eps_bottom), 0.5 * (eps_top + eps_bottom)
+
+
+def distortion(result: MemberResult) -> np.ndarray:
+    """Distance between the rigid-body and the deformed node position [m], ``(..., n+1)``."""
+    return np.hypot(*np.moveaxis(result.displacement, -1, 0))
+
+
+def static_safety_factor(result: MemberResult, yield_strength_Pa=None) -> np.ndarray:
+    """Maximum-normal-stress safety factor ``S_y / max(|sigma_top|, |sigma_bottom|)`` per node.
+
+    Uses each segment's material yield strength unless ``yield_strength_Pa`` is given. Nodes
+    with zero stress get ``inf``.
+    """
+    m = result.member
+    if yield_strength_Pa is None:
+        ys = [mat.yield_strength_Pa for mat in m.materials]
+        if any(v is None for v in ys):
+            raise ValueError(f"member '{m.name}': material has no yield_strength_Pa for a safety factor")
+        Sy = np.array(ys)[_side_sections(m)]
+    else:
+        Sy = require_positive("yield_strength_Pa", yield_strength_Pa)
+    top, bottom = surface_stresses(result)
+    ratio = np.maximum(np.abs(top), np.abs(bottom)) / Sy
+    worst = np.max(ratio, axis=-1)
+    with np.errstate(divide="ignore"):
+        return np.where(worst > 0, 1.0 / worst, np.inf)
+
+
+def soderberg(stress_history, yield_strength_Pa, endurance_limit_Pa, axis=0):
+    """Soderberg fatigue safety factor over a stress history (Shin Eq. 6.6, reconstructed).
+
+    ``S_mean = (S_max + S_min)/2``, ``S_alt = (S_max - S_min)/2`` along ``axis`` (one input-link
+    revolution), ``1/SF = |S_mean|/S_y + S_alt/S_n``. Returns ``(SF, S_mean, S_alt)``.
+    """
+    Sy = require_positive("yield_strength_Pa", yield_strength_Pa)
+    Sn = require_positive("endurance_limit_Pa", endurance_limit_Pa)
+    s = np.asarray(stress_history, dtype=float)
+    smax, smin = s.max(axis=axis), s.min(axis=axis)
+    mean, alt = 0.5 * (smax + smin), 0.5 * (smax - smin)
+    inv = np.abs(mean) / Sy + alt / Sn
+    with np.errstate(divide="ignore"):
+        return np.where(inv > 0, 1.0 / inv, np.inf), mean, alt

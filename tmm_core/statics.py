@@ -1,0 +1,171 @@
+"""Static analysis of an instantaneous structure: linear, beam-column and large deflection.
+
+Nonlinearity is handled, as in Shin (§6.1, ch. 4), by successive linear solutions: the axial
+force of every segment (beam-column coupling) and, in large-deflection mode, the rotation of
+every segment chord are taken from the previous iterate and the structure is solved again,
+until both stop changing.
+
+Large deflection is co-rotational: each segment is a small-deflection beam-column in its own
+chord frame, rotated by the chord angle of the previous iterate, and forces are resolved in
+that frame (see :func:`tmm_core.matrices.field_matrix`). As the segment count grows this
+converges to the geometrically exact (elastica) solution; Shin's ch. 4 method is the same idea
+with the chord angle approximated by half the segment slope.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Mapping
+
+import numpy as np
+
+from .errors import ConvergenceError, InputError
+from .post import distortion, static_safety_factor, surface_stresses
+from .structure import LinearSolution, LoadCase, MemberResult, Structure, solve_linear
+
+
+@dataclass(frozen=True)
+class StaticSolution:
+    """Result of :func:`solve_static`."""
+
+    linear: LinearSolution
+    mode: str                # 'linear' | 'beam_column' | 'large_deflection'
+    iterations: int
+    last_change: float       # relative change of the last iteration
+
+    @property
+    def members(self) -> Mapping[str, MemberResult]:
+        return self.linear.members
+
+    @property
+    def reactions(self) -> Mapping[str, np.ndarray]:
+        """``{joint: (..., 3)}`` force and moment applied by the ground [N, N, N m], CCW positive."""
+        return self.linear.reactions
+
+    def reaction_moment(self, joint: str) -> np.ndarray:
+        """Moment applied by the ground to the structure at a clamped joint [N m], CCW positive.
+
+        At the clamped crank pivot of a mechanism this is the required drive torque."""
+        if joint not in self.reactions:
+            raise InputError(f"joint '{joint}' is not supported; supported joints: {list(self.reactions)}")
+        return self.reactions[joint][..., 2]
+
+    def stresses(self, member: str):
+        return surface_stresses(self.members[member])
+
+    def distortion(self, member: str):
+        return distortion(self.members[member])
+
+    def safety_factor(self, member: str, yield_strength_Pa=None):
+        return static_safety_factor(self.members[member], yield_strength_Pa)
+
+
+def _update(linear: LinearSolution, large: bool):
+    """Segment axial forces along the chord and chord rotations from a solution."""
+    P, beta = {}, {}
+    for name, r in linear.members.items():
+        m = r.member
+        L = np.asarray(m.segment_lengths)
+        u, w = r.u, r.w
+        if large:
+            b = np.arctan2(w[..., 1:] - w[..., :-1], L + u[..., 1:] - u[..., :-1])
+        else:
+            b = np.zeros_like(L * u[..., 1:])
+        # Axial force along the chord: mean of the segment's two end values.
+        N0, V0 = r.N[..., :-1, 1], r.V[..., :-1, 1]
+        N1, V1 = r.N[..., 1:, 0], r.V[..., 1:, 0]
+        Nc = 0.5 * (np.cos(b) * (N0 + N1) + np.sin(b) * (V0 + V1))
+        P[name] = np.where(m.is_rigid, 0.0, Nc)
+        beta[name] = b
+    return P, beta
+
+
+def _change(new: LinearSolution, old: LinearSolution) -> float:
+    """Largest relative change between two iterates: translations and rotations x length
+    against the largest displacement, forces and moments / length against the largest force."""
+    Lc = max(r.member.length for r in new.members.values())
+    w = np.array([1.0, 1.0, Lc, 1.0 / Lc, 1.0, 1.0])   # (u, w, theta, M, V, N) -> m or N
+
+    def worst(x):
+        return max(float(np.max(np.abs(x(k)))) for k in new.members)
+
+    scaled = {k: new.members[k].state * w for k in new.members}
+    before = {k: old.members[k].state * w for k in new.members}
+    dscale, fscale = worst(lambda k: scaled[k][..., :3]), worst(lambda k: scaled[k][..., 3:])
+    dd = worst(lambda k: scaled[k][..., :3] - before[k][..., :3])
+    df = worst(lambda k: scaled[k][..., 3:] - before[k][..., 3:])
+    return max(dd / dscale if dscale > 0 else 0.0, df / fscale if fscale > 0 else 0.0)
+
+
+def solve_static(structure: Structure, case: LoadCase, *, beam_column: bool = False,
+                 large_deflection: bool = False, tol: float = 1e-10, max_iter: int = 200) -> StaticSolution:
+    """Static solution of an instantaneous structure.
+
+    ``beam_column``: iterate on segment axial forces (small deflection, Shin §3.3.1).
+    ``large_deflection``: also iterate on segment chord rotations (implies beam-column).
+    ``tol``: relative change of displacements and forces between iterations that ends the
+    iteration. Raises :class:`ConvergenceError` after ``max_iter`` iterations, and
+    :class:`tmm_core.errors.BucklingError` if in beam-column mode a member reaches its
+    buckling load.
+    """
+    mode = "large_deflection" if large_deflection else ("beam_column" if beam_column else "linear")
+    lin = solve_linear(structure, case)
+    if mode == "linear":
+        return StaticSolution(lin, mode, 1, 0.0)
+    relax = 1.0
+    prev_change = np.inf
+    P, beta = _update(lin, large_deflection)
+    for it in range(2, max_iter + 1):
+        new = solve_linear(structure, case, P, beta, check_buckling=not large_deflection)
+        change = _change(new, lin)
+        if not np.isfinite(change):
+            raise ConvergenceError(f"{mode} iteration produced non-finite values at iteration {it}")
+        lin = new
+        if change < tol:
+            return StaticSolution(lin, mode, it, change)
+        if change > prev_change and relax > 0.15:
+            relax *= 0.5  # damp an oscillating fixed-point iteration
+        prev_change = change
+        P_new, beta_new = _update(lin, large_deflection)
+        P = {k: P[k] + relax * (P_new[k] - P[k]) for k in P}
+        beta = {k: beta[k] + relax * (beta_new[k] - beta[k]) for k in beta}
+    raise ConvergenceError(f"{mode} iteration did not converge in {max_iter} iterations "
+                           f"(last relative change {change:.3g}, tolerance {tol:.3g})")
+
+
+def external_resultant(solution: StaticSolution | LinearSolution, deformed: bool = False) -> np.ndarray:
+    """Sum of all external actions on the structure, ``(..., 3)``: (Fx, Fy) [N] and the moment
+    about the global origin [N m]. Includes applied nodal and distributed loads, forces of
+    springs to ground and support reactions; it is zero for an equilibrium solution.
+
+    ``deformed``: take moment arms at the deformed positions (large-deflection equilibrium);
+    otherwise at the undeformed positions (small-deflection theory).
+    """
+    lin = solution.linear if isinstance(solution, StaticSolution) else solution
+    case = lin.case
+    total = 0.0
+    for name, r in lin.members.items():
+        m = r.member
+        X = r.node_positions + (r.displacement if deformed else 0.0)
+        F = np.zeros(r.state.shape[:-2] + (3,))
+        loads = case.node_loads.get(name)
+        if loads is not None:
+            F = F + np.asarray(loads)
+        K = case.node_stiffness.get(name)
+        if K is not None:
+            dg = np.concatenate([r.displacement, r.theta[..., None]], -1)
+            F = F - np.einsum("...nij,...nj->...ni", K, dg)
+        mom = F[..., 2] + X[..., 0] * F[..., 1] - X[..., 1] * F[..., 0]
+        total = total + np.stack([F[..., 0].sum(-1), F[..., 1].sum(-1), mom.sum(-1)], -1)
+        q = case.distributed_loads.get(name)
+        if q is not None:
+            Lseg = np.asarray(m.segment_lengths)[:, None]
+            mid = 0.5 * (X[..., 1:, :] + X[..., :-1, :])
+            R = np.broadcast_to(q * Lseg, np.broadcast_shapes(np.shape(q), mid.shape))
+            mq = mid[..., 0] * R[..., 1] - mid[..., 1] * R[..., 0]
+            total = total + np.stack([R[..., 0].sum(-1), R[..., 1].sum(-1), mq.sum(-1)], -1)
+    for jname, R in lin.reactions.items():
+        Xj = np.asarray(case.joint_positions[jname], dtype=float)
+        if deformed:
+            Xj = Xj + lin.joint_displacement[jname]
+        total = total + np.stack([R[..., 0], R[..., 1], R[..., 2] + Xj[..., 0] * R[..., 1] - Xj[..., 1] * R[..., 0]], -1)
+    return total

@@ -1,0 +1,471 @@
+"""Instantaneous planar structure: members chained by transfer matrices, joined at joints.
+
+A *member* is a link between two joints, meshed into segments (nodes 0..n along local x).
+Each member is condensed to its end nodes with the Riccati transfer of
+:mod:`tmm_core.riccati`; the condensed members are joined at the joints, and the small joint
+system is solved for the joint displacements. The member states at every node then follow by
+back-substitution.
+
+This replaces Shin's loop-closure elimination (carrying a 7x4 matrix around the loop and
+eliminating one unknown at each moment release, Eqs. 5.1-5.18) by the equivalent joint
+equilibrium: the same compatibility (common translation at a joint, a free slope jump at a
+revolute) and the same boundary conditions (clamped input pivot, pinned output pivot), but
+with unknowns that stay well scaled for any number of segments, and for any topology (loops,
+branches) without special-case algebra.
+
+Everything broadcasts over leading batch dimensions of the :class:`LoadCase` arrays (e.g. one
+entry per crank position).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Mapping
+
+import numpy as np
+
+from .errors import BucklingError, InputError, SingularStructureError, require_finite, require_positive
+from .matrices import field_matrix, point_matrix, rigid_element_matrix
+from .riccati import ChainCondensation, chain_states, condense_chain
+from .sections import Material, Section
+
+SUPPORTS = ("free", "pinned", "clamped")
+CONNECTIONS = ("pin", "rigid")
+
+
+@dataclass(frozen=True)
+class Joint:
+    """A joint. ``support``: 'free', 'pinned' (translation fixed) or 'clamped' (all fixed)."""
+
+    name: str
+    support: str = "free"
+
+    def __post_init__(self):
+        if self.support not in SUPPORTS:
+            raise InputError(f"joint '{self.name}': support must be one of {SUPPORTS}, got {self.support!r}")
+
+
+@dataclass(frozen=True)
+class Member:
+    """A member (link) from joint ``start`` to joint ``end``, meshed into segments.
+
+    ``segment_lengths`` [m] run from the start joint; ``sections`` and ``materials`` hold one
+    entry per segment. ``start_connection`` / ``end_connection``: 'pin' (revolute: the member
+    end rotates freely, its moment is zero) or 'rigid' (welded to the joint's rotation).
+    ``rigid_segments`` marks segments treated as rigid elements (plates).
+    """
+
+    name: str
+    start: str
+    end: str
+    segment_lengths: tuple
+    sections: tuple
+    materials: tuple
+    start_connection: str = "pin"
+    end_connection: str = "pin"
+    rigid_segments: tuple = ()
+
+    def __post_init__(self):
+        n = len(self.segment_lengths)
+        if n == 0:
+            raise InputError(f"member '{self.name}': needs at least one segment")
+        require_positive(f"member '{self.name}': segment_lengths", self.segment_lengths)
+        if len(self.sections) != n or len(self.materials) != n:
+            raise InputError(f"member '{self.name}': {n} segments but {len(self.sections)} sections "
+                             f"and {len(self.materials)} materials")
+        for conn, val in (("start_connection", self.start_connection), ("end_connection", self.end_connection)):
+            if val not in CONNECTIONS:
+                raise InputError(f"member '{self.name}': {conn} must be one of {CONNECTIONS}, got {val!r}")
+        if self.start == self.end:
+            raise InputError(f"member '{self.name}': start and end joint are both '{self.start}'")
+        if self.rigid_segments and len(self.rigid_segments) != n:
+            raise InputError(f"member '{self.name}': rigid_segments needs {n} flags")
+
+    @classmethod
+    def uniform(cls, name: str, start: str, end: str, length: float, n_segments: int,
+                section: Section, material: Material, **kw) -> "Member":
+        """A prismatic member of ``length`` [m] split into ``n_segments`` equal segments."""
+        require_positive(f"member '{name}': length", length)
+        if int(n_segments) != n_segments or n_segments < 1:
+            raise InputError(f"member '{name}': n_segments must be a positive integer, got {n_segments!r}")
+        n = int(n_segments)
+        return cls(name, start, end, (length / n,) * n, (section,) * n, (material,) * n, **kw)
+
+    @property
+    def n_segments(self) -> int:
+        return len(self.segment_lengths)
+
+    @property
+    def length(self) -> float:
+        return float(np.sum(self.segment_lengths))
+
+    @property
+    def stations(self) -> np.ndarray:
+        """Node coordinates along local x [m], shape (n+1,)."""
+        return np.concatenate([[0.0], np.cumsum(self.segment_lengths)])
+
+    @property
+    def EA(self) -> np.ndarray:
+        return np.array([m.E_Pa * s.area_m2 for s, m in zip(self.sections, self.materials)])
+
+    @property
+    def EI(self) -> np.ndarray:
+        return np.array([m.E_Pa * s.inertia_m4 for s, m in zip(self.sections, self.materials)])
+
+    @property
+    def is_rigid(self) -> np.ndarray:
+        return np.array(self.rigid_segments if self.rigid_segments else (False,) * self.n_segments, dtype=bool)
+
+
+@dataclass(frozen=True)
+class Structure:
+    """Topology of an instantaneous structure: joints and members."""
+
+    joints: tuple
+    members: tuple
+
+    def __post_init__(self):
+        names = [j.name for j in self.joints]
+        if len(set(names)) != len(names):
+            raise InputError(f"structure: duplicate joint names in {names}")
+        mnames = [m.name for m in self.members]
+        if len(set(mnames)) != len(mnames):
+            raise InputError(f"structure: duplicate member names in {mnames}")
+        for m in self.members:
+            for end in (m.start, m.end):
+                if end not in names:
+                    raise InputError(f"member '{m.name}': refers to unknown joint '{end}' (joints: {names})")
+        used = {m.start for m in self.members} | {m.end for m in self.members}
+        for j in self.joints:
+            if j.name not in used:
+                raise InputError(f"joint '{j.name}': no member is attached to it")
+
+    def joint(self, name: str) -> Joint:
+        return next(j for j in self.joints if j.name == name)
+
+    def member(self, name: str) -> Member:
+        for m in self.members:
+            if m.name == name:
+                return m
+        raise InputError(f"structure: unknown member '{name}' (members: {[m.name for m in self.members]})")
+
+
+@dataclass(frozen=True)
+class LoadCase:
+    """Configuration and loads of a structure, all in the global frame, SI, batch-broadcast.
+
+    joint_positions : ``{joint: (..., 2)}`` undeformed joint coordinates [m]; they fix each
+        member's angle and must match its length.
+    node_loads : ``{member: (..., n+1, 3)}`` external (Fx, Fy, Mz) at the member's nodes [N, N, N m].
+    distributed_loads : ``{member: (..., n, 2)}`` (qx, qy) per unit undeformed length [N/m].
+    node_stiffness : ``{member: (..., n+1, 3, 3)}`` stiffness to ground at the nodes, acting on
+        global (X, Y, theta) displacements [N/m, N m/rad]; a spring exerts ``-K d``.
+    """
+
+    joint_positions: Mapping[str, np.ndarray]
+    node_loads: Mapping[str, np.ndarray] = field(default_factory=dict)
+    distributed_loads: Mapping[str, np.ndarray] = field(default_factory=dict)
+    node_stiffness: Mapping[str, np.ndarray] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class MemberResult:
+    """States of one member. ``state`` has shape ``(..., n+1, 2, 6)``: node, [left, right] side,
+    ``(u, w, theta, M, V, N)`` in the member's local frame (see :mod:`tmm_core.matrices`)."""
+
+    member: Member
+    angle: np.ndarray          # (...,) member angle from global X [rad]
+    origin: np.ndarray         # (..., 2) undeformed start joint position [m]
+    state: np.ndarray
+    axial_force: np.ndarray    # (..., n) segment axial force used in the field matrices [N]
+    chord_rotation: np.ndarray  # (..., n) segment chord rotation used [rad]
+
+    u = property(lambda self: self.state[..., 0, 0], doc="axial displacement [m], (..., n+1)")
+    w = property(lambda self: self.state[..., 0, 1], doc="transverse displacement [m], (..., n+1)")
+    theta = property(lambda self: self.state[..., 0, 2], doc="rotation [rad], (..., n+1)")
+    M = property(lambda self: self.state[..., 3], doc="bending moment [N m], (..., n+1, 2) left/right")
+    V = property(lambda self: self.state[..., 4], doc="transverse force [N], (..., n+1, 2) left/right")
+    N = property(lambda self: self.state[..., 5], doc="axial force [N], (..., n+1, 2) left/right")
+
+    @property
+    def rotation(self) -> np.ndarray:
+        """Rotation matrix local -> global, (..., 2, 2)."""
+        c, s = np.cos(self.angle), np.sin(self.angle)
+        return np.stack([np.stack([c, -s], -1), np.stack([s, c], -1)], -2)
+
+    @property
+    def node_positions(self) -> np.ndarray:
+        """Undeformed (rigid-body) global node positions [m], (..., n+1, 2)."""
+        x = self.member.stations
+        e = np.stack([np.cos(self.angle), np.sin(self.angle)], -1)
+        return self.origin[..., None, :] + x[:, None] * e[..., None, :]
+
+    @property
+    def displacement(self) -> np.ndarray:
+        """Global elastic displacement (dX, dY) of the nodes [m], (..., n+1, 2)."""
+        d = self.state[..., 0, :2]
+        return np.einsum("...ij,...nj->...ni", self.rotation, d)
+
+    @property
+    def internal_force_global(self) -> np.ndarray:
+        """Internal force (Fx, Fy) on the positive face, global components [N], (..., n+1, 2, 2)."""
+        f = np.stack([self.N, self.V], -1)
+        return np.einsum("...ij,...nsj->...nsi", self.rotation, f)
+
+
+@dataclass(frozen=True)
+class LinearSolution:
+    """One linear solve of the instantaneous structure."""
+
+    structure: Structure
+    case: LoadCase
+    members: Mapping[str, MemberResult]
+    reactions: Mapping[str, np.ndarray]   # {joint: (..., 3)} force/moment applied by ground [N, N, N m]
+    negative_eigenvalues: np.ndarray      # (...,) stiffness inertia count (0 when stable)
+    joint_displacement: Mapping[str, np.ndarray]  # {joint: (..., 2)} global [m]
+
+
+def _rotation_6(angle):
+    """(..., 6, 6) map of global (X, Y, theta) at both ends to local (u, w, theta)."""
+    c, s = np.cos(angle), np.sin(angle)
+    L = np.zeros(np.shape(angle) + (6, 6))
+    for o in (0, 3):
+        L[..., o, o] = c
+        L[..., o, o + 1] = s
+        L[..., o + 1, o] = -s
+        L[..., o + 1, o + 1] = c
+        L[..., o + 2, o + 2] = 1.0
+    return L
+
+
+def _rotation_3(angle):
+    return _rotation_6(angle)[..., :3, :3]
+
+
+def clamped_clamped_buckling_count(s) -> np.ndarray:
+    """Number of clamped-clamped buckling loads of a segment below ``s = P L^2/EI`` (P < 0).
+
+    The roots are ``k L = 2 pi n`` (symmetric modes) and ``k L = 2 x`` with ``tan x = x``
+    (antisymmetric). This is the J0 term of the Wittrick-Williams count for condensed segments.
+    """
+    kl = np.sqrt(np.maximum(-np.asarray(s, dtype=float), 0.0))
+    count = np.floor(kl / (2 * np.pi))
+    x = kl / 2.0
+    m = np.floor(x / np.pi)        # antisymmetric roots lie in (m pi, m pi + pi/2), m >= 1
+    frac = x - m * np.pi
+    past_root = (frac >= np.pi / 2) | ((frac > 0) & (np.tan(np.minimum(frac, np.pi / 2 - 1e-12)) > x))
+    count = count + np.maximum(m - 1, 0) + np.where((m >= 1) & past_root, 1, 0)
+    return count.astype(int)
+
+
+def _member_geometry(member: Member, case: LoadCase):
+    try:
+        a = require_finite(f"joint '{member.start}' position", case.joint_positions[member.start])
+        b = require_finite(f"joint '{member.end}' position", case.joint_positions[member.end])
+    except KeyError as exc:
+        raise InputError(f"load case: no position for joint {exc.args[0]!r}") from None
+    d = b - a
+    dist = np.hypot(d[..., 0], d[..., 1])
+    if np.any(np.abs(dist - member.length) > 1e-9 * max(member.length, 1.0) + 1e-12):
+        bad = np.max(np.abs(dist - member.length))
+        raise InputError(f"member '{member.name}': length {member.length:.9g} m does not match the distance "
+                         f"between joints '{member.start}' and '{member.end}' (off by up to {bad:.3g} m)")
+    return np.arctan2(d[..., 1], d[..., 0]), a
+
+
+def _member_matrices(member: Member, case: LoadCase, angle, P, beta):
+    n = member.n_segments
+    batch = np.shape(angle)
+    R3 = _rotation_3(angle)           # global -> local for (X, Y, theta)
+    loads = case.node_loads.get(member.name)
+    if loads is None:
+        loads_loc = np.zeros(batch + (n + 1, 3))
+    else:
+        loads = require_finite(f"member '{member.name}': node_loads", loads)
+        if loads.shape[-2:] != (n + 1, 3):
+            raise InputError(f"member '{member.name}': node_loads must have shape (..., {n + 1}, 3), got {loads.shape}")
+        loads_loc = np.einsum("...ij,...nj->...ni", R3, loads)
+    K = case.node_stiffness.get(member.name)
+    if K is not None:
+        K = require_finite(f"member '{member.name}': node_stiffness", K)
+        if K.shape[-3:] != (n + 1, 3, 3):
+            raise InputError(f"member '{member.name}': node_stiffness must have shape (..., {n + 1}, 3, 3), got {K.shape}")
+        K = np.einsum("...ij,...njk,...lk->...nil", R3, K, R3)
+    q = case.distributed_loads.get(member.name)
+    if q is None:
+        q_loc = np.zeros(batch + (n, 2))
+    else:
+        q = require_finite(f"member '{member.name}': distributed_loads", q)
+        if q.shape[-2:] != (n, 2):
+            raise InputError(f"member '{member.name}': distributed_loads must have shape (..., {n}, 2), got {q.shape}")
+        q_loc = np.einsum("...ij,...nj->...ni", R3[..., :2, :2], q)
+
+    L = np.asarray(member.segment_lengths)
+    EA, EI = member.EA, member.EI
+    rigid = member.is_rigid
+    mats, flags = [], []
+    for j in range(n + 1):
+        mats.append(point_matrix(loads_loc[..., j, :], None if K is None else K[..., j, :, :]))
+        flags.append(False)
+        if j < n:
+            if rigid[j]:
+                mats.append(np.broadcast_to(rigid_element_matrix(L[j], beta[..., j]), batch + (7, 7)))
+                flags.append(False)
+            else:
+                mats.append(np.broadcast_to(
+                    field_matrix(L[j], EA[j], EI[j], P[..., j], q_loc[..., j, 1], q_loc[..., j, 0], beta[..., j]),
+                    batch + (7, 7)))
+                flags.append(True)
+    return mats, flags
+
+
+def _batch_shape(structure: Structure, case: LoadCase):
+    shapes = [np.shape(v)[:-1] for v in case.joint_positions.values()]
+    for mapping, trail in ((case.node_loads, 2), (case.distributed_loads, 2), (case.node_stiffness, 3)):
+        shapes += [np.shape(v)[:-trail] for v in mapping.values()]
+    return np.broadcast_shapes(*shapes)
+
+
+def _dof_map(structure: Structure):
+    """Global DOF numbering. Returns (index per member end (6,), fixed mask, dof labels)."""
+    labels, index = [], {}
+
+    def new(key):
+        index[key] = len(labels)
+        labels.append(key)
+        return index[key]
+
+    rigid_at = {j.name: False for j in structure.joints}
+    for m in structure.members:
+        if m.start_connection == "rigid":
+            rigid_at[m.start] = True
+        if m.end_connection == "rigid":
+            rigid_at[m.end] = True
+    fixed = []
+    for j in structure.joints:
+        new((j.name, "x"))
+        new((j.name, "y"))
+        fixed += [j.support in ("pinned", "clamped")] * 2
+        if rigid_at[j.name] or j.support == "clamped":
+            new((j.name, "r"))
+            fixed.append(j.support == "clamped")
+    ends = {}
+    for m in structure.members:
+        idx = []
+        for joint, conn, tag in ((m.start, m.start_connection, "start"), (m.end, m.end_connection, "end")):
+            if conn == "rigid":
+                r = index[(joint, "r")]
+            else:
+                r = new((m.name, tag, "r"))
+                fixed.append(False)
+            idx += [index[(joint, "x")], index[(joint, "y")], r]
+        ends[m.name] = np.array(idx)
+    return ends, np.array(fixed, dtype=bool), labels
+
+
+def solve_linear(structure: Structure, case: LoadCase, axial_force: Mapping[str, np.ndarray] | None = None,
+                 chord_rotation: Mapping[str, np.ndarray] | None = None, check_buckling: bool = True,
+                 cond_limit: float = 1e12) -> LinearSolution:
+    """Solve the instantaneous structure once, with given segment axial forces and chord rotations.
+
+    ``axial_force`` / ``chord_rotation``: ``{member: (..., n)}``, default 0 (linear theory).
+    Raises :class:`SingularStructureError` if the joint system is singular (toggle, an
+    unconstrained joint), and :class:`BucklingError` (if ``check_buckling``) when the stiffness
+    including the axial-force effect has negative eigenvalues, i.e. some member is at or beyond
+    a buckling load.
+    """
+    axial_force = axial_force or {}
+    chord_rotation = chord_rotation or {}
+    batch = _batch_shape(structure, case)
+    ends, fixed, labels = _dof_map(structure)
+    nd = len(labels)
+    Kfull = np.zeros(batch + (nd, nd))
+    rfull = np.zeros(batch + (nd,))
+    negative = np.zeros(batch, dtype=int)
+    cond_by_member, geo = {}, {}
+    for m in structure.members:
+        angle, origin = _member_geometry(m, case)
+        angle = np.broadcast_to(angle, batch)
+        origin = np.broadcast_to(origin, batch + (2,))
+        P = np.broadcast_to(np.asarray(axial_force.get(m.name, 0.0), dtype=float), batch + (m.n_segments,))
+        beta = np.broadcast_to(np.asarray(chord_rotation.get(m.name, 0.0), dtype=float), batch + (m.n_segments,))
+        mats, flags = _member_matrices(m, case, angle, P, beta)
+        cond = condense_chain(mats, flags)
+        s = P * np.asarray(m.segment_lengths) ** 2 / m.EI
+        negative = negative + cond.negative_pivots + np.sum(np.where(m.is_rigid, 0, clamped_clamped_buckling_count(s)), -1)
+        Lam = _rotation_6(angle)
+        Kg = np.swapaxes(Lam, -1, -2) @ cond.stiffness @ Lam
+        rg = np.einsum("...ji,...j->...i", Lam, cond.load)
+        idx = ends[m.name]
+        Kfull[..., idx[:, None], idx[None, :]] += Kg
+        rfull[..., idx] += rg
+        cond_by_member[m.name] = cond
+        geo[m.name] = (angle, origin, P, beta)
+
+    free = ~fixed
+    Kff = Kfull[..., free[:, None] & free[None, :]].reshape(batch + (free.sum(),) * 2)
+    Kff = 0.5 * (Kff + np.swapaxes(Kff, -1, -2))
+    d = np.sqrt(np.abs(np.diagonal(Kff, axis1=-2, axis2=-1)))
+    if np.any(d == 0.0):
+        dead = [labels[i] for i in np.flatnonzero(free)[np.any(d == 0.0, axis=tuple(range(d.ndim - 1)))]]
+        raise SingularStructureError(f"instantaneous structure is singular: no stiffness at DOF(s) {dead}")
+    Ks = Kff / d[..., :, None] / d[..., None, :]
+    eig = np.linalg.eigvalsh(Ks)
+    emax = np.max(np.abs(eig), axis=-1)
+    emin = np.min(np.abs(eig), axis=-1)
+    with np.errstate(divide="ignore"):
+        condition = np.where(emin > 0, emax / emin, np.inf)
+    if np.any(~(condition < cond_limit)):
+        worst = np.unravel_index(np.argmax(np.where(np.isfinite(condition), condition, np.inf)), batch) if batch else ()
+        raise SingularStructureError(
+            f"instantaneous structure is singular (scaled condition number {float(np.max(condition)):.3g}"
+            f"{' at batch index ' + str(worst) if batch else ''}): a toggle position (collinear links at a "
+            "revolute), an unconstrained joint, or a member at its buckling load")
+    negative = negative + np.sum(eig < 0, axis=-1)
+    if check_buckling and np.any(negative > 0):
+        raise BucklingError(_buckling_message(structure, geo, negative, batch))
+
+    rhs = -rfull[..., free]
+    qf = np.linalg.solve(Kff, rhs[..., None])[..., 0]
+    q = np.zeros(batch + (nd,))
+    q[..., free] = qf
+    reaction_full = np.einsum("...ij,...j->...i", Kfull, q) + rfull
+
+    members = {}
+    for m in structure.members:
+        angle, origin, P, beta = geo[m.name]
+        Lam = _rotation_6(angle)
+        zl = np.einsum("...ij,...j->...i", Lam, q[..., ends[m.name]])
+        S = chain_states(cond_by_member[m.name], zl[..., :3], zl[..., 3:])
+        state = S[..., :6].reshape(batch + (m.n_segments + 1, 2, 6))
+        members[m.name] = MemberResult(m, angle, origin, state, P, beta)
+
+    index = {lab: i for i, lab in enumerate(labels)}
+    reactions = {}
+    for j in structure.joints:
+        if j.support == "free":
+            continue
+        r = np.zeros(batch + (3,))
+        r[..., 0] = reaction_full[..., index[(j.name, "x")]]
+        r[..., 1] = reaction_full[..., index[(j.name, "y")]]
+        if j.support == "clamped":
+            r[..., 2] = reaction_full[..., index[(j.name, "r")]]
+        reactions[j.name] = r
+    joint_disp = {j.name: np.stack([q[..., index[(j.name, "x")]], q[..., index[(j.name, "y")]]], -1)
+                  for j in structure.joints}
+    return LinearSolution(structure, case, members, reactions, negative, joint_disp)
+
+
+def _buckling_message(structure, geo, negative, batch) -> str:
+    worst_name, worst_ratio, worst_P, worst_Pcr = None, -np.inf, 0.0, 0.0
+    for m in structure.members:
+        P = geo[m.name][2]
+        Pmin = float(np.min(P)) if P.size else 0.0
+        # Pinned-pinned Euler load of the whole member, as an orientation for the user.
+        Pcr = float(np.pi**2 * np.min(m.EI) / m.length**2)
+        ratio = -Pmin / Pcr
+        if ratio > worst_ratio:
+            worst_name, worst_ratio, worst_P, worst_Pcr = m.name, ratio, Pmin, Pcr
+    where = f" (batch entries affected: {int(np.sum(negative > 0))} of {int(np.prod(batch))})" if batch else ""
+    return (f"a member is at or beyond its buckling load: the stiffness has {int(np.max(negative))} negative "
+            f"eigenvalue(s){where}; most compressed member '{worst_name}' carries P = {worst_P:.4g} N "
+            f"against its pinned-pinned Euler load {worst_Pcr:.4g} N")
