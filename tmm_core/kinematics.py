@@ -136,7 +136,8 @@ def fourbar_motion(geom: FourBarGeometry, crank_angle, crank_speed=0.0, crank_ac
     B = A + g.crank * _e(t2)
     d = D - B
     r = np.hypot(d[..., 0], d[..., 1])
-    bad = (r > g.coupler + g.rocker) | (r < abs(g.coupler - g.rocker))
+    slack = 1e-12 * (g.coupler + g.rocker)  # a dead point hit exactly is reported as a toggle below
+    bad = (r > g.coupler + g.rocker + slack) | (r < abs(g.coupler - g.rocker) - slack)
     if np.any(bad):
         i = np.flatnonzero(bad.ravel())[0]
         ri = r.ravel()[i]
@@ -226,11 +227,11 @@ def slider_crank_motion(geom: SliderCrankGeometry, crank_angle, crank_speed=0.0,
     bx, by = g.crank * np.cos(th), g.crank * np.sin(th)
     h = g.offset - by
     disc = g.coupler**2 - h**2
-    if np.any(disc < 0):
-        i = np.flatnonzero((disc < 0).ravel())[0]
+    if np.any(disc < -1e-12 * g.coupler**2):
+        i = np.flatnonzero((disc < -1e-12 * g.coupler**2).ravel())[0]
         raise AssemblyError(f"{g.describe()} cannot assemble at crank angle {np.degrees(th.ravel()[i]):.6g} deg: "
                             f"the slider line is {abs(h.ravel()[i]):.6g} m from B, farther than the coupler")
-    s = bx + g.branch * np.sqrt(disc)
+    s = bx + g.branch * np.sqrt(np.maximum(disc, 0.0))
     t3 = np.arctan2(h, s - bx)
     c3 = np.cos(t3)
     if np.any(np.abs(c3) <= toggle_tolerance):
