@@ -128,7 +128,7 @@ def test_end_moment_cantilever_shin_table_4_1():
     np.testing.assert_allclose(tip, [84.147, 45.970], rtol=2e-2)
     np.testing.assert_allclose(tip, [84.147, 45.970], rtol=1e-3)     # what this method achieves
     assert r.theta[-1] == pytest.approx(1.0, rel=1e-9)
-    assert_equilibrium(sol, 1.0, 1.0, deformed=True, moment_rtol=1e-6)
+    assert_equilibrium(sol, EI / 1.0, 1.0, deformed=True, moment_rtol=1e-6)   # load scale M/L
 
 
 def _al_fourbar(n=6):

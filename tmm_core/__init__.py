@@ -10,9 +10,9 @@ from .kinematics import (FourBarGeometry, FourBarMotion, LinkMotion, SliderCrank
 from .matrices import field_matrix, frame_rotation, point_matrix, rigid_element_matrix, spring_matrix
 from .mechanism import FourBarMechanism, Link
 from .post import bending_axial_strain, distortion, soderberg, static_safety_factor, surface_strains, surface_stresses
-from .riccati import chain_product, chain_states, condense_chain
+from .riccati import chain_product, chain_states, condense_chain, factor_chain, sweep_loads
 from .sections import Material, Section
 from .statics import StaticSolution, external_resultant, solve_static
-from .structure import Joint, LoadCase, Member, Structure, solve_linear
+from .structure import Joint, LoadCase, Member, Structure, factorize, solve_factored, solve_linear
 
 __all__ = [name for name in dir() if not name.startswith("_")]

@@ -24,8 +24,8 @@ from typing import Mapping
 import numpy as np
 
 from .errors import BucklingError, InputError, SingularStructureError, require_finite, require_positive
-from .matrices import field_matrix, point_matrix, rigid_element_matrix
-from .riccati import ChainCondensation, chain_states, condense_chain
+from .matrices import F_IDX, field_matrix, frame_rotation, point_matrix, rigid_element_matrix
+from .riccati import ChainFactor, chain_states, factor_chain, load_column, sweep_loads
 from .sections import Material, Section
 
 SUPPORTS = ("free", "pinned", "clamped")
@@ -224,21 +224,20 @@ class LinearSolution:
     joint_displacement: Mapping[str, np.ndarray]  # {joint: (..., 2)} global [m]
 
 
-def _rotation_6(angle):
-    """(..., 6, 6) map of global (X, Y, theta) at both ends to local (u, w, theta)."""
-    c, s = np.cos(angle), np.sin(angle)
-    L = np.zeros(np.shape(angle) + (6, 6))
-    for o in (0, 3):
-        L[..., o, o] = c
-        L[..., o, o + 1] = s
-        L[..., o + 1, o] = -s
-        L[..., o + 1, o + 1] = c
-        L[..., o + 2, o + 2] = 1.0
-    return L
-
-
 def _rotation_3(angle):
-    return _rotation_6(angle)[..., :3, :3]
+    """(..., 3, 3) map of global (X, Y, theta) to a member's local (u, w, theta): the displacement
+    block of the frame rotation from the global frame (angle 0) to the member frame."""
+    T = frame_rotation(-np.asarray(angle, dtype=float))
+    return T[..., :3, :3]
+
+
+def _rotation_6(angle):
+    """(..., 6, 6) block-diagonal version of :func:`_rotation_3` for both member ends."""
+    R = _rotation_3(angle)
+    L = np.zeros(np.shape(angle) + (6, 6))
+    L[..., :3, :3] = R
+    L[..., 3:, 3:] = R
+    return L
 
 
 def clamped_clamped_buckling_count(s) -> np.ndarray:
@@ -272,49 +271,43 @@ def _member_geometry(member: Member, case: LoadCase):
     return np.arctan2(d[..., 1], d[..., 0]), a
 
 
-def _member_matrices(member: Member, case: LoadCase, angle, P, beta):
+def _checked(mapping, member, field, shape_tail):
+    arr = mapping.get(member.name)
+    if arr is None:
+        return None
+    arr = require_finite(f"member '{member.name}': {field}", arr)
+    if arr.shape[-len(shape_tail):] != shape_tail:
+        raise InputError(f"member '{member.name}': {field} must have shape (..., {', '.join(map(str, shape_tail))}), "
+                         f"got {arr.shape}")
+    return arr
+
+
+def _member_matrices(member: Member, case: LoadCase, angle, P, beta, batch):
+    """Point and field matrices of a member (node loads excluded), in chain order."""
     n = member.n_segments
-    batch = np.shape(angle)
     R3 = _rotation_3(angle)           # global -> local for (X, Y, theta)
-    loads = case.node_loads.get(member.name)
-    if loads is None:
-        loads_loc = np.zeros(batch + (n + 1, 3))
-    else:
-        loads = require_finite(f"member '{member.name}': node_loads", loads)
-        if loads.shape[-2:] != (n + 1, 3):
-            raise InputError(f"member '{member.name}': node_loads must have shape (..., {n + 1}, 3), got {loads.shape}")
-        loads_loc = np.einsum("...ij,...nj->...ni", R3, loads)
-    K = case.node_stiffness.get(member.name)
+    K = _checked(case.node_stiffness, member, "node_stiffness", (n + 1, 3, 3))
     if K is not None:
-        K = require_finite(f"member '{member.name}': node_stiffness", K)
-        if K.shape[-3:] != (n + 1, 3, 3):
-            raise InputError(f"member '{member.name}': node_stiffness must have shape (..., {n + 1}, 3, 3), got {K.shape}")
         K = np.einsum("...ij,...njk,...lk->...nil", R3, K, R3)
-    q = case.distributed_loads.get(member.name)
-    if q is None:
-        q_loc = np.zeros(batch + (n, 2))
-    else:
-        q = require_finite(f"member '{member.name}': distributed_loads", q)
-        if q.shape[-2:] != (n, 2):
-            raise InputError(f"member '{member.name}': distributed_loads must have shape (..., {n}, 2), got {q.shape}")
-        q_loc = np.einsum("...ij,...nj->...ni", R3[..., :2, :2], q)
+    q = _checked(case.distributed_loads, member, "distributed_loads", (n, 2))
+    q_loc = (np.zeros(batch + (n, 2)) if q is None
+             else np.einsum("...ij,...nj->...ni", R3[..., :2, :2], q))
 
     L = np.asarray(member.segment_lengths)
-    EA, EI = member.EA, member.EI
     rigid = member.is_rigid
+    points = point_matrix(np.zeros(batch + (n + 1, 3)), K)
+    fields = np.broadcast_to(field_matrix(L, member.EA, member.EI, P, q_loc[..., 1], q_loc[..., 0], beta),
+                             batch + (n, 7, 7))
+    if rigid.any():
+        fields = fields.copy()
+        fields[..., rigid, :, :] = rigid_element_matrix(L[rigid], beta[..., rigid])
     mats, flags = [], []
     for j in range(n + 1):
-        mats.append(point_matrix(loads_loc[..., j, :], None if K is None else K[..., j, :, :]))
+        mats.append(np.broadcast_to(points[..., j, :, :], batch + (7, 7)))
         flags.append(False)
         if j < n:
-            if rigid[j]:
-                mats.append(np.broadcast_to(rigid_element_matrix(L[j], beta[..., j]), batch + (7, 7)))
-                flags.append(False)
-            else:
-                mats.append(np.broadcast_to(
-                    field_matrix(L[j], EA[j], EI[j], P[..., j], q_loc[..., j, 1], q_loc[..., j, 0], beta[..., j]),
-                    batch + (7, 7)))
-                flags.append(True)
+            mats.append(fields[..., j, :, :])
+            flags.append(not rigid[j])
     return mats, flags
 
 
@@ -362,16 +355,46 @@ def _dof_map(structure: Structure):
     return ends, np.array(fixed, dtype=bool), labels
 
 
-def solve_linear(structure: Structure, case: LoadCase, axial_force: Mapping[str, np.ndarray] | None = None,
-                 chord_rotation: Mapping[str, np.ndarray] | None = None, check_buckling: bool = True,
-                 cond_limit: float = 1e12) -> LinearSolution:
-    """Solve the instantaneous structure once, with given segment axial forces and chord rotations.
+@dataclass(frozen=True)
+class MemberFactor:
+    """Factorized member: chain factorization, geometry and the load columns of its matrices."""
+
+    chain: ChainFactor
+    angle: np.ndarray
+    origin: np.ndarray
+    axial_force: np.ndarray
+    chord_rotation: np.ndarray
+    base_columns: tuple       # load columns of the field matrices (distributed loads, chord offsets)
+
+
+@dataclass(frozen=True)
+class StructureFactor:
+    """Load-independent factorization of an instantaneous structure (see :func:`factorize`)."""
+
+    structure: Structure
+    case: LoadCase
+    batch: tuple
+    members: Mapping[str, MemberFactor]
+    stiffness: np.ndarray            # (..., nd, nd) assembled joint stiffness, all DOFs
+    free_inverse: np.ndarray         # (..., nf, nf) inverse of the free-DOF block
+    negative_eigenvalues: np.ndarray  # (...,) inertia count of the whole structure
+    condition: np.ndarray            # (...,) scaled condition number of the free-DOF block
+    ends: Mapping[str, np.ndarray] = field(repr=False, default=None)
+    fixed: np.ndarray = field(repr=False, default=None)
+    labels: tuple = field(repr=False, default=())
+
+
+def factorize(structure: Structure, case: LoadCase, axial_force: Mapping[str, np.ndarray] | None = None,
+              chord_rotation: Mapping[str, np.ndarray] | None = None, check_buckling: bool = True,
+              check_singular: bool = True, cond_limit: float = 1e12) -> StructureFactor:
+    """Factorize the instantaneous structure for the geometry, node stiffness and distributed
+    loads of ``case`` (its ``node_loads`` are ignored here; pass them to :func:`solve_factored`).
 
     ``axial_force`` / ``chord_rotation``: ``{member: (..., n)}``, default 0 (linear theory).
     Raises :class:`SingularStructureError` if the joint system is singular (toggle, an
-    unconstrained joint), and :class:`BucklingError` (if ``check_buckling``) when the stiffness
-    including the axial-force effect has negative eigenvalues, i.e. some member is at or beyond
-    a buckling load.
+    unconstrained joint) and, if ``check_buckling``, :class:`BucklingError` when the stiffness
+    has negative eigenvalues (a member at or beyond a buckling load, or a dynamic stiffness
+    above a natural frequency).
     """
     axial_force = axial_force or {}
     chord_rotation = chord_rotation or {}
@@ -379,72 +402,100 @@ def solve_linear(structure: Structure, case: LoadCase, axial_force: Mapping[str,
     ends, fixed, labels = _dof_map(structure)
     nd = len(labels)
     Kfull = np.zeros(batch + (nd, nd))
-    rfull = np.zeros(batch + (nd,))
     negative = np.zeros(batch, dtype=int)
-    cond_by_member, geo = {}, {}
+    members = {}
     for m in structure.members:
         angle, origin = _member_geometry(m, case)
         angle = np.broadcast_to(angle, batch)
         origin = np.broadcast_to(origin, batch + (2,))
         P = np.broadcast_to(np.asarray(axial_force.get(m.name, 0.0), dtype=float), batch + (m.n_segments,))
         beta = np.broadcast_to(np.asarray(chord_rotation.get(m.name, 0.0), dtype=float), batch + (m.n_segments,))
-        mats, flags = _member_matrices(m, case, angle, P, beta)
-        cond = condense_chain(mats, flags)
+        mats, flags = _member_matrices(m, case, angle, P, beta, batch)
+        chain = factor_chain(mats, flags)
         s = P * np.asarray(m.segment_lengths) ** 2 / m.EI
-        negative = negative + cond.negative_pivots + np.sum(np.where(m.is_rigid, 0, clamped_clamped_buckling_count(s)), -1)
+        negative = negative + chain.negative_pivots + np.sum(
+            np.where(m.is_rigid, 0, clamped_clamped_buckling_count(s)), -1)
         Lam = _rotation_6(angle)
-        Kg = np.swapaxes(Lam, -1, -2) @ cond.stiffness @ Lam
-        rg = np.einsum("...ji,...j->...i", Lam, cond.load)
         idx = ends[m.name]
-        Kfull[..., idx[:, None], idx[None, :]] += Kg
-        rfull[..., idx] += rg
-        cond_by_member[m.name] = cond
-        geo[m.name] = (angle, origin, P, beta)
+        Kfull[..., idx[:, None], idx[None, :]] += np.swapaxes(Lam, -1, -2) @ chain.stiffness @ Lam
+        members[m.name] = MemberFactor(chain, angle, origin, P, beta, tuple(load_column(T) for T in mats))
 
     free = ~fixed
-    Kff = Kfull[..., free[:, None] & free[None, :]].reshape(batch + (free.sum(),) * 2)
+    nf = int(free.sum())
+    Kff = Kfull[..., free[:, None] & free[None, :]].reshape(batch + (nf, nf))
     Kff = 0.5 * (Kff + np.swapaxes(Kff, -1, -2))
     d = np.sqrt(np.abs(np.diagonal(Kff, axis1=-2, axis2=-1)))
-    if np.any(d == 0.0):
+    if check_singular and np.any(d == 0.0):
         dead = [labels[i] for i in np.flatnonzero(free)[np.any(d == 0.0, axis=tuple(range(d.ndim - 1)))]]
         raise SingularStructureError(f"instantaneous structure is singular: no stiffness at DOF(s) {dead}")
-    Ks = Kff / d[..., :, None] / d[..., None, :]
+    dsafe = np.where(d > 0, d, 1.0)
+    Ks = Kff / dsafe[..., :, None] / dsafe[..., None, :]
     eig = np.linalg.eigvalsh(Ks)
     emax = np.max(np.abs(eig), axis=-1)
     emin = np.min(np.abs(eig), axis=-1)
     with np.errstate(divide="ignore"):
         condition = np.where(emin > 0, emax / emin, np.inf)
-    if np.any(~(condition < cond_limit)):
-        worst = np.unravel_index(np.argmax(np.where(np.isfinite(condition), condition, np.inf)), batch) if batch else ()
+    negative = negative + np.sum(eig < 0, axis=-1)
+    if check_singular and np.any(~(condition < cond_limit)):
+        worst = np.unravel_index(np.argmax(condition), batch) if batch else ()
         raise SingularStructureError(
             f"instantaneous structure is singular (scaled condition number {float(np.max(condition)):.3g}"
-            f"{' at batch index ' + str(worst) if batch else ''}): a toggle position (collinear links at a "
-            "revolute), an unconstrained joint, or a member at its buckling load")
-    negative = negative + np.sum(eig < 0, axis=-1)
+            f"{' at batch index ' + str(tuple(int(i) for i in worst)) if batch else ''}): a toggle position "
+            "(collinear links at a revolute), an unconstrained joint, a member at its buckling load, or a "
+            "speed at a natural frequency")
     if check_buckling and np.any(negative > 0):
-        raise BucklingError(_buckling_message(structure, geo, negative, batch))
+        raise BucklingError(_buckling_message(structure, members, negative, batch))
+    inverse = np.linalg.inv(Kff) if check_singular else np.full_like(Kff, np.nan)
+    return StructureFactor(structure, case, batch, members, Kfull, inverse, negative, condition, ends, fixed,
+                           tuple(labels))
 
-    rhs = -rfull[..., free]
-    qf = np.linalg.solve(Kff, rhs[..., None])[..., 0]
+
+def solve_factored(factor: StructureFactor, node_loads: Mapping[str, np.ndarray] | None = None,
+                   frame: str = "global") -> "LinearSolution":
+    """Solve a factorized structure for nodal loads ``{member: (..., n+1, 3)}`` (Fx, Fy, Mz) in
+    the global frame, or (F_u, F_w, M) in each member's local frame with ``frame='local'``."""
+    if frame not in ("global", "local"):
+        raise InputError(f"frame must be 'global' or 'local', got {frame!r}")
+    node_loads = node_loads or {}
+    structure, batch = factor.structure, factor.batch
+    nd = len(factor.labels)
+    free = ~factor.fixed
+    rfull = np.zeros(batch + (nd,))
+    sweeps = {}
+    for m in structure.members:
+        mf = factor.members[m.name]
+        loads = _checked(node_loads, m, "node_loads", (m.n_segments + 1, 3))
+        columns = list(mf.base_columns)
+        if loads is not None:
+            if frame == "global":
+                loads = np.einsum("...ij,...nj->...ni", _rotation_3(mf.angle), loads)
+            for j in range(m.n_segments + 1):
+                col = np.zeros(np.broadcast_shapes(np.shape(columns[2 * j]), loads.shape[:-2] + (6,)))
+                col[...] = columns[2 * j]
+                col[..., F_IDX] -= loads[..., j, :]
+                columns[2 * j] = col
+        sw = sweep_loads(mf.chain, columns)
+        sweeps[m.name] = sw
+        rfull[..., factor.ends[m.name]] += np.einsum("...ji,...j->...i", _rotation_6(mf.angle), sw.load)
+
     q = np.zeros(batch + (nd,))
-    q[..., free] = qf
-    reaction_full = np.einsum("...ij,...j->...i", Kfull, q) + rfull
+    q[..., free] = -np.einsum("...ij,...j->...i", factor.free_inverse, rfull[..., free])
+    reaction_full = np.einsum("...ij,...j->...i", factor.stiffness, q) + rfull
 
     members = {}
     for m in structure.members:
-        angle, origin, P, beta = geo[m.name]
-        Lam = _rotation_6(angle)
-        zl = np.einsum("...ij,...j->...i", Lam, q[..., ends[m.name]])
-        S = chain_states(cond_by_member[m.name], zl[..., :3], zl[..., 3:])
-        state = S[..., :6].reshape(batch + (m.n_segments + 1, 2, 6))
-        members[m.name] = MemberResult(m, angle, origin, state, P, beta)
+        mf = factor.members[m.name]
+        zl = np.einsum("...ij,...j->...i", _rotation_6(mf.angle), q[..., factor.ends[m.name]])
+        S = chain_states(mf.chain, sweeps[m.name], zl[..., :3], zl[..., 3:])
+        state = S.reshape(S.shape[:-2] + (m.n_segments + 1, 2, 6))
+        members[m.name] = MemberResult(m, mf.angle, mf.origin, state, mf.axial_force, mf.chord_rotation)
 
-    index = {lab: i for i, lab in enumerate(labels)}
+    index = {lab: i for i, lab in enumerate(factor.labels)}
     reactions = {}
     for j in structure.joints:
         if j.support == "free":
             continue
-        r = np.zeros(batch + (3,))
+        r = np.zeros(reaction_full.shape[:-1] + (3,))
         r[..., 0] = reaction_full[..., index[(j.name, "x")]]
         r[..., 1] = reaction_full[..., index[(j.name, "y")]]
         if j.support == "clamped":
@@ -452,13 +503,21 @@ def solve_linear(structure: Structure, case: LoadCase, axial_force: Mapping[str,
         reactions[j.name] = r
     joint_disp = {j.name: np.stack([q[..., index[(j.name, "x")]], q[..., index[(j.name, "y")]]], -1)
                   for j in structure.joints}
-    return LinearSolution(structure, case, members, reactions, negative, joint_disp)
+    return LinearSolution(structure, factor.case, members, reactions, factor.negative_eigenvalues, joint_disp)
 
 
-def _buckling_message(structure, geo, negative, batch) -> str:
+def solve_linear(structure: Structure, case: LoadCase, axial_force: Mapping[str, np.ndarray] | None = None,
+                 chord_rotation: Mapping[str, np.ndarray] | None = None, check_buckling: bool = True,
+                 cond_limit: float = 1e12) -> "LinearSolution":
+    """Solve the instantaneous structure once: :func:`factorize` then :func:`solve_factored`."""
+    factor = factorize(structure, case, axial_force, chord_rotation, check_buckling, True, cond_limit)
+    return solve_factored(factor, case.node_loads)
+
+
+def _buckling_message(structure, members, negative, batch) -> str:
     worst_name, worst_ratio, worst_P, worst_Pcr = None, -np.inf, 0.0, 0.0
     for m in structure.members:
-        P = geo[m.name][2]
+        P = members[m.name].axial_force
         Pmin = float(np.min(P)) if P.size else 0.0
         # Pinned-pinned Euler load of the whole member, as an orientation for the user.
         Pcr = float(np.pi**2 * np.min(m.EI) / m.length**2)
