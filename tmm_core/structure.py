@@ -301,14 +301,15 @@ def _member_matrices(member: Member, case: LoadCase, angle, P, beta, batch):
     if rigid.any():
         fields = fields.copy()
         fields[..., rigid, :, :] = rigid_element_matrix(L[rigid], beta[..., rigid])
-    mats, flags = [], []
+    mats, kinds = [], []
+    point_kind = "load" if K is None else "point"
     for j in range(n + 1):
         mats.append(np.broadcast_to(points[..., j, :, :], batch + (7, 7)))
-        flags.append(False)
+        kinds.append(point_kind)
         if j < n:
             mats.append(fields[..., j, :, :])
-            flags.append(not rigid[j])
-    return mats, flags
+            kinds.append("rigid" if rigid[j] else "field")
+    return mats, kinds
 
 
 def _batch_shape(structure: Structure, case: LoadCase):
@@ -410,8 +411,8 @@ def factorize(structure: Structure, case: LoadCase, axial_force: Mapping[str, np
         origin = np.broadcast_to(origin, batch + (2,))
         P = np.broadcast_to(np.asarray(axial_force.get(m.name, 0.0), dtype=float), batch + (m.n_segments,))
         beta = np.broadcast_to(np.asarray(chord_rotation.get(m.name, 0.0), dtype=float), batch + (m.n_segments,))
-        mats, flags = _member_matrices(m, case, angle, P, beta, batch)
-        chain = factor_chain(mats, flags)
+        mats, kinds = _member_matrices(m, case, angle, P, beta, batch)
+        chain = factor_chain(mats, kinds, count_inertia=check_buckling and bool(np.any(P < 0)))
         s = P * np.asarray(m.segment_lengths) ** 2 / m.EI
         negative = negative + chain.negative_pivots + np.sum(
             np.where(m.is_rigid, 0, clamped_clamped_buckling_count(s)), -1)
