@@ -8,8 +8,11 @@ from .errors import (AssemblyError, BucklingError, ConvergenceError, InputError,
 from .kinematics import (FourBarGeometry, FourBarMotion, LinkMotion, SliderCrankGeometry, SliderCrankMotion,
                          fourbar_motion, slider_crank_motion)
 from .matrices import field_matrix, frame_rotation, point_matrix, rigid_element_matrix, spring_matrix
-from .mechanism import FourBarMechanism, Link
-from .post import bending_axial_strain, distortion, soderberg, static_safety_factor, surface_strains, surface_stresses
+from .ked import Coupling, CrankMotion, KEDResult, TimeDomain, quasi_static, rigid_body_loads, time_domain
+from .materials import Damping, StandardLinearSolid
+from .mechanism import FourBarMechanism, Link, PointMass
+from .post import (Gauge, bending_axial_strain, distortion, gauge_strains, soderberg, state_at, static_safety_factor,
+                   surface_strains, surface_stresses)
 from .riccati import chain_product, chain_states, condense_chain, factor_chain, sweep_loads
 from .sections import Material, Section
 from .statics import StaticSolution, external_resultant, solve_static

@@ -13,8 +13,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import InputError
+from .errors import InputError, require_finite, require_nonnegative
 from .kinematics import FourBarGeometry, FourBarMotion, fourbar_motion
+from .materials import Damping, StandardLinearSolid
 from .sections import Material, Section
 from .structure import Joint, LoadCase, Member, Structure
 
@@ -22,18 +23,64 @@ FOURBAR_LINKS = ("crank", "coupler", "rocker")
 
 
 @dataclass(frozen=True)
+class PointMass:
+    """A lumped mass on a link (bearing, sleeve, end block) at ``position_m`` from the link's
+    start joint [m]: ``mass_kg`` [kg] and rotary inertia about its own centre ``inertia_kg_m2``."""
+
+    position_m: float
+    mass_kg: float
+    inertia_kg_m2: float = 0.0
+    label: str = ""
+
+    def __post_init__(self):
+        require_finite(f"point mass '{self.label}': position_m", self.position_m)
+        require_nonnegative(f"point mass '{self.label}': mass_kg", self.mass_kg)
+        require_nonnegative(f"point mass '{self.label}': inertia_kg_m2", self.inertia_kg_m2)
+
+
+@dataclass(frozen=True)
 class Link:
-    """A straight prismatic link: length [m], section, material, number of TMM segments."""
+    """A straight prismatic link: length [m], section, material, number of TMM segments, and its
+    mass model (distributed mass from the material density, plus point masses), damping and an
+    optional viscoelastic material law for the time domain."""
 
     name: str
     length_m: float
     section: Section
     material: Material
     n_segments: int = 8
+    point_masses: tuple = ()
+    damping: Damping = Damping()
+    viscoelastic: StandardLinearSolid | None = None
 
     def member(self, start: str, end: str, **kw) -> Member:
         return Member.uniform(self.name, start, end, self.length_m, self.n_segments, self.section,
                               self.material, **kw)
+
+    @property
+    def stations(self) -> np.ndarray:
+        return np.linspace(0.0, self.length_m, self.n_segments + 1)
+
+    def node_masses(self):
+        """Lumped mass [kg] and rotary inertia [kg m^2] at each node, shape (n+1,) each.
+
+        The distributed mass rho*A is lumped half a segment to each side (Shin); the rotary
+        inertia of the strip itself is neglected (Euler-Bernoulli). Point masses must sit on a node.
+        """
+        n = self.n_segments
+        h = self.length_m / n
+        m = np.full(n + 1, self.material.density_kg_m3 * self.section.area_m2 * h)
+        m[[0, n]] *= 0.5
+        J = np.zeros(n + 1)
+        x = self.stations
+        for pm in self.point_masses:
+            j = int(np.argmin(np.abs(x - pm.position_m)))
+            if abs(x[j] - pm.position_m) > 1e-9 * self.length_m:
+                raise InputError(f"link '{self.name}': point mass '{pm.label}' at {pm.position_m:.6g} m is not at a "
+                                 f"node of the {n}-segment mesh (nodes every {h:.6g} m)")
+            m[j] += pm.mass_kg
+            J[j] += pm.inertia_kg_m2
+        return m, J
 
 
 @dataclass(frozen=True)

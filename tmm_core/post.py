@@ -7,9 +7,12 @@ convention of :mod:`tmm_core.matrices` the surface stress is ``sigma = N/A - M y
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
-from .errors import require_positive
+from .errors import InputError, require_finite, require_positive
+from .matrices import field_matrix
 from .structure import MemberResult
 
 
@@ -84,3 +87,58 @@ def soderberg(stress_history, yield_strength_Pa, endurance_limit_Pa, axis=0):
     inv = np.abs(mean) / Sy + alt / Sn
     with np.errstate(divide="ignore"):
         return np.where(inv > 0, 1.0 / inv, np.inf), mean, alt
+
+
+FACES = ("top", "bottom")
+
+
+@dataclass(frozen=True)
+class Gauge:
+    """A strain gauge on ``link`` at ``position_m`` from the link's start joint, on the local
+    ``face`` ('top' = +y, 'bottom' = -y). Its bending strain is the face's bending strain
+    (positive = tension on the gauged face) and its axial strain the mean strain N/EA."""
+
+    name: str
+    link: str
+    position_m: float
+    face: str = "top"
+
+    def __post_init__(self):
+        if self.face not in FACES:
+            raise InputError(f"gauge '{self.name}': face must be one of {FACES}, got {self.face!r}")
+        require_finite(f"gauge '{self.name}': position_m", self.position_m)
+
+
+def state_at(result: MemberResult, x, distributed=(0.0, 0.0)) -> np.ndarray:
+    """State ``(..., 6)`` = (u, w, theta, M, V, N) at ``x`` [m] along the member, by carrying the
+    right-side state of the node before ``x`` through a partial field matrix (exact within the
+    segment). ``distributed`` = (p, q) local distributed load on that segment [N/m]."""
+    m = result.member
+    st = m.stations
+    if not (-1e-12 * m.length <= x <= m.length * (1 + 1e-12)):
+        raise InputError(f"member '{m.name}': position {x!r} m is outside the member (length {m.length:.6g} m)")
+    j = int(np.clip(np.searchsorted(st, x, side="right") - 1, 0, m.n_segments - 1))
+    dx = float(x - st[j])
+    S = result.state[..., j, 1, :]
+    if dx <= 1e-15 * m.length:
+        return S.copy()
+    f = result.stiffness_factor
+    fj = np.asarray(f)[..., j] if np.ndim(f) else f
+    T = field_matrix(dx, m.EA[j] * fj, m.EI[j] * fj, result.axial_force[..., j], distributed[1], distributed[0],
+                     result.chord_rotation[..., j])
+    return np.einsum("...ij,...j->...i", T[..., :6, :6], S) + T[..., :6, 6]
+
+
+def gauge_strains(result: MemberResult, gauge: Gauge, distributed=(0.0, 0.0)):
+    """``(bending, axial)`` strain [-] at a gauge, arrays over the batch dimensions."""
+    m = result.member
+    S = state_at(result, gauge.position_m, distributed)
+    j = int(np.clip(np.searchsorted(m.stations, gauge.position_m, side="right") - 1, 0, m.n_segments - 1))
+    f = result.stiffness_factor
+    fj = np.asarray(f)[..., j] if np.ndim(f) else f
+    sec, mat = m.sections[j], m.materials[j]
+    curvature = S[..., 3] / (mat.E_Pa * sec.inertia_m4 * fj)
+    sign = -1.0 if gauge.face == "top" else 1.0      # sigma = N/A - M y / I
+    bending = sign * curvature * 0.5 * sec.depth_m
+    axial = S[..., 5] / (mat.E_Pa * sec.area_m2 * fj)
+    return bending, axial

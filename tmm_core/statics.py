@@ -147,11 +147,19 @@ def external_resultant(solution: StaticSolution | LinearSolution, deformed: bool
         m = r.member
         X = r.node_positions + (r.displacement if deformed else 0.0)
         F = np.zeros(r.state.shape[:-2] + (3,))
+        # Rotation local -> global of (x, y, theta) triples, for load cases given in local frames.
+        R3 = np.zeros(r.angle.shape + (3, 3))
+        R3[..., :2, :2] = r.rotation
+        R3[..., 2, 2] = 1.0
+        to_global = case.frame == "local"
         loads = case.node_loads.get(name)
         if loads is not None:
-            F = F + np.asarray(loads)
+            loads = np.asarray(loads)
+            F = F + (np.einsum("...ij,...nj->...ni", R3, loads) if to_global else loads)
         K = case.node_stiffness.get(name)
         if K is not None:
+            if to_global:
+                K = np.einsum("...ij,...njk,...lk->...nil", R3, K, R3)
             dg = np.concatenate([r.displacement, r.theta[..., None]], -1)
             F = F - np.einsum("...nij,...nj->...ni", K, dg)
         mom = F[..., 2] + X[..., 0] * F[..., 1] - X[..., 1] * F[..., 0]

@@ -151,20 +151,29 @@ class Structure:
 
 @dataclass(frozen=True)
 class LoadCase:
-    """Configuration and loads of a structure, all in the global frame, SI, batch-broadcast.
+    """Configuration and loads of a structure, SI, batch-broadcast.
 
     joint_positions : ``{joint: (..., 2)}`` undeformed joint coordinates [m]; they fix each
         member's angle and must match its length.
     node_loads : ``{member: (..., n+1, 3)}`` external (Fx, Fy, Mz) at the member's nodes [N, N, N m].
-    distributed_loads : ``{member: (..., n, 2)}`` (qx, qy) per unit undeformed length [N/m].
+    distributed_loads : ``{member: (..., n, 2)}`` (qx, qy) per unit undeformed length [N/m],
+        always global components.
     node_stiffness : ``{member: (..., n+1, 3, 3)}`` stiffness to ground at the nodes, acting on
-        global (X, Y, theta) displacements [N/m, N m/rad]; a spring exerts ``-K d``.
+        (X, Y, theta) displacements [N/m, N m/rad]; a spring exerts ``-K d``. It need not be
+        symmetric (Coriolis terms of the time-domain analysis).
+    frame : 'global' (default) or 'local': the frame of ``node_loads`` and ``node_stiffness``;
+        'local' means each member's own frame, (u, w, theta) and (F_u, F_w, M).
     """
 
     joint_positions: Mapping[str, np.ndarray]
     node_loads: Mapping[str, np.ndarray] = field(default_factory=dict)
     distributed_loads: Mapping[str, np.ndarray] = field(default_factory=dict)
     node_stiffness: Mapping[str, np.ndarray] = field(default_factory=dict)
+    frame: str = "global"
+
+    def __post_init__(self):
+        if self.frame not in ("global", "local"):
+            raise InputError(f"load case frame must be 'global' or 'local', got {self.frame!r}")
 
 
 @dataclass(frozen=True)
@@ -178,6 +187,7 @@ class MemberResult:
     state: np.ndarray
     axial_force: np.ndarray    # (..., n) segment axial force used in the field matrices [N]
     chord_rotation: np.ndarray  # (..., n) segment chord rotation used [rad]
+    stiffness_factor: np.ndarray | float = 1.0  # multiplier of EA and EI used (effective moduli)
 
     u = property(lambda self: self.state[..., 0, 0], doc="axial displacement [m], (..., n+1)")
     w = property(lambda self: self.state[..., 0, 1], doc="transverse displacement [m], (..., n+1)")
@@ -282,12 +292,13 @@ def _checked(mapping, member, field, shape_tail):
     return arr
 
 
-def _member_matrices(member: Member, case: LoadCase, angle, P, beta, batch):
-    """Point and field matrices of a member (node loads excluded), in chain order."""
+def _member_matrices(member: Member, case: LoadCase, angle, P, beta, batch, factor=1.0):
+    """Point and field matrices of a member (node loads excluded), in chain order.
+    ``factor`` ``(..., n)`` scales EA and EI of the segments (effective moduli)."""
     n = member.n_segments
     R3 = _rotation_3(angle)           # global -> local for (X, Y, theta)
     K = _checked(case.node_stiffness, member, "node_stiffness", (n + 1, 3, 3))
-    if K is not None:
+    if K is not None and case.frame == "global":
         K = np.einsum("...ij,...njk,...lk->...nil", R3, K, R3)
     q = _checked(case.distributed_loads, member, "distributed_loads", (n, 2))
     q_loc = (np.zeros(batch + (n, 2)) if q is None
@@ -296,8 +307,8 @@ def _member_matrices(member: Member, case: LoadCase, angle, P, beta, batch):
     L = np.asarray(member.segment_lengths)
     rigid = member.is_rigid
     points = point_matrix(np.zeros(batch + (n + 1, 3)), K)
-    fields = np.broadcast_to(field_matrix(L, member.EA, member.EI, P, q_loc[..., 1], q_loc[..., 0], beta),
-                             batch + (n, 7, 7))
+    fields = np.broadcast_to(field_matrix(L, member.EA * factor, member.EI * factor, P, q_loc[..., 1],
+                                          q_loc[..., 0], beta), batch + (n, 7, 7))
     if rigid.any():
         fields = fields.copy()
         fields[..., rigid, :, :] = rigid_element_matrix(L[rigid], beta[..., rigid])
@@ -366,6 +377,7 @@ class MemberFactor:
     axial_force: np.ndarray
     chord_rotation: np.ndarray
     base_columns: tuple       # load columns of the field matrices (distributed loads, chord offsets)
+    stiffness_factor: np.ndarray | float = 1.0
 
 
 @dataclass(frozen=True)
@@ -387,11 +399,21 @@ class StructureFactor:
 
 def factorize(structure: Structure, case: LoadCase, axial_force: Mapping[str, np.ndarray] | None = None,
               chord_rotation: Mapping[str, np.ndarray] | None = None, check_buckling: bool = True,
-              check_singular: bool = True, cond_limit: float = 1e12) -> StructureFactor:
+              check_singular: bool = True, cond_limit: float = 1e12,
+              stiffness_factor: Mapping[str, np.ndarray] | None = None,
+              field_matrices: Mapping[str, np.ndarray] | None = None,
+              count_inertia: bool | None = None) -> StructureFactor:
     """Factorize the instantaneous structure for the geometry, node stiffness and distributed
     loads of ``case`` (its ``node_loads`` are ignored here; pass them to :func:`solve_factored`).
 
     ``axial_force`` / ``chord_rotation``: ``{member: (..., n)}``, default 0 (linear theory).
+    ``stiffness_factor``: ``{member: (..., n) or scalar}`` multiplies the segments' EA and EI
+    (effective moduli of damping and viscoelasticity in the time domain), default 1.
+    ``field_matrices``: ``{member: (..., n, 7, 7)}`` replaces the static field matrices (the
+    frequency search passes distributed-mass dynamic field matrices); the caller then accounts
+    for the segments' own clamped-clamped eigenvalues.
+    ``count_inertia``: count the negative eigenvalues of the stiffness (Wittrick-Williams);
+    default: when some segment is compressed and ``check_buckling`` is set.
     Raises :class:`SingularStructureError` if the joint system is singular (toggle, an
     unconstrained joint) and, if ``check_buckling``, :class:`BucklingError` when the stiffness
     has negative eigenvalues (a member at or beyond a buckling load, or a dynamic stiffness
@@ -399,6 +421,7 @@ def factorize(structure: Structure, case: LoadCase, axial_force: Mapping[str, np
     """
     axial_force = axial_force or {}
     chord_rotation = chord_rotation or {}
+    stiffness_factor = stiffness_factor or {}
     batch = _batch_shape(structure, case)
     ends, fixed, labels = _dof_map(structure)
     nd = len(labels)
@@ -411,26 +434,36 @@ def factorize(structure: Structure, case: LoadCase, axial_force: Mapping[str, np
         origin = np.broadcast_to(origin, batch + (2,))
         P = np.broadcast_to(np.asarray(axial_force.get(m.name, 0.0), dtype=float), batch + (m.n_segments,))
         beta = np.broadcast_to(np.asarray(chord_rotation.get(m.name, 0.0), dtype=float), batch + (m.n_segments,))
-        mats, kinds = _member_matrices(m, case, angle, P, beta, batch)
-        chain = factor_chain(mats, kinds, count_inertia=check_buckling and bool(np.any(P < 0)))
-        s = P * np.asarray(m.segment_lengths) ** 2 / m.EI
-        negative = negative + chain.negative_pivots + np.sum(
-            np.where(m.is_rigid, 0, clamped_clamped_buckling_count(s)), -1)
+        factor = np.asarray(stiffness_factor.get(m.name, 1.0), dtype=float)
+        mats, kinds = _member_matrices(m, case, angle, P, beta, batch, factor)
+        override = None if field_matrices is None else field_matrices.get(m.name)
+        if override is not None:
+            override = np.broadcast_to(override, batch + (m.n_segments, 7, 7))
+            for j in range(m.n_segments):
+                mats[2 * j + 1] = override[..., j, :, :]
+        count = (check_buckling and bool(np.any(P < 0))) if count_inertia is None else count_inertia
+        chain = factor_chain(mats, kinds, count_inertia=count)
+        negative = negative + chain.negative_pivots
+        if override is None:
+            s = P * np.asarray(m.segment_lengths) ** 2 / (m.EI * factor)
+            negative = negative + np.sum(np.where(m.is_rigid, 0, clamped_clamped_buckling_count(s)), -1)
         Lam = _rotation_6(angle)
         idx = ends[m.name]
         Kfull[..., idx[:, None], idx[None, :]] += np.swapaxes(Lam, -1, -2) @ chain.stiffness @ Lam
-        members[m.name] = MemberFactor(chain, angle, origin, P, beta, tuple(load_column(T) for T in mats))
+        members[m.name] = MemberFactor(chain, angle, origin, P, beta, tuple(load_column(T) for T in mats), factor)
 
     free = ~fixed
     nf = int(free.sum())
     Kff = Kfull[..., free[:, None] & free[None, :]].reshape(batch + (nf, nf))
-    Kff = 0.5 * (Kff + np.swapaxes(Kff, -1, -2))
+    # The stiffness is symmetric except for rotating-frame (Coriolis, angular-acceleration) node
+    # terms; its symmetric part decides stability and the inertia count, the full matrix is solved.
+    Ksym = 0.5 * (Kff + np.swapaxes(Kff, -1, -2))
     d = np.sqrt(np.abs(np.diagonal(Kff, axis1=-2, axis2=-1)))
     if check_singular and np.any(d == 0.0):
         dead = [labels[i] for i in np.flatnonzero(free)[np.any(d == 0.0, axis=tuple(range(d.ndim - 1)))]]
         raise SingularStructureError(f"instantaneous structure is singular: no stiffness at DOF(s) {dead}")
     dsafe = np.where(d > 0, d, 1.0)
-    Ks = Kff / dsafe[..., :, None] / dsafe[..., None, :]
+    Ks = Ksym / dsafe[..., :, None] / dsafe[..., None, :]
     eig = np.linalg.eigvalsh(Ks)
     emax = np.max(np.abs(eig), axis=-1)
     emin = np.min(np.abs(eig), axis=-1)
@@ -458,7 +491,9 @@ def solve_factored(factor: StructureFactor, node_loads: Mapping[str, np.ndarray]
     if frame not in ("global", "local"):
         raise InputError(f"frame must be 'global' or 'local', got {frame!r}")
     node_loads = node_loads or {}
-    structure, batch = factor.structure, factor.batch
+    structure = factor.structure
+    # Loads may carry extra batch entries that broadcast against the factor's batch (influence maps).
+    batch = np.broadcast_shapes(factor.batch, *(np.shape(v)[:-2] for v in node_loads.values()))
     nd = len(factor.labels)
     free = ~factor.fixed
     rfull = np.zeros(batch + (nd,))
@@ -489,7 +524,8 @@ def solve_factored(factor: StructureFactor, node_loads: Mapping[str, np.ndarray]
         zl = np.einsum("...ij,...j->...i", _rotation_6(mf.angle), q[..., factor.ends[m.name]])
         S = chain_states(mf.chain, sweeps[m.name], zl[..., :3], zl[..., 3:])
         state = S.reshape(S.shape[:-2] + (m.n_segments + 1, 2, 6))
-        members[m.name] = MemberResult(m, mf.angle, mf.origin, state, mf.axial_force, mf.chord_rotation)
+        members[m.name] = MemberResult(m, mf.angle, mf.origin, state, mf.axial_force, mf.chord_rotation,
+                                       mf.stiffness_factor)
 
     index = {lab: i for i, lab in enumerate(factor.labels)}
     reactions = {}
@@ -509,10 +545,11 @@ def solve_factored(factor: StructureFactor, node_loads: Mapping[str, np.ndarray]
 
 def solve_linear(structure: Structure, case: LoadCase, axial_force: Mapping[str, np.ndarray] | None = None,
                  chord_rotation: Mapping[str, np.ndarray] | None = None, check_buckling: bool = True,
-                 cond_limit: float = 1e12) -> "LinearSolution":
+                 cond_limit: float = 1e12, stiffness_factor: Mapping[str, np.ndarray] | None = None) -> "LinearSolution":
     """Solve the instantaneous structure once: :func:`factorize` then :func:`solve_factored`."""
-    factor = factorize(structure, case, axial_force, chord_rotation, check_buckling, True, cond_limit)
-    return solve_factored(factor, case.node_loads)
+    factor = factorize(structure, case, axial_force, chord_rotation, check_buckling, True, cond_limit,
+                       stiffness_factor)
+    return solve_factored(factor, case.node_loads, frame=case.frame)
 
 
 def _buckling_message(structure, members, negative, batch) -> str:

@@ -1,0 +1,554 @@
+"""Kineto-elastodynamics (KED) of a flexible four-bar by the transfer-matrix method.
+
+The rigid-body motion is prescribed by the crank motion (closed-form kinematics); the elastic
+deformation of the links is superposed on it (Shin ch. 6, Wang, the FE crank-rocker thesis).
+
+Mass model (per link, :meth:`tmm_core.mechanism.Link.node_masses`): the distributed mass lumped
+to the nodes, plus point masses (bearings, end blocks with rotary inertia).
+
+Quasi-static analysis (Shin's kineto-elastostatics): at every crank position the instantaneous
+structure carries the rigid-body D'Alembert loads ``-m a_P`` and ``-J alpha``; all positions are
+solved in one batched call.
+
+Time-domain analysis: the elastic motion adds inertia ``m (q_ddot + coupling)`` at every lumped
+mass. With an implicit integrator (:mod:`tmm_core.integrators`) each step is again a static
+solution of the instantaneous structure, with a "dynamic stiffness" ``m c_a`` at each mass and
+history loads (Shin Eq. 3.47). In the link's rotating frame the elastic acceleration of a mass
+is (local components, link angular speed w and acceleration alpha)::
+
+    a_u = u_ddot - 2 w w_dot - w^2 u - alpha w
+    a_w = w_ddot + 2 w u_dot - w^2 w + alpha u
+
+Shin and Wang keep only ``u_ddot, w_ddot``; the Coriolis (2 w), centrifugal (w^2, the -theta_dot^2 [MD]
+term of the FE thesis, notes seed002 §2.5) and angular-acceleration (alpha) terms are switched on
+with :class:`Coupling`. Centrifugal *stiffening* of bending comes from the axial forces of the
+rigid-body inertia loads, i.e. from the beam-column coupling (``beam_column=True``).
+
+Damping (per link, Rayleigh) and the standard-linear-solid material act through effective moduli
+in the field matrices plus history loads computed from the exact segment stiffness
+(:func:`tmm_core.riccati.segment_stiffness`).
+
+Speed: a step is linear in its loads, so for every distinct crank position the solver stores
+the dense maps from nodal loads to nodal displacements, drive torque and gauge strains
+(computed once, batched over positions, by pushing unit loads through the Riccati
+factorization). A constant-speed run re-uses the maps of one revolution; other crank histories
+are processed in chunks.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Callable, Mapping, Sequence
+
+import numpy as np
+import scipy.sparse as sp
+
+from .errors import InputError, require_finite, require_positive
+from .integrators import get_integrator
+from .kinematics import FourBarMotion
+from .matrices import field_matrix
+from .mechanism import FourBarMechanism
+from .post import Gauge, gauge_strains
+from .riccati import segment_stiffness
+from .statics import solve_static
+from .structure import LoadCase, factorize, solve_factored
+
+GRAVITY = 9.80665
+
+
+@dataclass(frozen=True)
+class Coupling:
+    """Rotating-frame terms that Shin and Wang dropped (FE crank-rocker thesis, notes §2.5)."""
+
+    coriolis: bool = False
+    centrifugal: bool = False
+    angular_acceleration: bool = False
+
+    @classmethod
+    def all(cls) -> "Coupling":
+        return cls(True, True, True)
+
+    @property
+    def any(self) -> bool:
+        return self.coriolis or self.centrifugal or self.angular_acceleration
+
+
+@dataclass(frozen=True)
+class CrankMotion:
+    """Prescribed crank motion at each time step: time [s], angle [rad], speed [rad/s],
+    acceleration [rad/s^2] (angle from the ground line, CCW positive). Times are
+    ``t0 + k*dt`` for an integer step count k."""
+
+    t: np.ndarray
+    angle: np.ndarray
+    speed: np.ndarray
+    acceleration: np.ndarray
+
+    def __post_init__(self):
+        n = len(self.t)
+        for name in ("t", "angle", "speed", "acceleration"):
+            arr = require_finite(f"crank motion {name}", getattr(self, name))
+            if arr.shape != (n,):
+                raise InputError(f"crank motion {name} must have shape ({n},), got {arr.shape}")
+        if n < 2:
+            raise InputError(f"crank motion needs at least 2 steps, got {n}")
+        dt = np.diff(self.t)
+        if np.any(dt <= 0):
+            raise InputError("crank motion times must increase strictly")
+        if np.max(np.abs(dt - dt[0])) > 1e-9 * dt[0]:
+            raise InputError("crank motion times must be uniform (t0 + k dt)")
+
+    @property
+    def dt(self) -> float:
+        return float(self.t[1] - self.t[0])
+
+    @classmethod
+    def constant_speed(cls, speed_rad_s: float, *, step_s: float | None = None, step_deg: float | None = None,
+                       revolutions: float = 1.0, start_angle: float = 0.0, t0: float = 0.0) -> "CrankMotion":
+        """Constant crank speed. Give the step in seconds or as a crank-angle increment in degrees."""
+        w = float(require_finite("crank speed_rad_s", speed_rad_s))
+        if w == 0.0:
+            raise InputError("crank speed_rad_s must be non-zero for a time-domain run")
+        if (step_s is None) == (step_deg is None):
+            raise InputError("give exactly one of step_s and step_deg")
+        dt = float(require_positive("step_s", step_s)) if step_s is not None else \
+            math.radians(float(require_positive("step_deg", step_deg))) / abs(w)
+        require_positive("revolutions", revolutions)
+        n = int(round(revolutions * 2 * math.pi / (abs(w) * dt))) + 1
+        k = np.arange(n)
+        t = t0 + k * dt
+        return cls(t, start_angle + w * (t - t0), np.full(n, w), np.zeros(n))
+
+    def steps_per_revolution(self) -> int | None:
+        """Steps per revolution if the speed is constant and a revolution is a whole number of steps."""
+        if np.any(self.acceleration != 0) or np.any(self.speed != self.speed[0]):
+            return None
+        n = 2 * math.pi / (abs(self.speed[0]) * self.dt)
+        return int(round(n)) if abs(n - round(n)) < 1e-6 and round(n) >= 2 else None
+
+
+@dataclass(frozen=True)
+class QuasiStaticResult:
+    """Quasi-static (kineto-elastostatic) response at a set of crank positions."""
+
+    motion: FourBarMotion
+    solution: object                 # StaticSolution over the positions
+    drive_torque: np.ndarray         # (n,) moment applied to the crank by the drive [N m], CCW +
+    gauges: Mapping[str, tuple]      # {gauge: (bending, axial)} strains [-], (n,) each
+
+
+@dataclass(frozen=True)
+class KEDResult:
+    """Time history of a time-domain run. Every array has one entry per step."""
+
+    t: np.ndarray
+    crank_angle: np.ndarray
+    crank_speed: np.ndarray
+    crank_acceleration: np.ndarray
+    drive_torque: np.ndarray                  # [N m], CCW +, moment applied to the crank at its pivot
+    gauges: Mapping[str, tuple]               # {gauge: (bending, axial)} strains [-]
+    displacements: Mapping[str, np.ndarray]   # {link: (steps, n+1, 3)} local (u, w, theta) [m, m, rad]
+    steady: bool                              # steady-state criterion met
+    cycle_change: float                       # last revolution-to-revolution change (relative)
+    revolutions: float
+    integrator: str
+    info: dict = field(default_factory=dict)
+
+
+def _node_mass_arrays(mech: FourBarMechanism):
+    out = {}
+    for link in mech.links():
+        m, J = link.node_masses()
+        out[link.name] = (m, J)
+    return out
+
+
+def rigid_body_loads(mech: FourBarMechanism, motion: FourBarMotion, gravity=None, frame: str = "global"):
+    """D'Alembert loads ``(-m a_P, -J alpha)`` (+ gravity ``m g``) at every node of every link,
+    ``{link: (..., n+1, 3)}`` in the global frame or each link's local frame."""
+    g = np.zeros(2) if gravity is None else np.asarray(gravity, dtype=float)
+    out = {}
+    for link in mech.links():
+        m, J = link.node_masses()
+        lm = motion.link(link.name)
+        _, _, acc = lm.point(link.stations)
+        F = np.zeros(acc.shape[:-1] + (3,))
+        F[..., :2] = m[:, None] * (g - acc)
+        F[..., 2] = -J * lm.alpha[..., None]
+        if frame == "local":
+            c, s = np.cos(lm.angle)[..., None], np.sin(lm.angle)[..., None]
+            F[..., 0], F[..., 1] = c * F[..., 0] + s * F[..., 1], -s * F[..., 0] + c * F[..., 1]
+        out[link.name] = F
+    return out
+
+
+def _coupling_stiffness(mech, motion, coupling: Coupling, c_a=0.0, c_v=0.0, mass_damping=None):
+    """Local node stiffness ``{link: (..., n+1, 3, 3)}`` of inertia and rotating-frame terms."""
+    out = {}
+    for link in mech.links():
+        m, J = link.node_masses()
+        lm = motion.link(link.name)
+        w, al = lm.omega[..., None], lm.alpha[..., None]
+        aM = link.damping.mass_per_s if mass_damping is None else mass_damping
+        K = np.zeros(np.shape(lm.omega) + (link.n_segments + 1, 3, 3))
+        diag = m * (c_a + aM * c_v - (w**2 if coupling.centrifugal else 0.0))
+        cross = m * ((2.0 * w * c_v if coupling.coriolis else 0.0) + (al if coupling.angular_acceleration else 0.0))
+        K[..., 0, 0] = diag
+        K[..., 1, 1] = diag
+        K[..., 0, 1] = -cross
+        K[..., 1, 0] = cross
+        K[..., 2, 2] = J * (c_a + aM * c_v)
+        out[link.name] = K
+    return out
+
+
+def quasi_static(mech: FourBarMechanism, crank_angle, crank_speed, crank_acceleration=0.0, *, beam_column: bool = True,
+                 coupling: Coupling = Coupling(), gravity=None, gauges: Sequence[Gauge] = (),
+                 tol: float = 1e-10) -> QuasiStaticResult:
+    """Kineto-elastostatic response at the crank positions ``crank_angle`` (array), vectorised.
+
+    ``beam_column``: iterate on the segment axial forces (Shin). ``coupling``: the centrifugal
+    and angular-acceleration terms act as stiffness to ground in the rotating frame (Coriolis has
+    no quasi-static effect). A speed at which ``K - w^2 M`` is singular raises
+    :class:`tmm_core.errors.SingularStructureError`.
+    """
+    motion = mech.motion(crank_angle, crank_speed, crank_acceleration)
+    loads = rigid_body_loads(mech, motion, gravity)
+    stiffness = _coupling_stiffness(mech, motion, Coupling(False, coupling.centrifugal, coupling.angular_acceleration),
+                                    mass_damping=0.0) if coupling.any else {}
+    # The node stiffness above is isotropic or skew in (u, w): the same in every frame.
+    case = mech.load_case(motion, loads, None, stiffness)
+    try:
+        sol = solve_static(mech.structure(), case, beam_column=beam_column, tol=tol)
+    except Exception as exc:
+        if coupling.centrifugal and type(exc).__name__ in ("SingularStructureError", "BucklingError"):
+            raise type(exc)(f"{exc}; with the centrifugal term on, a crank speed of "
+                            f"{float(np.max(np.abs(crank_speed))):.6g} rad/s may be at a natural frequency") from None
+        raise
+    torque = sol.reaction_moment("A")
+    out = {g.name: gauge_strains(sol.members[g.link], g) for g in gauges}
+    return QuasiStaticResult(motion, sol, torque, out)
+
+
+class TimeDomain:
+    """Time-domain analysis of a four-bar under a prescribed crank motion.
+
+    Parameters
+    ----------
+    mech : the mechanism (links carry their mass model, damping and viscoelastic law).
+    integrator : 'newmark' (average acceleration) or 'houbolt' (Shin).
+    coupling : rotating-frame terms, see :class:`Coupling`.
+    beam_column : use the quasi-static axial force of each crank position in the field
+        matrices (the centrifugal stiffening of the links); the small dynamic part of the
+        axial force is not fed back.
+    gravity : gravity vector [m/s^2] in the mechanism plane, or None.
+    gauges : gauges whose strains are recorded.
+    max_map_bytes : memory budget for the stored load-to-response maps; above it each step
+        runs the Riccati load sweep instead (same result, slower).
+    """
+
+    def __init__(self, mech: FourBarMechanism, *, integrator: str = "newmark", coupling: Coupling = Coupling(),
+                 beam_column: bool = True, gravity=None, gauges: Sequence[Gauge] = (),
+                 max_map_bytes: float = 400e6):
+        self.mech = mech
+        self.integrator = get_integrator(integrator)
+        self.coupling = coupling
+        self.beam_column = beam_column
+        self.gravity = None if gravity is None else np.asarray(gravity, dtype=float)
+        self.gauges = tuple(gauges)
+        for g in self.gauges:
+            if g.link not in {l.name for l in mech.links()}:
+                raise InputError(f"gauge '{g.name}': unknown link '{g.link}'")
+        self.max_map_bytes = max_map_bytes
+        self.structure = mech.structure()
+        self.links = mech.links()
+        # Node layout: every link's nodes, local (u, w, theta), concatenated.
+        self.offsets, off = {}, 0
+        for link in self.links:
+            self.offsets[link.name] = off
+            off += 3 * (link.n_segments + 1)
+        self.n_dof = off
+        masses = _node_mass_arrays(mech)
+        self.m_vec = np.concatenate([np.repeat(masses[l.name][0], 3) * np.tile([1.0, 1.0, 0.0], l.n_segments + 1)
+                                     + np.repeat(masses[l.name][1], 3) * np.tile([0.0, 0.0, 1.0], l.n_segments + 1)
+                                     for l in self.links])
+        self.aM_vec = np.concatenate([np.full(3 * (l.n_segments + 1), l.damping.mass_per_s) for l in self.links])
+        self._build_segment_operators()
+
+    # -- material history operators -------------------------------------------------------
+    def _build_segment_operators(self):
+        """Sparse operators on the node vector: gather of segment end displacements, the block
+        diagonal of segment stiffnesses (material, at the material's E), and per-link scalars."""
+        rows, blocks = [], []
+        self.damping_beta = np.zeros(self.n_dof)
+        seg_link = []
+        for link in self.links:
+            n = link.n_segments
+            m = link.member("s", "e")
+            K, _ = segment_stiffness(field_matrix(np.asarray(m.segment_lengths), m.EA, m.EI))
+            off = self.offsets[link.name]
+            for j in range(n):
+                rows.append(off + 3 * j + np.arange(6))
+                blocks.append(K[j])
+                seg_link.append(link.name)
+        self.n_seg = len(blocks)
+        cols = np.concatenate(rows)
+        self.gather = sp.csr_matrix((np.ones(len(cols)), (np.arange(len(cols)), cols)), shape=(len(cols), self.n_dof))
+        self.seg_K = sp.block_diag(blocks, format="csr")
+        self.seg_link = np.repeat(np.array(seg_link), 6)
+        # Material stiffness in local frames, assembled member by member (no joint coupling needed:
+        # the history loads are computed per member and applied at its own nodes).
+        self.K_local = (self.gather.T @ self.seg_K @ self.gather).tocsr()
+
+    def _link_factor(self, c_v: float, dt: float):
+        """Effective-modulus factor of each link and the per-step viscoelastic coefficients."""
+        factors, visco = {}, {}
+        for link in self.links:
+            f = 1.0 + link.damping.stiffness_s * c_v
+            if link.viscoelastic is not None:
+                sls = link.viscoelastic
+                decay, g = sls.step_coefficients(dt)
+                E = link.material.E_Pa
+                f = (sls.relaxed_modulus_Pa + g * sls.maxwell_modulus_Pa) / E + link.damping.stiffness_s * c_v
+                visco[link.name] = (decay, g * sls.maxwell_modulus_Pa / E)
+            factors[link.name] = f
+        return factors, visco
+
+    # -- per-configuration maps -------------------------------------------------------------
+    def _configurations(self, angle, speed, accel, dt):
+        """Factorize the instantaneous structures of a batch of crank states and return the
+        affine maps from nodal loads (local, stacked) to nodal displacements, drive torque and
+        gauge strains."""
+        mech = self.mech
+        motion = mech.motion(angle, speed, accel)
+        c_a, c_v = self.integrator.coefficients(dt)
+        Kn = _coupling_stiffness(mech, motion, self.coupling, c_a, c_v)
+        factors, _ = self._link_factor(c_v, dt)
+        P = None
+        if self.beam_column:
+            # The axial forces only enter the field matrices: 1e-8 relative is ample.
+            qs = quasi_static(mech, angle, speed, accel, beam_column=True, coupling=Coupling(), gravity=self.gravity,
+                              tol=1e-8)
+            P = {k: r.axial_force for k, r in qs.solution.members.items()}
+        # Batch (B, 1): the second axis carries the unit loads. Gravity acts through the lumped
+        # node masses (rigid_body_loads), like every other inertial load.
+        joints = {k: v[:, None, :] for k, v in {"A": motion.A, "B": motion.B, "C": motion.C, "D": motion.D}.items()}
+        case = LoadCase(joints, {}, {}, {k: v[:, None] for k, v in Kn.items()}, frame="local")
+        factor = factorize(self.structure, case, None if P is None else {k: v[:, None] for k, v in P.items()},
+                           check_buckling=False, stiffness_factor=factors)
+        loads_local = rigid_body_loads(mech, motion, self.gravity, frame="local")
+        B = len(angle)
+        n_bytes = 8.0 * B * self.n_dof * (self.n_dof + 1 + 2 * len(self.gauges))
+        if n_bytes > self.max_map_bytes:
+            return {"factor": factor, "rigid": self._stack(loads_local), "motion": motion, "maps": None}
+        unit = {}
+        for link in self.links:
+            n1 = link.n_segments + 1
+            U = np.zeros((self.n_dof, n1, 3))
+            off = self.offsets[link.name]
+            U[off:off + 3 * n1].reshape(n1, 3, n1, 3)[np.arange(n1), :, np.arange(n1), :] = np.eye(3)
+            unit[link.name] = U
+        # Unit loads plus one zero-load column (the response to gravity and other base loads).
+        unit = {k: np.concatenate([v, np.zeros((1,) + v.shape[1:])])[None] for k, v in unit.items()}
+        sol = solve_factored(factor, unit, frame="local")
+        z = np.concatenate([sol.members[l.name].state[..., 0, :3].reshape(B, self.n_dof + 1, -1) for l in self.links],
+                           axis=-1)                                    # (B, loads+1, n_dof)
+        torque = sol.reactions["A"][..., 2]                            # (B, loads+1)
+        g_out = [np.stack(gauge_strains(sol.members[g.link], g), -1) for g in self.gauges]
+        outs = np.concatenate([torque[..., None]] + g_out, axis=-1) if g_out else torque[..., None]
+        maps = {"Z": np.ascontiguousarray(np.swapaxes(z[:, :-1] - z[:, -1:], 1, 2)), "z0": z[:, -1],
+                "O": np.ascontiguousarray(np.swapaxes(outs[:, :-1] - outs[:, -1:], 1, 2)), "o0": outs[:, -1]}
+        return {"factor": factor, "rigid": self._stack(loads_local), "motion": motion, "maps": maps}
+
+    def _stack(self, per_link):
+        return np.concatenate([per_link[l.name].reshape(per_link[l.name].shape[:-2] + (-1,)) for l in self.links], -1)
+
+    def _solve_one(self, cfg, k, loads):
+        """Response to the stacked local loads at configuration index k (map or sweep)."""
+        maps = cfg["maps"]
+        if maps is not None:
+            return maps["Z"][k] @ loads + maps["z0"][k], maps["O"][k] @ loads + maps["o0"][k]
+        node_loads = {l.name: loads[self.offsets[l.name]:self.offsets[l.name] + 3 * (l.n_segments + 1)]
+                      .reshape(l.n_segments + 1, 3)[None, None] for l in self.links}
+        factor = _select(cfg["factor"], k)
+        sol = solve_factored(factor, node_loads, frame="local")
+        z = np.concatenate([sol.members[l.name].state[..., 0, :3].reshape(-1) for l in self.links])
+        out = [sol.reactions["A"][..., 2].reshape(())]
+        for g in self.gauges:
+            b, a = gauge_strains(sol.members[g.link], g)
+            out += [b.reshape(()), a.reshape(())]
+        return z, np.array(out)
+
+    # -- marching -----------------------------------------------------------------------------
+    def run(self, crank: CrankMotion, *, start: str = "rest", steady_tol: float | None = None,
+            min_revolutions: int = 2, record_displacements: bool = True,
+            callback: Callable[[int, float], bool] | None = None, chunk: int = 720) -> KEDResult:
+        """March through the crank history.
+
+        ``start``: 'rest' (zero elastic state, Shin) or 'quasi_static' (elastic state of the
+        quasi-static solution at the first positions). ``steady_tol``: stop when the
+        revolution-to-revolution change of the drive torque and gauge strains, relative to their
+        peak-to-peak, falls below it (needs a constant-speed history); the change is reported.
+        ``callback(step, t)`` returning False stops the run early (partial results kept).
+        """
+        if start not in ("rest", "quasi_static"):
+            raise InputError(f"start must be 'rest' or 'quasi_static', got {start!r}")
+        dt = crank.dt
+        n_steps = len(crank.t)
+        integ = self.integrator
+        c_a, c_v = integ.coefficients(dt)
+        _, visco = self._link_factor(c_v, dt)
+        N = crank.steps_per_revolution()
+        if steady_tol is not None:
+            require_positive("steady_tol", steady_tol)
+            if N is None:
+                raise InputError("steady_tol needs a constant-speed crank history with a whole number of steps per "
+                                 "revolution")
+
+        d0 = v0 = a0 = np.zeros(self.n_dof)
+        previous = (d0, d0)
+        if start == "quasi_static":
+            d0, v0, a0, previous = self._quasi_static_start(crank)
+        state = integ.initial(d0, v0, a0, previous)
+        # Outputs of step 0: the quasi-static state for a quasi-static start; from rest the links
+        # are undeformed (zero strain) and the drive torque is the rigid-body one.
+        qs0 = quasi_static(self.mech, crank.angle[:1], crank.speed[:1], crank.acceleration[:1],
+                           beam_column=self.beam_column, gravity=self.gravity, gauges=self.gauges)
+        first_out = np.concatenate([qs0.drive_torque] + [np.r_[b, a] for b, a in qs0.gauges.values()])
+        if start == "rest":
+            first_out[1:] = 0.0
+        q_sls = np.zeros(6 * self.n_seg)
+        visco_decay = np.ones(6 * self.n_seg)
+        visco_gain = np.zeros(6 * self.n_seg)
+        for name, (decay, gain) in visco.items():
+            sel = self.seg_link == name
+            visco_decay[sel], visco_gain[sel] = decay, gain
+        beta_vec = np.concatenate([np.full(3 * (l.n_segments + 1), l.damping.stiffness_s) for l in self.links])
+        has_visco = bool(visco)
+        has_kv = bool(np.any(beta_vec > 0))
+
+        n_out = 1 + 2 * len(self.gauges)
+        outputs = np.full((n_steps, n_out), np.nan)
+        disp = np.full((n_steps, self.n_dof), np.nan) if record_displacements else None
+        # Coriolis cross terms need each node's link speed: u rows take w-velocity history and back.
+        is_u = np.tile([True, False, False], self.n_dof // 3)
+        is_w = np.tile([False, True, False], self.n_dof // 3)
+
+        cfg, cfg_start, cfg_len = None, -1, 0
+        steady, change, done = False, float("nan"), n_steps
+        last_rev = None
+        for k in range(n_steps):
+            if N is not None:
+                idx = k % N
+                if cfg is None:
+                    cfg = self._configurations(crank.angle[:N], crank.speed[:N], crank.acceleration[:N], dt)
+            else:
+                if cfg is None or k >= cfg_start + cfg_len:
+                    cfg_start, cfg_len = k, min(chunk, n_steps - k)
+                    sl = slice(k, k + cfg_len)
+                    cfg = self._configurations(crank.angle[sl], crank.speed[sl], crank.acceleration[sl], dt)
+                idx = k - cfg_start
+            if k == 0:
+                z, out = state["d"], first_out
+            else:
+                loads = self._loads(cfg, idx, state, dt, beta_vec, has_kv, q_sls, visco_decay, visco_gain, has_visco,
+                                    is_u, is_w)
+                z, out = self._solve_one(cfg, idx, loads)
+                if has_visco:
+                    q_sls = visco_decay * q_sls + visco_gain * (self.seg_K @ (self.gather @ (z - state["d"])))
+                state = integ.advance(state, z, dt)
+            outputs[k] = out
+            if disp is not None:
+                disp[k] = z
+            if not np.all(np.isfinite(out)):
+                raise InputError(f"time-domain solution became non-finite at step {k} (t = {crank.t[k]:.6g} s)")
+            if N is not None and k >= N and (k + 1) % N == 0 and (k + 1) // N >= min_revolutions:
+                rev = outputs[k + 1 - N:k + 1]
+                prev = outputs[k + 1 - 2 * N:k + 1 - N]
+                ptp = np.maximum(np.ptp(rev, axis=0), 1e-300)
+                change = float(np.max(np.max(np.abs(rev - prev), axis=0) / ptp))
+                if steady_tol is not None and change < steady_tol:
+                    steady, done = True, k + 1
+                    break
+            if callback is not None and callback(k, float(crank.t[k])) is False:
+                done = k + 1
+                break
+
+        sl = slice(0, done)
+        gauges = {g.name: (outputs[sl, 1 + 2 * i], outputs[sl, 2 + 2 * i]) for i, g in enumerate(self.gauges)}
+        displacements = {}
+        if disp is not None:
+            for l in self.links:
+                off = self.offsets[l.name]
+                displacements[l.name] = disp[sl, off:off + 3 * (l.n_segments + 1)].reshape(done, l.n_segments + 1, 3)
+        revs = (crank.angle[done - 1] - crank.angle[0]) / (2 * math.pi)
+        return KEDResult(crank.t[sl], crank.angle[sl], crank.speed[sl], crank.acceleration[sl], outputs[sl, 0],
+                         gauges, displacements, steady, change, abs(float(revs)), integ.name,
+                         {"dt_s": dt, "steps": done, "steps_per_revolution": N, "start": start,
+                          "maps": cfg["maps"] is not None if cfg else None})
+
+    def _loads(self, cfg, idx, state, dt, beta_vec, has_kv, q_sls, decay, gain, has_visco, is_u, is_w):
+        """Stacked local nodal loads of a step: D'Alembert, inertia history, material history."""
+        m = self.m_vec
+        loads = cfg["rigid"][idx].copy()
+        h_a, h_v = self.integrator.history(state, dt)
+        loads -= m * (h_a + self.aM_vec * h_v)
+        if self.coupling.coriolis:
+            w = self._node_omega(cfg, idx)
+            hv_w = np.roll(h_v, -1)   # at u rows: the w-velocity history of the same node
+            hv_u = np.roll(h_v, 1)    # at w rows: the u-velocity history of the same node
+            loads += np.where(is_u, 2.0 * m * w * hv_w, 0.0) - np.where(is_w, 2.0 * m * w * hv_u, 0.0)
+        if has_kv:
+            loads -= beta_vec * (self.K_local @ h_v)
+        if has_visco:
+            loads -= self.gather.T @ (decay * q_sls - gain * (self.seg_K @ (self.gather @ state["d"])))
+        return loads
+
+    def _node_omega(self, cfg, idx):
+        motion = cfg["motion"]
+        return np.concatenate([np.full(3 * (l.n_segments + 1), float(motion.link(l.name).omega[idx]))
+                               for l in self.links])
+
+    def _quasi_static_start(self, crank: CrankMotion):
+        """Elastic state of the quasi-static solution at the first crank positions."""
+        dt = crank.dt
+        th, w, a = crank.angle[0], crank.speed[0], crank.acceleration[0]
+        angles = th + np.array([-2.0, -1.0, 0.0, 1.0]) * w * dt
+        qs = quasi_static(self.mech, angles, w, a, beam_column=self.beam_column, coupling=Coupling(),
+                          gravity=self.gravity)
+        z = np.concatenate([qs.solution.members[l.name].state[:, :, 0, :3].reshape(4, -1) for l in self.links], -1)
+        d2, d1, d0, dp = z
+        v0 = (dp - d1) / (2 * dt)
+        a0 = (dp - 2 * d0 + d1) / dt**2
+        return d0, v0, a0, (d1, d2)
+
+
+def _select(factor, k):
+    """One configuration of a factor with batch (B, 1), for the sweep fallback."""
+    import dataclasses
+
+    def take(x):
+        if isinstance(x, np.ndarray) and x.ndim >= 2 and x.shape[0] == factor.batch[0] and x.shape[1] == 1:
+            return x[k:k + 1]
+        if isinstance(x, tuple):
+            return tuple(take(v) for v in x)
+        if isinstance(x, list):
+            return [take(v) for v in x]
+        if isinstance(x, dict):
+            return {kk: take(v) for kk, v in x.items()}
+        if dataclasses.is_dataclass(x) and not isinstance(x, type):
+            return dataclasses.replace(x, **{f.name: take(getattr(x, f.name)) for f in dataclasses.fields(x)
+                                            if f.name not in ("structure", "case")})
+        return x
+
+    out = take(factor)
+    return dataclasses.replace(out, batch=(1, 1))
+
+
+def time_domain(mech: FourBarMechanism, crank: CrankMotion, **kw) -> KEDResult:
+    """Convenience wrapper: ``TimeDomain(mech, ...).run(crank, ...)``; keyword arguments are split
+    between the constructor and :meth:`TimeDomain.run`."""
+    run_keys = {"start", "steady_tol", "min_revolutions", "record_displacements", "callback", "chunk"}
+    run_kw = {k: v for k, v in kw.items() if k in run_keys}
+    init_kw = {k: v for k, v in kw.items() if k not in run_keys}
+    return TimeDomain(mech, **init_kw).run(crank, **run_kw)
