@@ -181,7 +181,7 @@ def fourbar_frequencies(mech: FourBarMechanism, crank_angle, n_modes: int = 4, f
         masses[link.name] = (m - dist, J)
     wmax = 2 * np.pi * f_max_Hz
     for i in range(len(angles)):
-        joints = {"A": motion.A[i], "B": motion.B[i], "C": motion.C[i], "D": motion.D[i]}
+        joints = {k: v[i] for k, v in mech.joint_positions(motion).items()}
         model = frequency_model(mech.structure(), joints, wmax, {k: v[0] for k, v in masses.items()},
                                 {k: v[1] for k, v in masses.items()}, axial_force)
         f = natural_frequencies(model, n_modes, wmax, rtol)

@@ -43,11 +43,11 @@ from typing import Callable, Mapping, Sequence
 import numpy as np
 import scipy.sparse as sp
 
-from .errors import InputError, require_finite, require_positive
+from .errors import InputError, SingularStructureError, require_finite, require_positive
 from .integrators import get_integrator
 from .kinematics import FourBarMotion
 from .matrices import field_matrix
-from .mechanism import FourBarMechanism
+from .mechanism import FourBarMechanism, StaticMechanism
 from .post import Gauge, gauge_strains
 from .riccati import segment_stiffness
 from .statics import solve_static
@@ -121,7 +121,7 @@ class CrankMotion:
 
     def steps_per_revolution(self) -> int | None:
         """Steps per revolution if the speed is constant and a revolution is a whole number of steps."""
-        if np.any(self.acceleration != 0) or np.any(self.speed != self.speed[0]):
+        if np.any(self.acceleration != 0) or np.any(self.speed != self.speed[0]) or self.speed[0] == 0:
             return None
         n = 2 * math.pi / (abs(self.speed[0]) * self.dt)
         return int(round(n)) if abs(n - round(n)) < 1e-6 and round(n) >= 2 else None
@@ -168,6 +168,7 @@ def rigid_body_loads(mech: FourBarMechanism, motion: FourBarMotion, gravity=None
     ``{link: (..., n+1, 3)}`` in the global frame or each link's local frame."""
     g = np.zeros(2) if gravity is None else np.asarray(gravity, dtype=float)
     out = {}
+    applied = mech.external_loads(motion)
     for link in mech.links():
         m, J = link.node_masses()
         lm = motion.link(link.name)
@@ -175,6 +176,8 @@ def rigid_body_loads(mech: FourBarMechanism, motion: FourBarMotion, gravity=None
         F = np.zeros(acc.shape[:-1] + (3,))
         F[..., :2] = m[:, None] * (g - acc)
         F[..., 2] = -J * lm.alpha[..., None]
+        if link.name in applied:
+            F = F + applied[link.name]
         if frame == "local":
             c, s = np.cos(lm.angle)[..., None], np.sin(lm.angle)[..., None]
             F[..., 0], F[..., 1] = c * F[..., 0] + s * F[..., 1], -s * F[..., 0] + c * F[..., 1]
@@ -219,13 +222,17 @@ def quasi_static(mech: FourBarMechanism, crank_angle, crank_speed, crank_acceler
     # The node stiffness above is isotropic or skew in (u, w): the same in every frame.
     case = mech.load_case(motion, loads, None, stiffness)
     try:
-        sol = solve_static(mech.structure(), case, beam_column=beam_column, tol=tol)
-    except Exception as exc:
-        if coupling.centrifugal and type(exc).__name__ in ("SingularStructureError", "BucklingError"):
-            raise type(exc)(f"{exc}; with the centrifugal term on, a crank speed of "
-                            f"{float(np.max(np.abs(crank_speed))):.6g} rad/s may be at a natural frequency") from None
-        raise
-    torque = sol.reaction_moment("A")
+        sol = solve_static(mech.structure(), case, beam_column=beam_column, tol=tol,
+                           count_inertia=True if coupling.centrifugal else None)
+    except SingularStructureError as exc:
+        if not coupling.centrifugal:
+            raise
+        speed = float(np.max(np.abs(crank_speed)))
+        raise SingularStructureError(
+            f"crank speed {speed:.6g} rad/s ({speed / (2 * np.pi):.6g} Hz) is at or above a natural frequency of the "
+            f"instantaneous structure: with the centrifugal term its stiffness K - w^2 M is no longer positive "
+            f"definite ({exc})") from None
+    torque = sol.reaction_moment(mech.drive_joint)
     out = {g.name: gauge_strains(sol.members[g.link], g) for g in gauges}
     return QuasiStaticResult(motion, sol, torque, out)
 
@@ -332,7 +339,7 @@ class TimeDomain:
             P = {k: r.axial_force for k, r in qs.solution.members.items()}
         # Batch (B, 1): the second axis carries the unit loads. Gravity acts through the lumped
         # node masses (rigid_body_loads), like every other inertial load.
-        joints = {k: v[:, None, :] for k, v in {"A": motion.A, "B": motion.B, "C": motion.C, "D": motion.D}.items()}
+        joints = {k: v[:, None, :] for k, v in mech.joint_positions(motion).items()}
         case = LoadCase(joints, {}, {}, {k: v[:, None] for k, v in Kn.items()}, frame="local")
         factor = factorize(self.structure, case, None if P is None else {k: v[:, None] for k, v in P.items()},
                            check_buckling=False, stiffness_factor=factors)
@@ -353,12 +360,16 @@ class TimeDomain:
         sol = solve_factored(factor, unit, frame="local")
         z = np.concatenate([sol.members[l.name].state[..., 0, :3].reshape(B, self.n_dof + 1, -1) for l in self.links],
                            axis=-1)                                    # (B, loads+1, n_dof)
-        torque = sol.reactions["A"][..., 2]                            # (B, loads+1)
+        torque = sol.reactions[mech.drive_joint][..., 2]               # (B, loads+1)
         g_out = [np.stack(gauge_strains(sol.members[g.link], g), -1) for g in self.gauges]
         outs = np.concatenate([torque[..., None]] + g_out, axis=-1) if g_out else torque[..., None]
         maps = {"Z": np.ascontiguousarray(np.swapaxes(z[:, :-1] - z[:, -1:], 1, 2)), "z0": z[:, -1],
                 "O": np.ascontiguousarray(np.swapaxes(outs[:, :-1] - outs[:, -1:], 1, 2)), "o0": outs[:, -1]}
         return {"factor": factor, "rigid": self._stack(loads_local), "motion": motion, "maps": maps}
+
+    def stack(self, per_link):
+        """Stack per-link arrays ``{link: (..., n+1, 3)}`` into the node vector ``(..., n_dof)``."""
+        return self._stack(per_link)
 
     def _stack(self, per_link):
         return np.concatenate([per_link[l.name].reshape(per_link[l.name].shape[:-2] + (-1,)) for l in self.links], -1)
@@ -373,7 +384,7 @@ class TimeDomain:
         factor = _select(cfg["factor"], k)
         sol = solve_factored(factor, node_loads, frame="local")
         z = np.concatenate([sol.members[l.name].state[..., 0, :3].reshape(-1) for l in self.links])
-        out = [sol.reactions["A"][..., 2].reshape(())]
+        out = [sol.reactions[self.mech.drive_joint][..., 2].reshape(())]
         for g in self.gauges:
             b, a = gauge_strains(sol.members[g.link], g)
             out += [b.reshape(()), a.reshape(())]
@@ -382,7 +393,8 @@ class TimeDomain:
     # -- marching -----------------------------------------------------------------------------
     def run(self, crank: CrankMotion, *, start: str = "rest", steady_tol: float | None = None,
             min_revolutions: int = 2, record_displacements: bool = True,
-            callback: Callable[[int, float], bool] | None = None, chunk: int = 720) -> KEDResult:
+            callback: Callable[[int, float], bool] | None = None, chunk: int = 720,
+            initial: Mapping[str, np.ndarray] | None = None) -> KEDResult:
         """March through the crank history.
 
         ``start``: 'rest' (zero elastic state, Shin) or 'quasi_static' (elastic state of the
@@ -390,9 +402,15 @@ class TimeDomain:
         revolution-to-revolution change of the drive torque and gauge strains, relative to their
         peak-to-peak, falls below it (needs a constant-speed history); the change is reported.
         ``callback(step, t)`` returning False stops the run early (partial results kept).
+        ``initial``: explicit initial state instead of ``start``: ``{'d', 'v', 'a', 'previous'}``
+        with stacked local node vectors (see :attr:`offsets`) and ``previous = (d_-1, d_-2)``.
         """
         if start not in ("rest", "quasi_static"):
             raise InputError(f"start must be 'rest' or 'quasi_static', got {start!r}")
+        if initial is not None:
+            for key in ("d", "v", "a"):
+                if np.shape(initial.get(key)) != (self.n_dof,):
+                    raise InputError(f"initial['{key}'] must have shape ({self.n_dof},)")
         dt = crank.dt
         n_steps = len(crank.t)
         integ = self.integrator
@@ -405,19 +423,27 @@ class TimeDomain:
                 raise InputError("steady_tol needs a constant-speed crank history with a whole number of steps per "
                                  "revolution")
 
-        d0 = v0 = a0 = np.zeros(self.n_dof)
+        d0 = v0 = np.zeros(self.n_dof)
         previous = (d0, d0)
-        if start == "quasi_static":
+        if initial is not None:
+            d0, v0, a0 = (np.asarray(initial[k], dtype=float) for k in ("d", "v", "a"))
+            previous = initial.get("previous", (d0, d0))
+        elif start == "quasi_static":
             d0, v0, a0, previous = self._quasi_static_start(crank)
+        else:
+            # Consistent initial acceleration from rest: M a0 = F(t0) (Newmark and generalized-alpha
+            # are only first order otherwise; Houbolt does not use it).
+            first = self._configurations(crank.angle[:1], crank.speed[:1], crank.acceleration[:1], dt)
+            a0 = self._rest_acceleration(first["rigid"][0], first["motion"])
         state = integ.initial(d0, v0, a0, previous)
+        q_sls = np.zeros(6 * self.n_seg)
         # Outputs of step 0: the quasi-static state for a quasi-static start; from rest the links
         # are undeformed (zero strain) and the drive torque is the rigid-body one.
         qs0 = quasi_static(self.mech, crank.angle[:1], crank.speed[:1], crank.acceleration[:1],
                            beam_column=self.beam_column, gravity=self.gravity, gauges=self.gauges)
         first_out = np.concatenate([qs0.drive_torque] + [np.r_[b, a] for b, a in qs0.gauges.values()])
-        if start == "rest":
+        if start == "rest" and initial is None:
             first_out[1:] = 0.0
-        q_sls = np.zeros(6 * self.n_seg)
         visco_decay = np.ones(6 * self.n_seg)
         visco_gain = np.zeros(6 * self.n_seg)
         for name, (decay, gain) in visco.items():
@@ -426,6 +452,13 @@ class TimeDomain:
         beta_vec = np.concatenate([np.full(3 * (l.n_segments + 1), l.damping.stiffness_s) for l in self.links])
         has_visco = bool(visco)
         has_kv = bool(np.any(beta_vec > 0))
+        if has_visco and start == "quasi_static":
+            # Instantaneous elastic state: the Maxwell arms carry (E_0 - E_inf)/E * K d_0.
+            e1 = np.zeros(6 * self.n_seg)
+            for link in self.links:
+                if link.viscoelastic is not None:
+                    e1[self.seg_link == link.name] = link.viscoelastic.maxwell_modulus_Pa / link.material.E_Pa
+            q_sls = e1 * (self.seg_K @ (self.gather @ d0))
 
         n_out = 1 + 2 * len(self.gauges)
         outputs = np.full((n_steps, n_out), np.nan)
@@ -503,6 +536,38 @@ class TimeDomain:
         if has_visco:
             loads -= self.gather.T @ (decay * q_sls - gain * (self.seg_K @ (self.gather @ state["d"])))
         return loads
+
+    def _rest_acceleration(self, loads, motion):
+        """Accelerations of the lumped masses under ``loads`` (stacked local) with the structure at
+        rest and undeformed: each mass alone, except at joints, where all member ends share the
+        translation (and, for rigid connections, the rotation); supported DOFs stay at rest."""
+        m = self.m_vec
+        a = np.divide(loads, m, out=np.zeros_like(loads), where=m > 0)
+        structure = self.structure
+        for joint in structure.joints:
+            ends = []
+            for link, member in zip(self.links, structure.members):
+                n = link.n_segments
+                if member.start == joint.name:
+                    ends.append((link, self.offsets[link.name], member.start_connection))
+                if member.end == joint.name:
+                    ends.append((link, self.offsets[link.name] + 3 * n, member.end_connection))
+            F, M_sum = np.zeros(2), 0.0
+            for link, i, _ in ends:
+                c, s_ = np.cos(motion.link(link.name).angle[0]), np.sin(motion.link(link.name).angle[0])
+                R = np.array([[c, -s_], [s_, c]])           # local -> global
+                F += R @ loads[i:i + 2]
+                M_sum += m[i]
+            acc = F / M_sum if M_sum > 0 and joint.support == "free" else np.zeros(2)
+            rigid = [e for e in ends if e[2] == "rigid"]
+            J_sum = sum(m[i + 2] for _, i, _ in rigid)
+            Mz = sum(loads[i + 2] for _, i, _ in rigid)
+            for link, i, conn in ends:
+                c, s_ = np.cos(motion.link(link.name).angle[0]), np.sin(motion.link(link.name).angle[0])
+                a[i:i + 2] = np.array([[c, s_], [-s_, c]]) @ acc
+                if conn == "rigid":
+                    a[i + 2] = Mz / J_sum if J_sum > 0 and joint.support != "clamped" else 0.0
+        return a
 
     def _node_omega(self, cfg, idx):
         motion = cfg["motion"]

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .errors import InputError, require_finite, require_nonnegative
-from .kinematics import FourBarGeometry, FourBarMotion, fourbar_motion
+from .kinematics import FourBarGeometry, FourBarMotion, LinkMotion, fourbar_motion
 from .materials import Damping, StandardLinearSolid
 from .sections import Material, Section
 from .structure import Joint, LoadCase, Member, Structure
@@ -52,6 +52,13 @@ class Link:
     point_masses: tuple = ()
     damping: Damping = Damping()
     viscoelastic: StandardLinearSolid | None = None
+
+    def __post_init__(self):
+        if self.viscoelastic is not None and not np.isclose(self.material.E_Pa,
+                                                           self.viscoelastic.instantaneous_modulus_Pa, rtol=1e-9):
+            raise InputError(f"link '{self.name}': material E_Pa ({self.material.E_Pa:.6g}) must equal the "
+                             f"viscoelastic instantaneous_modulus_Pa ({self.viscoelastic.instantaneous_modulus_Pa:.6g}): "
+                             "quasi-static and frequency analyses use the instantaneous modulus")
 
     def member(self, start: str, end: str, **kw) -> Member:
         return Member.uniform(self.name, start, end, self.length_m, self.n_segments, self.section,
@@ -119,11 +126,19 @@ class FourBarMechanism:
     def motion(self, crank_angle, crank_speed=0.0, crank_acceleration=0.0) -> FourBarMotion:
         return fourbar_motion(self.geometry, crank_angle, crank_speed, crank_acceleration)
 
+    drive_joint = "A"
+
+    def joint_positions(self, motion: FourBarMotion):
+        return {"A": motion.A, "B": motion.B, "C": motion.C, "D": motion.D}
+
+    def external_loads(self, motion):
+        """Applied loads besides inertia and gravity: none on a bare four-bar."""
+        return {}
+
     def load_case(self, motion: FourBarMotion, node_loads=None, distributed_loads=None,
                   node_stiffness=None) -> LoadCase:
         """Load case at the positions of ``motion``; loads are ``{link: array}`` as in :class:`LoadCase`."""
-        positions = {"A": motion.A, "B": motion.B, "C": motion.C, "D": motion.D}
-        return LoadCase(positions, dict(node_loads or {}), dict(distributed_loads or {}),
+        return LoadCase(self.joint_positions(motion), dict(node_loads or {}), dict(distributed_loads or {}),
                         dict(node_stiffness or {}))
 
     def gravity_loads(self, g=(0.0, -9.80665)):
@@ -133,3 +148,60 @@ class FourBarMechanism:
             w = link.material.density_kg_m3 * link.section.area_m2
             out[link.name] = np.broadcast_to(w * np.asarray(g, dtype=float), (link.n_segments, 2)).copy()
         return out
+
+
+@dataclass(frozen=True)
+class StaticMechanism:
+    """A structure whose links do not move: the kineto-elastodynamic machinery then solves
+    creep, step-load and free-vibration problems of any structure built from :class:`Link` s.
+
+    ``members``: tuples ``(link, start_joint, end_joint, start_connection, end_connection)``;
+    ``joints``: :class:`tmm_core.structure.Joint` s; ``positions``: joint coordinates [m];
+    ``loads``: constant applied loads ``{link: (n+1, 3)}`` (global Fx, Fy, Mz), switched on at t = 0.
+    The "drive torque" reported is the reaction moment at ``drive_joint``.
+    """
+
+    members: tuple
+    joints: tuple
+    positions: dict
+    loads: dict = None
+    drive_joint: str = "A"
+
+    def links(self):
+        return tuple(m[0] for m in self.members)
+
+    def structure(self) -> Structure:
+        return Structure(tuple(self.joints), tuple(link.member(a, b, start_connection=ca, end_connection=cb)
+                                                   for link, a, b, ca, cb in self.members))
+
+    def motion(self, crank_angle, crank_speed=0.0, crank_acceleration=0.0):
+        shape = np.shape(np.broadcast_arrays(np.asarray(crank_angle, float), np.asarray(crank_speed, float),
+                                             np.asarray(crank_acceleration, float))[0])
+        return _StaticMotion(self, shape)
+
+    def joint_positions(self, motion):
+        return {k: np.broadcast_to(np.asarray(v, dtype=float), motion.shape + (2,)) for k, v in self.positions.items()}
+
+    def external_loads(self, motion):
+        return {k: np.broadcast_to(np.asarray(v, dtype=float), motion.shape + np.shape(v))
+                for k, v in (self.loads or {}).items()}
+
+    def load_case(self, motion, node_loads=None, distributed_loads=None, node_stiffness=None) -> LoadCase:
+        return LoadCase(self.joint_positions(motion), dict(node_loads or {}), dict(distributed_loads or {}),
+                        dict(node_stiffness or {}))
+
+
+@dataclass(frozen=True)
+class _StaticMotion:
+    mech: StaticMechanism
+    shape: tuple
+
+    def link(self, name: str) -> LinkMotion:
+        for link, a, b, _, _ in self.mech.members:
+            if link.name == name:
+                pa = np.broadcast_to(np.asarray(self.mech.positions[a], float), self.shape + (2,))
+                pb = np.asarray(self.mech.positions[b], float)
+                ang = np.broadcast_to(np.arctan2(pb[1] - pa[..., 1], pb[0] - pa[..., 0]), self.shape)
+                z2, z = np.zeros(self.shape + (2,)), np.zeros(self.shape)
+                return LinkMotion(pa, z2, z2, ang, z, z)
+        raise InputError(f"unknown link '{name}'")

@@ -97,7 +97,8 @@ def _change(new: LinearSolution, old: LinearSolution) -> float:
 
 
 def solve_static(structure: Structure, case: LoadCase, *, beam_column: bool = False,
-                 large_deflection: bool = False, tol: float = 1e-10, max_iter: int = 200) -> StaticSolution:
+                 large_deflection: bool = False, tol: float = 1e-10, max_iter: int = 200,
+                 count_inertia: bool | None = None) -> StaticSolution:
     """Static solution of an instantaneous structure.
 
     ``beam_column``: iterate on segment axial forces (small deflection, Shin §3.3.1).
@@ -105,17 +106,18 @@ def solve_static(structure: Structure, case: LoadCase, *, beam_column: bool = Fa
     ``tol``: relative change of displacements and forces between iterations that ends the
     iteration. Raises :class:`ConvergenceError` after ``max_iter`` iterations, and
     :class:`tmm_core.errors.BucklingError` if in beam-column mode a member reaches its
-    buckling load.
+    buckling load. ``count_inertia=True`` checks every solve for negative stiffness (the
+    spin-softening check of the quasi-static analysis).
     """
     mode = "large_deflection" if large_deflection else ("beam_column" if beam_column else "linear")
-    lin = solve_linear(structure, case)
+    lin = solve_linear(structure, case, count_inertia=count_inertia)
     if mode == "linear":
         return StaticSolution(lin, mode, 1, 0.0)
     relax = 1.0
     prev_change = np.inf
     P, beta = _update(lin, large_deflection)
     for it in range(2, max_iter + 1):
-        new = solve_linear(structure, case, P, beta, check_buckling=not large_deflection)
+        new = solve_linear(structure, case, P, beta, check_buckling=not large_deflection, count_inertia=count_inertia)
         change = _change(new, lin)
         if not np.isfinite(change):
             raise ConvergenceError(f"{mode} iteration produced non-finite values at iteration {it}")

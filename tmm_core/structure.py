@@ -545,10 +545,11 @@ def solve_factored(factor: StructureFactor, node_loads: Mapping[str, np.ndarray]
 
 def solve_linear(structure: Structure, case: LoadCase, axial_force: Mapping[str, np.ndarray] | None = None,
                  chord_rotation: Mapping[str, np.ndarray] | None = None, check_buckling: bool = True,
-                 cond_limit: float = 1e12, stiffness_factor: Mapping[str, np.ndarray] | None = None) -> "LinearSolution":
+                 cond_limit: float = 1e12, stiffness_factor: Mapping[str, np.ndarray] | None = None,
+                 count_inertia: bool | None = None) -> "LinearSolution":
     """Solve the instantaneous structure once: :func:`factorize` then :func:`solve_factored`."""
     factor = factorize(structure, case, axial_force, chord_rotation, check_buckling, True, cond_limit,
-                       stiffness_factor)
+                       stiffness_factor, count_inertia=count_inertia)
     return solve_factored(factor, case.node_loads, frame=case.frame)
 
 
