@@ -4,7 +4,8 @@ Mechanism (Shin 1986, §8.3; notes seed000 §7.2): crank 4, coupler 11, rocker 1
 1 in wide aluminium strip, crank 0.167 in and coupler/rocker 0.063 in thick.
 
 Assumptions (not given by the source): E = 10.3e6 psi and weight density 0.1 lb/in^3, typical
-of 6061 aluminium; the strengths 90 ksi / 45 ksi are Shin's. The example load is a static
+of 6061 aluminium; the strengths 90 ksi / 45 ksi are Shin's. The bearing masses only matter
+for inertia loads and are left out of this static example. The example load is a static
 force at the coupler midpoint plus self-weight; the crank pivot is clamped (it carries the drive
 torque) and the rocker pivot is pinned.
 
@@ -14,34 +15,17 @@ Run: ``python -m scenarios.static_fourbar [--crank-angle 30] [--load 10] [--mode
 from __future__ import annotations
 
 import argparse
-import csv
-import json
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
 
-from cosim.units import INCH, PSI, POUND_FORCE
-from tmm_core import (FourBarMechanism, Link, Material, Section, TMMError, external_resultant, solve_static,
-                      surface_stresses)
-
-LOG_ROOT = Path(__file__).resolve().parent.parent / "logs"
-
-
-def alexander_lawrence(n_segments: int = 8) -> FourBarMechanism:
-    aluminium = Material("aluminium (assumed 6061)", 10.3e6 * PSI, density_kg_m3=0.1 * POUND_FORCE / 9.80665 / INCH**3,
-                         yield_strength_Pa=90e3 * PSI, endurance_limit_Pa=45e3 * PSI)
-    thin = Section.rectangle(1.0 * INCH, 0.063 * INCH)
-    thick = Section.rectangle(1.0 * INCH, 0.167 * INCH)
-    return FourBarMechanism(Link("crank", 4.0 * INCH, thick, aluminium, n_segments),
-                            Link("coupler", 11.0 * INCH, thin, aluminium, n_segments),
-                            Link("rocker", 10.5 * INCH, thin, aluminium, n_segments),
-                            ground_m=10.0 * INCH)
-
+from cosim.runlog import run_folder, write_csv, write_json
+from scenarios.rigs import alexander_lawrence
+from tmm_core import TMMError, external_resultant, solve_static, surface_stresses
 
 def run(crank_angle_deg: float, load_N: float, mode: str, n_segments: int, out_dir: Path | None) -> dict:
-    fb = alexander_lawrence(n_segments)
+    fb = alexander_lawrence(n_segments, bearing_lb=0.0)
     motion = fb.motion(np.radians(crank_angle_deg))
     loads = np.zeros((n_segments + 1, 3))
     loads[n_segments // 2, 1] = -load_N
@@ -85,12 +69,8 @@ def run(crank_angle_deg: float, load_N: float, mode: str, n_segments: int, out_d
           f"min safety factor {worst['safety_factor']:.3g} ({worst['link']} node {worst['node']})")
 
     if out_dir is not None:
-        out_dir.mkdir(parents=True, exist_ok=True)
-        with open(out_dir / "nodes.csv", "w", newline="") as fh:
-            writer = csv.DictWriter(fh, fieldnames=list(rows[0]))
-            writer.writeheader()
-            writer.writerows(rows)
-        (out_dir / "summary.json").write_text(json.dumps(summary, indent=2))
+        write_csv(out_dir / "nodes.csv", rows)
+        write_json(out_dir / "summary.json", summary)
         print(f"wrote {out_dir / 'nodes.csv'} and {out_dir / 'summary.json'}")
     return summary
 
@@ -104,9 +84,8 @@ def main(argv=None) -> int:
     parser.add_argument("--out", type=Path, default=None,
                         help="output folder (default logs/static_fourbar-<timestamp>)")
     args = parser.parse_args(argv)
-    out = args.out or LOG_ROOT / f"static_fourbar-{time.strftime('%Y%m%d-%H%M%S')}"
     try:
-        run(args.crank_angle, args.load, args.mode, args.segments, out)
+        run(args.crank_angle, args.load, args.mode, args.segments, run_folder("static_fourbar", args.out))
     except TMMError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2

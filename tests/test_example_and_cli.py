@@ -22,7 +22,7 @@ def test_static_example_writes_results(tmp_path, capsys):
 def test_static_example_bad_input_gives_one_line_error(tmp_path, capsys):
     assert static_fourbar.main(["--segments", "0", "--out", str(tmp_path)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and err[0].startswith("error: member 'crank': n_segments")
+    assert len(err) == 1 and err[0].startswith("error: link 'crank': n_segments")
 
 
 def test_cosim_version_and_list():
@@ -30,3 +30,28 @@ def test_cosim_version_and_list():
     assert out.returncode == 0 and out.stdout.startswith("cosim ")
     out = subprocess.run([sys.executable, "-m", "cosim.cli", "list"], capture_output=True, text=True, cwd=ROOT)
     assert out.returncode == 0 and "static_fourbar" in out.stdout
+
+
+def test_fe_crank_rocker_peaks_are_written_for_every_speed(tmp_path):
+    from scenarios import fe_crank_rocker_ked
+    assert fe_crank_rocker_ked.main(["--segments", "4", "--step-deg", "2", "--max-revolutions", "20",
+                                     "--out", str(tmp_path)]) == 0
+    data = json.loads((tmp_path / "peaks.json").read_text())
+    rows = data["peaks"]
+    assert {(r["rpm"], r["gauge"]) for r in rows} == {(s, g) for s in (95.0, 241.0, 373.0)
+                                                       for g in ("coupler_mid", "rocker_mid")}
+    for r in rows:
+        for key in ("bending_max_ue", "bending_min_ue", "axial_max_ue", "axial_min_ue"):
+            assert isinstance(r[key], float) and abs(r[key]) < 1e5
+        assert r["bending_max_ue"] > r["bending_min_ue"]
+    assert "damping" in data["assumptions"]
+    assert (tmp_path / "peaks.csv").read_text().startswith("rpm,gauge,link,face,bending_max_ue")
+
+
+def test_alexander_lawrence_shin_comparison_script(tmp_path, capsys):
+    from scenarios import alexander_lawrence_shin
+    assert alexander_lawrence_shin.main(["--out", str(tmp_path)]) == 0
+    data = json.loads((tmp_path / "summary.json").read_text())
+    assert data["shin"]["quasi_static"]["S_alt_psi"] == 6900.0
+    assert data["bench_converged"]["time_domain"]["steady"] is True
+    assert "bench, converged" in capsys.readouterr().out

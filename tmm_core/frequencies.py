@@ -174,11 +174,7 @@ def fourbar_frequencies(mech: FourBarMechanism, crank_angle, n_modes: int = 4, f
     for link in mech.links():
         m, J = link.node_masses()
         # The distributed part of node_masses is replaced by the exact distributed mass.
-        n = link.n_segments
-        h = link.length_m / n
-        dist = np.full(n + 1, link.material.density_kg_m3 * link.section.area_m2 * h)
-        dist[[0, n]] *= 0.5
-        masses[link.name] = (m - dist, J)
+        masses[link.name] = (m - link.distributed_node_masses(), J)
     wmax = 2 * np.pi * f_max_Hz
     for i in range(len(angles)):
         joints = {k: v[i] for k, v in mech.joint_positions(motion).items()}

@@ -193,7 +193,7 @@ def _coupling_stiffness(mech, motion, coupling: Coupling, c_a=0.0, c_v=0.0, mass
         lm = motion.link(link.name)
         w, al = lm.omega[..., None], lm.alpha[..., None]
         aM = link.damping.mass_per_s if mass_damping is None else mass_damping
-        K = np.zeros(np.shape(lm.omega) + (link.n_segments + 1, 3, 3))
+        K = np.zeros(np.shape(lm.omega) + (link.n_nodes, 3, 3))
         diag = m * (c_a + aM * c_v - (w**2 if coupling.centrifugal else 0.0))
         cross = m * ((2.0 * w * c_v if coupling.coriolis else 0.0) + (al if coupling.angular_acceleration else 0.0))
         K[..., 0, 0] = diag
@@ -273,51 +273,51 @@ class TimeDomain:
         self.offsets, off = {}, 0
         for link in self.links:
             self.offsets[link.name] = off
-            off += 3 * (link.n_segments + 1)
+            off += 3 * link.n_nodes
         self.n_dof = off
         masses = _node_mass_arrays(mech)
-        self.m_vec = np.concatenate([np.repeat(masses[l.name][0], 3) * np.tile([1.0, 1.0, 0.0], l.n_segments + 1)
-                                     + np.repeat(masses[l.name][1], 3) * np.tile([0.0, 0.0, 1.0], l.n_segments + 1)
+        self.m_vec = np.concatenate([np.repeat(masses[l.name][0], 3) * np.tile([1.0, 1.0, 0.0], l.n_nodes)
+                                     + np.repeat(masses[l.name][1], 3) * np.tile([0.0, 0.0, 1.0], l.n_nodes)
                                      for l in self.links])
-        self.aM_vec = np.concatenate([np.full(3 * (l.n_segments + 1), l.damping.mass_per_s) for l in self.links])
+        self.aM_vec = np.concatenate([np.full(3 * l.n_nodes, l.damping.mass_per_s) for l in self.links])
         self._build_segment_operators()
 
     # -- material history operators -------------------------------------------------------
     def _build_segment_operators(self):
         """Sparse operators on the node vector: gather of segment end displacements, the block
-        diagonal of segment stiffnesses (material, at the material's E), and per-link scalars."""
-        rows, blocks = [], []
-        self.damping_beta = np.zeros(self.n_dof)
-        seg_link = []
+        diagonal of segment stiffnesses (material, at the material's E), and per-segment data."""
+        rows, blocks, visco_E1 = [], [], []
         for link in self.links:
-            n = link.n_segments
             m = link.member("s", "e")
             K, _ = segment_stiffness(field_matrix(np.asarray(m.segment_lengths), m.EA, m.EI))
             off = self.offsets[link.name]
-            for j in range(n):
+            for j in range(link.total_segments):
                 rows.append(off + 3 * j + np.arange(6))
                 blocks.append(K[j])
-                seg_link.append(link.name)
+                sls = link.viscoelastic if link.flexible[j] else None
+                visco_E1.append(0.0 if sls is None else sls.maxwell_modulus_Pa / link.material.E_Pa)
         self.n_seg = len(blocks)
         cols = np.concatenate(rows)
         self.gather = sp.csr_matrix((np.ones(len(cols)), (np.arange(len(cols)), cols)), shape=(len(cols), self.n_dof))
         self.seg_K = sp.block_diag(blocks, format="csr")
-        self.seg_link = np.repeat(np.array(seg_link), 6)
+        # Maxwell modulus / reference modulus per segment entry (0 for elastic segments).
+        self.seg_E1 = np.repeat(np.array(visco_E1), 6)
         # Material stiffness in local frames, assembled member by member (no joint coupling needed:
         # the history loads are computed per member and applied at its own nodes).
         self.K_local = (self.gather.T @ self.seg_K @ self.gather).tocsr()
 
     def _link_factor(self, c_v: float, dt: float):
-        """Effective-modulus factor of each link and the per-step viscoelastic coefficients."""
+        """Effective-modulus factor of every segment ``{link: (n,)}`` and, per link, the
+        viscoelastic step coefficients ``(decay, g)`` of its span."""
         factors, visco = {}, {}
         for link in self.links:
-            f = 1.0 + link.damping.stiffness_s * c_v
+            f = np.full(link.total_segments, 1.0 + link.damping.stiffness_s * c_v)
             if link.viscoelastic is not None:
                 sls = link.viscoelastic
                 decay, g = sls.step_coefficients(dt)
-                E = link.material.E_Pa
-                f = (sls.relaxed_modulus_Pa + g * sls.maxwell_modulus_Pa) / E + link.damping.stiffness_s * c_v
-                visco[link.name] = (decay, g * sls.maxwell_modulus_Pa / E)
+                f[link.flexible] = ((sls.relaxed_modulus_Pa + g * sls.maxwell_modulus_Pa) / link.material.E_Pa
+                                    + link.damping.stiffness_s * c_v)
+                visco[link.name] = (decay, g)
             factors[link.name] = f
         return factors, visco
 
@@ -350,7 +350,7 @@ class TimeDomain:
             return {"factor": factor, "rigid": self._stack(loads_local), "motion": motion, "maps": None}
         unit = {}
         for link in self.links:
-            n1 = link.n_segments + 1
+            n1 = link.n_nodes
             U = np.zeros((self.n_dof, n1, 3))
             off = self.offsets[link.name]
             U[off:off + 3 * n1].reshape(n1, 3, n1, 3)[np.arange(n1), :, np.arange(n1), :] = np.eye(3)
@@ -379,8 +379,8 @@ class TimeDomain:
         maps = cfg["maps"]
         if maps is not None:
             return maps["Z"][k] @ loads + maps["z0"][k], maps["O"][k] @ loads + maps["o0"][k]
-        node_loads = {l.name: loads[self.offsets[l.name]:self.offsets[l.name] + 3 * (l.n_segments + 1)]
-                      .reshape(l.n_segments + 1, 3)[None, None] for l in self.links}
+        node_loads = {l.name: loads[self.offsets[l.name]:self.offsets[l.name] + 3 * l.n_nodes]
+                      .reshape(l.n_nodes, 3)[None, None] for l in self.links}
         factor = _select(cfg["factor"], k)
         sol = solve_factored(factor, node_loads, frame="local")
         z = np.concatenate([sol.members[l.name].state[..., 0, :3].reshape(-1) for l in self.links])
@@ -446,19 +446,20 @@ class TimeDomain:
             first_out[1:] = 0.0
         visco_decay = np.ones(6 * self.n_seg)
         visco_gain = np.zeros(6 * self.n_seg)
-        for name, (decay, gain) in visco.items():
-            sel = self.seg_link == name
-            visco_decay[sel], visco_gain[sel] = decay, gain
-        beta_vec = np.concatenate([np.full(3 * (l.n_segments + 1), l.damping.stiffness_s) for l in self.links])
+        off = 0
+        for link in self.links:
+            if link.name in visco:
+                decay, g = visco[link.name]
+                sel = slice(off, off + 6 * link.total_segments)
+                visco_decay[sel] = np.where(self.seg_E1[sel] > 0, decay, 1.0)
+                visco_gain[sel] = g * self.seg_E1[sel]
+            off += 6 * link.total_segments
+        beta_vec = np.concatenate([np.full(3 * l.n_nodes, l.damping.stiffness_s) for l in self.links])
         has_visco = bool(visco)
         has_kv = bool(np.any(beta_vec > 0))
-        if has_visco and start == "quasi_static":
+        if has_visco and (start == "quasi_static" or initial is not None):
             # Instantaneous elastic state: the Maxwell arms carry (E_0 - E_inf)/E * K d_0.
-            e1 = np.zeros(6 * self.n_seg)
-            for link in self.links:
-                if link.viscoelastic is not None:
-                    e1[self.seg_link == link.name] = link.viscoelastic.maxwell_modulus_Pa / link.material.E_Pa
-            q_sls = e1 * (self.seg_K @ (self.gather @ d0))
+            q_sls = self.seg_E1 * (self.seg_K @ (self.gather @ d0))
 
         n_out = 1 + 2 * len(self.gauges)
         outputs = np.full((n_steps, n_out), np.nan)
@@ -513,7 +514,7 @@ class TimeDomain:
         if disp is not None:
             for l in self.links:
                 off = self.offsets[l.name]
-                displacements[l.name] = disp[sl, off:off + 3 * (l.n_segments + 1)].reshape(done, l.n_segments + 1, 3)
+                displacements[l.name] = disp[sl, off:off + 3 * l.n_nodes].reshape(done, l.n_nodes, 3)
         revs = (crank.angle[done - 1] - crank.angle[0]) / (2 * math.pi)
         return KEDResult(crank.t[sl], crank.angle[sl], crank.speed[sl], crank.acceleration[sl], outputs[sl, 0],
                          gauges, displacements, steady, change, abs(float(revs)), integ.name,
@@ -547,7 +548,7 @@ class TimeDomain:
         for joint in structure.joints:
             ends = []
             for link, member in zip(self.links, structure.members):
-                n = link.n_segments
+                n = link.total_segments
                 if member.start == joint.name:
                     ends.append((link, self.offsets[link.name], member.start_connection))
                 if member.end == joint.name:
@@ -571,7 +572,7 @@ class TimeDomain:
 
     def _node_omega(self, cfg, idx):
         motion = cfg["motion"]
-        return np.concatenate([np.full(3 * (l.n_segments + 1), float(motion.link(l.name).omega[idx]))
+        return np.concatenate([np.full(3 * l.n_nodes, float(motion.link(l.name).omega[idx]))
                                for l in self.links])
 
     def _quasi_static_start(self, crank: CrankMotion):

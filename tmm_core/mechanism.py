@@ -39,10 +39,24 @@ class PointMass:
 
 
 @dataclass(frozen=True)
+class EndBlock:
+    """A stiff block at one end of a link (bearing housing, clamp): ``length_m`` along the link
+    from the joint, its own section and material. It is one segment of the link's mesh."""
+
+    length_m: float
+    section: Section
+    material: Material
+
+    def __post_init__(self):
+        if not (np.isfinite(self.length_m) and self.length_m > 0):
+            raise InputError(f"end block length_m must be positive and finite, got {self.length_m!r}")
+
+
+@dataclass(frozen=True)
 class Link:
-    """A straight prismatic link: length [m], section, material, number of TMM segments, and its
-    mass model (distributed mass from the material density, plus point masses), damping and an
-    optional viscoelastic material law for the time domain."""
+    """A straight link: length [m], section and material of its span, number of TMM segments of
+    the span, optional end blocks, and its mass model (distributed mass from the densities, plus
+    point masses), damping and an optional viscoelastic law (span only) for the time domain."""
 
     name: str
     length_m: float
@@ -52,6 +66,8 @@ class Link:
     point_masses: tuple = ()
     damping: Damping = Damping()
     viscoelastic: StandardLinearSolid | None = None
+    start_block: EndBlock | None = None
+    end_block: EndBlock | None = None
 
     def __post_init__(self):
         if self.viscoelastic is not None and not np.isclose(self.material.E_Pa,
@@ -59,32 +75,77 @@ class Link:
             raise InputError(f"link '{self.name}': material E_Pa ({self.material.E_Pa:.6g}) must equal the "
                              f"viscoelastic instantaneous_modulus_Pa ({self.viscoelastic.instantaneous_modulus_Pa:.6g}): "
                              "quasi-static and frequency analyses use the instantaneous modulus")
+        if int(self.n_segments) != self.n_segments or self.n_segments < 1:
+            raise InputError(f"link '{self.name}': n_segments must be a positive integer, got {self.n_segments!r}")
+        blocks = sum(b.length_m for b in (self.start_block, self.end_block) if b is not None)
+        if not (np.isfinite(self.length_m) and self.length_m > blocks):
+            raise InputError(f"link '{self.name}': length_m ({self.length_m!r}) must be positive and longer than its "
+                             f"end blocks ({blocks:.6g} m)")
+
+    @property
+    def _layout(self):
+        """(lengths, sections, materials, flexible) of all segments, start joint first."""
+        span = self.length_m - sum(b.length_m for b in (self.start_block, self.end_block) if b is not None)
+        n = int(self.n_segments)
+        L = [span / n] * n
+        secs, mats, flex = [self.section] * n, [self.material] * n, [True] * n
+        if self.start_block is not None:
+            b = self.start_block
+            L, secs, mats, flex = [b.length_m] + L, [b.section] + secs, [b.material] + mats, [False] + flex
+        if self.end_block is not None:
+            b = self.end_block
+            L, secs, mats, flex = L + [b.length_m], secs + [b.section], mats + [b.material], flex + [False]
+        return tuple(L), tuple(secs), tuple(mats), np.array(flex)
+
+    @property
+    def total_segments(self) -> int:
+        """Segments of the mesh: the span's plus one per end block."""
+        return len(self._layout[0])
+
+    @property
+    def n_nodes(self) -> int:
+        return self.total_segments + 1
+
+    @property
+    def flexible(self) -> np.ndarray:
+        """Per segment: True for the span, False for end blocks."""
+        return self._layout[3]
 
     def member(self, start: str, end: str, **kw) -> Member:
-        return Member.uniform(self.name, start, end, self.length_m, self.n_segments, self.section,
-                              self.material, **kw)
+        L, secs, mats, _ = self._layout
+        return Member(self.name, start, end, L, secs, mats, **kw)
 
     @property
     def stations(self) -> np.ndarray:
-        return np.linspace(0.0, self.length_m, self.n_segments + 1)
+        return np.concatenate([[0.0], np.cumsum(self._layout[0])])
+
+    def segment_mass_per_length(self) -> np.ndarray:
+        """rho * A of every segment [kg/m]."""
+        _, secs, mats, _ = self._layout
+        return np.array([m.density_kg_m3 * s.area_m2 for s, m in zip(secs, mats)])
+
+    def distributed_node_masses(self) -> np.ndarray:
+        """The distributed mass lumped half a segment to each side (Shin), shape (n_nodes,)."""
+        seg = self.segment_mass_per_length() * np.asarray(self._layout[0])
+        m = np.zeros(self.n_nodes)
+        m[:-1] += 0.5 * seg
+        m[1:] += 0.5 * seg
+        return m
 
     def node_masses(self):
-        """Lumped mass [kg] and rotary inertia [kg m^2] at each node, shape (n+1,) each.
+        """Lumped mass [kg] and rotary inertia [kg m^2] at each node, shape (n_nodes,) each.
 
-        The distributed mass rho*A is lumped half a segment to each side (Shin); the rotary
-        inertia of the strip itself is neglected (Euler-Bernoulli). Point masses must sit on a node.
+        The distributed mass is lumped half a segment to each side (Shin); the rotary inertia of
+        the strip itself is neglected (Euler-Bernoulli). Point masses must sit on a node.
         """
-        n = self.n_segments
-        h = self.length_m / n
-        m = np.full(n + 1, self.material.density_kg_m3 * self.section.area_m2 * h)
-        m[[0, n]] *= 0.5
-        J = np.zeros(n + 1)
+        m = self.distributed_node_masses()
+        J = np.zeros(self.n_nodes)
         x = self.stations
         for pm in self.point_masses:
             j = int(np.argmin(np.abs(x - pm.position_m)))
             if abs(x[j] - pm.position_m) > 1e-9 * self.length_m:
                 raise InputError(f"link '{self.name}': point mass '{pm.label}' at {pm.position_m:.6g} m is not at a "
-                                 f"node of the {n}-segment mesh (nodes every {h:.6g} m)")
+                                 f"node of the mesh (nodes at {np.round(x, 6).tolist()} m)")
             m[j] += pm.mass_kg
             J[j] += pm.inertia_kg_m2
         return m, J
@@ -145,8 +206,7 @@ class FourBarMechanism:
         """Distributed self-weight ``{link: (n, 2)}`` [N/m] for gravity vector ``g`` [m/s^2]."""
         out = {}
         for link in self.links():
-            w = link.material.density_kg_m3 * link.section.area_m2
-            out[link.name] = np.broadcast_to(w * np.asarray(g, dtype=float), (link.n_segments, 2)).copy()
+            out[link.name] = link.segment_mass_per_length()[:, None] * np.asarray(g, dtype=float)
         return out
 
 
