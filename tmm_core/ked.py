@@ -322,7 +322,7 @@ class TimeDomain:
         return factors, visco
 
     # -- per-configuration maps -------------------------------------------------------------
-    def _configurations(self, angle, speed, accel, dt):
+    def _configurations(self, angle, speed, accel, dt, maps: bool = True):
         """Factorize the instantaneous structures of a batch of crank states and return the
         affine maps from nodal loads (local, stacked) to nodal displacements, drive torque and
         gauge strains."""
@@ -346,7 +346,7 @@ class TimeDomain:
         loads_local = rigid_body_loads(mech, motion, self.gravity, frame="local")
         B = len(angle)
         n_bytes = 8.0 * B * self.n_dof * (self.n_dof + 1 + 2 * len(self.gauges))
-        if n_bytes > self.max_map_bytes:
+        if not maps or n_bytes > self.max_map_bytes:
             return {"factor": factor, "rigid": self._stack(loads_local), "motion": motion, "maps": None}
         unit = {}
         for link in self.links:
@@ -381,7 +381,7 @@ class TimeDomain:
             return maps["Z"][k] @ loads + maps["z0"][k], maps["O"][k] @ loads + maps["o0"][k]
         node_loads = {l.name: loads[self.offsets[l.name]:self.offsets[l.name] + 3 * l.n_nodes]
                       .reshape(l.n_nodes, 3)[None, None] for l in self.links}
-        factor = _select(cfg["factor"], k)
+        factor = cfg["factor"] if cfg["factor"].batch[0] == 1 else _select(cfg["factor"], k)
         sol = solve_factored(factor, node_loads, frame="local")
         z = np.concatenate([sol.members[l.name].state[..., 0, :3].reshape(-1) for l in self.links])
         out = [sol.reactions[self.mech.drive_joint][..., 2].reshape(())]
@@ -391,6 +391,12 @@ class TimeDomain:
         return z, np.array(out)
 
     # -- marching -----------------------------------------------------------------------------
+    def begin(self, dt: float, angle: float, speed: float, acceleration: float = 0.0, *, start: str = "rest",
+              initial: Mapping[str, np.ndarray] | None = None) -> "March":
+        """Start an incremental march at a crank state (step ``dt`` [s]); see :class:`March`."""
+        return March(self, float(require_positive("time step dt_s", dt)), float(angle), float(speed),
+                     float(acceleration), start, initial)
+
     def run(self, crank: CrankMotion, *, start: str = "rest", steady_tol: float | None = None,
             min_revolutions: int = 2, record_displacements: bool = True,
             callback: Callable[[int, float], bool] | None = None, chunk: int = 720,
@@ -405,73 +411,26 @@ class TimeDomain:
         ``initial``: explicit initial state instead of ``start``: ``{'d', 'v', 'a', 'previous'}``
         with stacked local node vectors (see :attr:`offsets`) and ``previous = (d_-1, d_-2)``.
         """
-        if start not in ("rest", "quasi_static"):
-            raise InputError(f"start must be 'rest' or 'quasi_static', got {start!r}")
-        if initial is not None:
-            for key in ("d", "v", "a"):
-                if np.shape(initial.get(key)) != (self.n_dof,):
-                    raise InputError(f"initial['{key}'] must have shape ({self.n_dof},)")
         dt = crank.dt
         n_steps = len(crank.t)
-        integ = self.integrator
-        c_a, c_v = integ.coefficients(dt)
-        _, visco = self._link_factor(c_v, dt)
         N = crank.steps_per_revolution()
         if steady_tol is not None:
             require_positive("steady_tol", steady_tol)
             if N is None:
                 raise InputError("steady_tol needs a constant-speed crank history with a whole number of steps per "
                                  "revolution")
-
-        d0 = v0 = np.zeros(self.n_dof)
-        previous = (d0, d0)
-        if initial is not None:
-            d0, v0, a0 = (np.asarray(initial[k], dtype=float) for k in ("d", "v", "a"))
-            previous = initial.get("previous", (d0, d0))
-        elif start == "quasi_static":
-            d0, v0, a0, previous = self._quasi_static_start(crank)
-        else:
-            # Consistent initial acceleration from rest: M a0 = F(t0) (Newmark and generalized-alpha
-            # are only first order otherwise; Houbolt does not use it).
-            first = self._configurations(crank.angle[:1], crank.speed[:1], crank.acceleration[:1], dt)
-            a0 = self._rest_acceleration(first["rigid"][0], first["motion"])
-        state = integ.initial(d0, v0, a0, previous)
-        q_sls = np.zeros(6 * self.n_seg)
-        # Outputs of step 0: the quasi-static state for a quasi-static start; from rest the links
-        # are undeformed (zero strain) and the drive torque is the rigid-body one.
-        qs0 = quasi_static(self.mech, crank.angle[:1], crank.speed[:1], crank.acceleration[:1],
-                           beam_column=self.beam_column, gravity=self.gravity, gauges=self.gauges)
-        first_out = np.concatenate([qs0.drive_torque] + [np.r_[b, a] for b, a in qs0.gauges.values()])
-        if start == "rest" and initial is None:
-            first_out[1:] = 0.0
-        visco_decay = np.ones(6 * self.n_seg)
-        visco_gain = np.zeros(6 * self.n_seg)
-        off = 0
-        for link in self.links:
-            if link.name in visco:
-                decay, g = visco[link.name]
-                sel = slice(off, off + 6 * link.total_segments)
-                visco_decay[sel] = np.where(self.seg_E1[sel] > 0, decay, 1.0)
-                visco_gain[sel] = g * self.seg_E1[sel]
-            off += 6 * link.total_segments
-        beta_vec = np.concatenate([np.full(3 * l.n_nodes, l.damping.stiffness_s) for l in self.links])
-        has_visco = bool(visco)
-        has_kv = bool(np.any(beta_vec > 0))
-        if has_visco and (start == "quasi_static" or initial is not None):
-            # Instantaneous elastic state: the Maxwell arms carry (E_0 - E_inf)/E * K d_0.
-            q_sls = self.seg_E1 * (self.seg_K @ (self.gather @ d0))
-
-        n_out = 1 + 2 * len(self.gauges)
-        outputs = np.full((n_steps, n_out), np.nan)
+        march = self.begin(dt, crank.angle[0], crank.speed[0], crank.acceleration[0], start=start, initial=initial)
+        outputs = np.full((n_steps, march.n_out), np.nan)
         disp = np.full((n_steps, self.n_dof), np.nan) if record_displacements else None
-        # Coriolis cross terms need each node's link speed: u rows take w-velocity history and back.
-        is_u = np.tile([True, False, False], self.n_dof // 3)
-        is_w = np.tile([False, True, False], self.n_dof // 3)
+        outputs[0] = march.out
+        if disp is not None:
+            disp[0] = march.z
 
         cfg, cfg_start, cfg_len = None, -1, 0
         steady, change, done = False, float("nan"), n_steps
-        last_rev = None
-        for k in range(n_steps):
+        for k in range(1, n_steps):
+            # Configurations are factorized in batches: one revolution when the history is periodic,
+            # chunks of consecutive steps otherwise.
             if N is not None:
                 idx = k % N
                 if cfg is None:
@@ -482,15 +441,7 @@ class TimeDomain:
                     sl = slice(k, k + cfg_len)
                     cfg = self._configurations(crank.angle[sl], crank.speed[sl], crank.acceleration[sl], dt)
                 idx = k - cfg_start
-            if k == 0:
-                z, out = state["d"], first_out
-            else:
-                loads = self._loads(cfg, idx, state, dt, beta_vec, has_kv, q_sls, visco_decay, visco_gain, has_visco,
-                                    is_u, is_w)
-                z, out = self._solve_one(cfg, idx, loads)
-                if has_visco:
-                    q_sls = visco_decay * q_sls + visco_gain * (self.seg_K @ (self.gather @ (z - state["d"])))
-                state = integ.advance(state, z, dt)
+            z, out = march.step_with(cfg, idx)
             outputs[k] = out
             if disp is not None:
                 disp[k] = z
@@ -512,14 +463,20 @@ class TimeDomain:
         gauges = {g.name: (outputs[sl, 1 + 2 * i], outputs[sl, 2 + 2 * i]) for i, g in enumerate(self.gauges)}
         displacements = {}
         if disp is not None:
-            for l in self.links:
-                off = self.offsets[l.name]
-                displacements[l.name] = disp[sl, off:off + 3 * l.n_nodes].reshape(done, l.n_nodes, 3)
+            displacements = self.unstack(disp[sl])
         revs = (crank.angle[done - 1] - crank.angle[0]) / (2 * math.pi)
         return KEDResult(crank.t[sl], crank.angle[sl], crank.speed[sl], crank.acceleration[sl], outputs[sl, 0],
-                         gauges, displacements, steady, change, abs(float(revs)), integ.name,
+                         gauges, displacements, steady, change, abs(float(revs)), self.integrator.name,
                          {"dt_s": dt, "steps": done, "steps_per_revolution": N, "start": start,
                           "maps": cfg["maps"] is not None if cfg else None})
+
+    def unstack(self, vectors: np.ndarray):
+        """Split node vectors ``(..., n_dof)`` into ``{link: (..., n_nodes, 3)}``."""
+        out = {}
+        for l in self.links:
+            off = self.offsets[l.name]
+            out[l.name] = vectors[..., off:off + 3 * l.n_nodes].reshape(vectors.shape[:-1] + (l.n_nodes, 3))
+        return out
 
     def _loads(self, cfg, idx, state, dt, beta_vec, has_kv, q_sls, decay, gain, has_visco, is_u, is_w):
         """Stacked local nodal loads of a step: D'Alembert, inertia history, material history."""
@@ -575,10 +532,8 @@ class TimeDomain:
         return np.concatenate([np.full(3 * l.n_nodes, float(motion.link(l.name).omega[idx]))
                                for l in self.links])
 
-    def _quasi_static_start(self, crank: CrankMotion):
+    def _quasi_static_start(self, th, w, a, dt):
         """Elastic state of the quasi-static solution at the first crank positions."""
-        dt = crank.dt
-        th, w, a = crank.angle[0], crank.speed[0], crank.acceleration[0]
         angles = th + np.array([-2.0, -1.0, 0.0, 1.0]) * w * dt
         qs = quasi_static(self.mech, angles, w, a, beam_column=self.beam_column, coupling=Coupling(),
                           gravity=self.gravity)
@@ -587,6 +542,88 @@ class TimeDomain:
         v0 = (dp - d1) / (2 * dt)
         a0 = (dp - 2 * d0 + d1) / dt**2
         return d0, v0, a0, (d1, d2)
+
+
+class March:
+    """Incremental time-domain march of a :class:`TimeDomain` (one step at a time).
+
+    Built by :meth:`TimeDomain.begin` at a crank state; :meth:`advance` takes the crank state at
+    the end of the next step. ``z`` holds the current nodal displacements (stacked, local) and
+    ``out`` the current outputs (drive torque [N m], then bending and axial strain per gauge).
+    """
+
+    def __init__(self, td: TimeDomain, dt, angle, speed, accel, start, initial):
+        if start not in ("rest", "quasi_static"):
+            raise InputError(f"start must be 'rest' or 'quasi_static', got {start!r}")
+        if initial is not None:
+            for key in ("d", "v", "a"):
+                if np.shape(initial.get(key)) != (td.n_dof,):
+                    raise InputError(f"initial['{key}'] must have shape ({td.n_dof},)")
+        self.td, self.dt = td, dt
+        integ = td.integrator
+        c_a, c_v = integ.coefficients(dt)
+        _, visco = td._link_factor(c_v, dt)
+        a1 = np.array([angle])
+        d0 = v0 = np.zeros(td.n_dof)
+        previous = (d0, d0)
+        if initial is not None:
+            d0, v0, a0 = (np.asarray(initial[k], dtype=float) for k in ("d", "v", "a"))
+            previous = initial.get("previous", (d0, d0))
+        elif start == "quasi_static":
+            d0, v0, a0, previous = td._quasi_static_start(angle, speed, accel, dt)
+        else:
+            # Consistent initial acceleration from rest: M a0 = F(t0) (Newmark and generalized-alpha
+            # are only first order otherwise; Houbolt does not use it).
+            first = td._configurations(a1, np.array([speed]), np.array([accel]), dt, maps=False)
+            a0 = td._rest_acceleration(first["rigid"][0], first["motion"])
+        self.state = integ.initial(d0, v0, a0, previous)
+        # Outputs of step 0: the quasi-static state for a quasi-static start; from rest the links
+        # are undeformed (zero strain) and the drive torque is the rigid-body one.
+        qs0 = quasi_static(td.mech, a1, speed, accel, beam_column=td.beam_column, gravity=td.gravity, gauges=td.gauges)
+        out = np.concatenate([qs0.drive_torque] + [np.r_[b, a] for b, a in qs0.gauges.values()])
+        if start == "rest" and initial is None:
+            out[1:] = 0.0
+        self.out, self.z = out, d0
+        self.n_out = len(out)
+        self.decay = np.ones(6 * td.n_seg)
+        self.gain = np.zeros(6 * td.n_seg)
+        off = 0
+        for link in td.links:
+            if link.name in visco:
+                decay, g = visco[link.name]
+                sel = slice(off, off + 6 * link.total_segments)
+                self.decay[sel] = np.where(td.seg_E1[sel] > 0, decay, 1.0)
+                self.gain[sel] = g * td.seg_E1[sel]
+            off += 6 * link.total_segments
+        self.beta = np.concatenate([np.full(3 * l.n_nodes, l.damping.stiffness_s) for l in td.links])
+        self.has_visco = bool(visco)
+        self.has_kv = bool(np.any(self.beta > 0))
+        self.q_sls = np.zeros(6 * td.n_seg)
+        if self.has_visco and (start == "quasi_static" or initial is not None):
+            # Instantaneous elastic state: the Maxwell arms carry (E_0 - E_inf)/E * K d_0.
+            self.q_sls = td.seg_E1 * (td.seg_K @ (td.gather @ d0))
+        # Coriolis cross terms: u rows take the w-velocity history of the same node and back.
+        self.is_u = np.tile([True, False, False], td.n_dof // 3)
+        self.is_w = np.tile([False, True, False], td.n_dof // 3)
+
+    def advance(self, angle: float, speed: float, acceleration: float = 0.0):
+        """One step to the crank state (angle [rad], speed [rad/s], acceleration [rad/s^2]) at
+        the end of the step. Returns ``(z, out)``."""
+        cfg = self.td._configurations(np.array([angle], dtype=float), np.array([speed], dtype=float),
+                                      np.array([acceleration], dtype=float), self.dt, maps=False)
+        return self.step_with(cfg, 0)
+
+    def step_with(self, cfg, idx):
+        """One step using configuration ``idx`` of a precomputed batch (see TimeDomain._configurations)."""
+        td = self.td
+        loads = td._loads(cfg, idx, self.state, self.dt, self.beta, self.has_kv, self.q_sls, self.decay, self.gain,
+                          self.has_visco, self.is_u, self.is_w)
+        z, out = td._solve_one(cfg, idx, loads)
+        if self.has_visco:
+            self.q_sls = self.decay * self.q_sls + self.gain * (td.seg_K @ (td.gather @ (z - self.state["d"])))
+        self.state = td.integrator.advance(self.state, z, self.dt)
+        self.z, self.out = z, out
+        return z, out
 
 
 def _select(factor, k):

@@ -1,0 +1,144 @@
+"""Engine protocol shared by the transfer-matrix, exudyn and MuJoCo engines.
+
+Sign conventions (all engines): crank angle from the ground line A->D, counter-clockwise
+positive, radians; the *drive torque* is the moment the drive applies to the crank at its pivot,
+counter-clockwise positive [N m]; gauge strains are dimensionless, positive = tension on the
+gauged face (:class:`tmm_core.Gauge`), bending = that face's bending strain, axial = N/EA.
+Node positions are global [m].
+
+A master advances every engine over macro steps with :meth:`Engine.advance`. A drive input is
+either a *prescribed* crank motion (a function of time returning angle, speed, acceleration;
+the engine follows it and reports the torque it takes) or a *torque* (the engine integrates the
+crank motion; kinematically driven engines refuse it).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Callable, Protocol
+
+import numpy as np
+
+from ..scenario import Scenario
+
+CrankProfile = Callable[[np.ndarray], tuple]   # t [s] -> (angle [rad], speed [rad/s], acceleration [rad/s^2])
+
+
+class EngineError(RuntimeError):
+    """An engine cannot do what was asked (unsupported drive, solver failure)."""
+
+
+class EngineUnavailable(EngineError):
+    """The engine's library is missing or broken; the message says how to install it."""
+
+
+@dataclass(frozen=True)
+class DriveInput:
+    """Drive of one macro step: exactly one of ``prescribed`` and ``torque``.
+
+    ``torque`` [N m] is a constant over the step or a function of time.
+    """
+
+    prescribed: CrankProfile | None = None
+    torque: float | Callable | None = None
+
+    def __post_init__(self):
+        if (self.prescribed is None) == (self.torque is None):
+            raise ValueError("DriveInput needs exactly one of 'prescribed' and 'torque'")
+
+    def torque_at(self, t):
+        return self.torque(t) if callable(self.torque) else np.full(np.shape(t), float(self.torque))
+
+
+@dataclass
+class EngineOutput:
+    """Samples of one macro step (the engine's output times in (t_start, t_next], the last at t_next)."""
+
+    t: np.ndarray
+    crank_angle: np.ndarray
+    crank_speed: np.ndarray
+    drive_torque: np.ndarray
+    gauges: dict = field(default_factory=dict)        # {gauge: (bending, axial)}, each (k,)
+    nodes: dict = field(default_factory=dict)         # {link: (k, n_nodes, 2)} deformed positions [m]
+    extras: dict = field(default_factory=dict)        # {name: (unit, (k,) array)}
+
+
+class Engine(Protocol):
+    name: str
+
+    @property
+    def internal_step_s(self) -> float: ...
+
+    def reset(self, scenario: Scenario, t0: float, angle: float, speed: float) -> None: ...
+
+    def advance(self, t_next: float, drive: DriveInput) -> EngineOutput: ...
+
+
+def constant_speed_profile(speed: float, start_angle: float = 0.0, t0: float = 0.0) -> CrankProfile:
+    """Crank at constant speed [rad/s] from ``start_angle`` at ``t0``."""
+    def profile(t):
+        t = np.asarray(t, dtype=float)
+        return start_angle + speed * (t - t0), np.full(t.shape, speed), np.zeros(t.shape)
+    return profile
+
+
+def steps_in(t_start: float, t_next: float, step: float, engine: str) -> int:
+    """Whole number of internal steps of length ``step`` in the macro step, or an error."""
+    n = (t_next - t_start) / step
+    if n < 0.5 or abs(n - round(n)) > 1e-6 * max(1.0, n):
+        raise EngineError(f"{engine}: the macro step {t_next - t_start:.9g} s is not a whole multiple of the "
+                          f"internal step {step:.9g} s")
+    return int(round(n))
+
+
+@dataclass
+class EngineRun:
+    """Concatenated outputs of a run, one entry per sample."""
+
+    engine: str
+    t: np.ndarray
+    crank_angle: np.ndarray
+    crank_speed: np.ndarray
+    drive_torque: np.ndarray
+    gauges: dict
+    nodes: dict
+    extras: dict
+    wall_time_s: float
+
+    def last_revolution(self, period: float) -> np.ndarray:
+        """Boolean mask of the samples in the last crank revolution."""
+        return self.t > self.t[-1] - period * (1 - 1e-9)
+
+
+def concatenate(engine: str, outputs: list, wall_time_s: float) -> EngineRun:
+    def cat(arrays):
+        return np.concatenate([np.atleast_1d(a) for a in arrays]) if arrays else np.zeros(0)
+    gauges = {g: (cat([o.gauges[g][0] for o in outputs]), cat([o.gauges[g][1] for o in outputs]))
+              for g in (outputs[0].gauges if outputs else {})}
+    nodes = {k: np.concatenate([o.nodes[k] for o in outputs]) for k in (outputs[0].nodes if outputs else {})}
+    extras = {k: (outputs[0].extras[k][0], cat([o.extras[k][1] for o in outputs]))
+              for k in (outputs[0].extras if outputs else {})}
+    return EngineRun(engine, cat([o.t for o in outputs]), cat([o.crank_angle for o in outputs]),
+                     cat([o.crank_speed for o in outputs]), cat([o.drive_torque for o in outputs]),
+                     gauges, nodes, extras, wall_time_s)
+
+
+def run_prescribed(engine: Engine, scenario: Scenario, revolutions: float | None = None,
+                   macro_steps_per_revolution: int = 72) -> EngineRun:
+    """Drive an engine at the scenario's constant crank speed for ``revolutions`` (default: the
+    scenario's output setting), in macro steps of a whole number of internal steps."""
+    import time
+    w = scenario.drive.speed_rad_s
+    if w == 0:
+        raise EngineError("the scenario's drive speed is zero")
+    period = 2 * math.pi / abs(w)
+    revs = scenario.output.revolutions if revolutions is None else revolutions
+    engine.reset(scenario, 0.0, scenario.drive.start_angle_rad, w)
+    h = engine.internal_step_s
+    per_macro = max(1, int(round(period / macro_steps_per_revolution / h)))
+    macro = per_macro * h
+    n_macro = int(math.ceil(revs * period / macro - 1e-9))
+    profile = constant_speed_profile(w, scenario.drive.start_angle_rad)
+    t0 = time.perf_counter()
+    outputs = [engine.advance((k + 1) * macro, DriveInput(prescribed=profile)) for k in range(n_macro)]
+    return concatenate(engine.name, outputs, time.perf_counter() - t0)

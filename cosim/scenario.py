@@ -1,0 +1,482 @@
+"""Scenario description: a TOML file mapped to frozen dataclasses in SI units.
+
+One scenario feeds every engine: the loader builds a :class:`tmm_core.FourBarMechanism` (links,
+sections, materials, point masses, end blocks, damping, viscoelastic law) that the transfer-matrix,
+exudyn and MuJoCo engines all read, so geometry and material are written once.
+
+Units are converted here, at the boundary, with pint. A physical value is a string with a unit
+(``"7 in"``, ``"10.3e6 psi"``, ``"5.292 slug/ft^3"``, ``"373 rpm"``), or a table
+``{value = "7 in", source = "..."}`` / ``{value = "2 %", assumption = "why this value"}``. Tables
+such as ``damping`` or a point mass may carry ``assumption`` / ``source`` keys too. Every
+assumption is collected in :attr:`Scenario.assumptions` with its rationale and written into the
+run's resolved scenario. Errors name the file, the key and the value.
+
+File layout (all tables except ``[scenario]``, ``[linkage]``, ``[links.*]`` are optional)::
+
+    [scenario]      name, description, sources
+    [linkage]       type = "four-bar", ground, pivot, ground_angle, branch = "open" | "crossed"
+    [materials.X]   E, density, yield_strength, endurance_limit, poisson,
+                    viscoelastic = {instantaneous_modulus, relaxed_modulus, relaxation_time}
+    [sections.X]    width, depth  (or area, inertia, depth)
+    [links.crank|coupler|rocker]
+                    length, section, material, segments, point_masses = [{position, mass | weight,
+                    inertia, label}], damping = {ratio, frequency} | {stiffness, mass},
+                    start_block / end_block = {length, section, material}
+    [drive]         mode = "prescribed" | "motor", speed, rotation = "ccw" | "cw", start_angle
+    [gravity]       vector = [gx, gy]
+    [gauges.X]      link, position, face = "top" | "bottom"
+    [solver.tmm]    segments, integrator, step, beam_column, start, steady_tolerance, max_revolutions,
+                    coupling = {coriolis, centrifugal, angular_acceleration}
+    [solver.exudyn] elements, step, spectral_radius, newton_tolerance
+    [solver.mujoco] step, servo_frequency, solref_factor, solimp
+    [output]        revolutions, sample_step
+"""
+from __future__ import annotations
+
+import math
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pint
+
+from tmm_core import (Coupling, Damping, FourBarMechanism, Gauge, InputError, Link, Material, PointMass, Section,
+                      StandardLinearSolid, TMMError)
+from tmm_core.mechanism import EndBlock
+
+UREG = pint.UnitRegistry()
+G0 = 9.80665
+SCENARIO_DIR = Path(__file__).resolve().parent.parent / "scenarios"
+
+
+class ScenarioError(InputError):
+    """A scenario file is malformed; the message names the file, the key and the value."""
+
+
+@dataclass(frozen=True)
+class Assumption:
+    """A value the sources do not give, with the reason it was chosen."""
+
+    key: str
+    value: str
+    rationale: str
+
+
+@dataclass(frozen=True)
+class DriveSpec:
+    """Crank drive. ``speed_rad_s`` is signed (CCW positive); ``mode`` 'prescribed' or 'motor'."""
+
+    mode: str = "prescribed"
+    speed_rad_s: float = 0.0
+    start_angle_rad: float = 0.0
+
+
+@dataclass(frozen=True)
+class TMMSettings:
+    segments: int = 8
+    integrator: str = "generalized_alpha"
+    step_s: float | None = None
+    step_rad: float | None = math.radians(1.0)
+    beam_column: bool = True
+    start: str = "quasi_static"
+    steady_tolerance: float = 1e-3
+    max_revolutions: int = 60
+    coupling: Coupling = Coupling()
+
+
+@dataclass(frozen=True)
+class ExudynSettings:
+    elements: int = 8
+    step_s: float = 1e-4
+    spectral_radius: float = 0.9
+    newton_tolerance: float = 1e-6
+
+
+@dataclass(frozen=True)
+class MujocoSettings:
+    step_s: float = 1e-4
+    servo_frequency_Hz: float | None = None
+    solref_factor: float = 2.0
+    solimp: float = 0.9999
+
+
+@dataclass(frozen=True)
+class OutputSettings:
+    revolutions: float = 3.0
+    sample_step_s: float | None = None
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """A resolved scenario, SI throughout."""
+
+    name: str
+    description: str
+    path: Path | None
+    sources: tuple
+    mechanism: FourBarMechanism
+    drive: DriveSpec
+    gauges: tuple
+    gravity: tuple | None
+    tmm: TMMSettings
+    exudyn: ExudynSettings
+    mujoco: MujocoSettings
+    output: OutputSettings
+    assumptions: tuple
+    raw: dict = field(repr=False, default_factory=dict)
+
+    @property
+    def crank_speed_rad_s(self) -> float:
+        return self.drive.speed_rad_s
+
+    @property
+    def revolution_period_s(self) -> float:
+        return 2 * math.pi / abs(self.drive.speed_rad_s)
+
+
+# --------------------------------------------------------------------------------------------
+class _Reader:
+    """Walks the TOML tree, converts values and records assumptions and unknown keys."""
+
+    def __init__(self, path: str):
+        self.path = path
+        self.assumptions: list[Assumption] = []
+
+    def fail(self, key: str, msg: str, value=None) -> ScenarioError:
+        shown = "" if value is None else f" = {value!r}"
+        return ScenarioError(f"scenario '{self.path}': key '{key}'{shown}: {msg}")
+
+    def table(self, data, key: str, allowed: set[str], required: set[str] = frozenset()) -> dict:
+        if not isinstance(data, dict):
+            raise self.fail(key, "must be a table", data)
+        unknown = set(data) - allowed - {"assumption", "source"}
+        if unknown:
+            bad = sorted(unknown)[0]
+            raise self.fail(f"{key}.{bad}" if key else bad, f"unknown key (allowed: {', '.join(sorted(allowed))})",
+                            data[bad])
+        missing = required - set(data)
+        if missing:
+            raise self.fail(f"{key}.{sorted(missing)[0]}" if key else sorted(missing)[0], "is required")
+        if "assumption" in data:
+            self.assumptions.append(Assumption(key, _short({k: v for k, v in data.items() if k != "assumption"}),
+                                               str(data["assumption"])))
+        return data
+
+    def _unwrap(self, value, key):
+        if isinstance(value, dict) and "value" in value:
+            extra = set(value) - {"value", "assumption", "source"}
+            if extra:
+                raise self.fail(f"{key}.{sorted(extra)[0]}", "unknown key (allowed: value, assumption, source)")
+            if "assumption" in value:
+                self.assumptions.append(Assumption(key, str(value["value"]), str(value["assumption"])))
+            return value["value"]
+        return value
+
+    def quantity(self, value, key: str, unit: str, positive: bool = False, nonnegative: bool = False) -> float:
+        """A physical value converted to ``unit`` (an SI unit); plain numbers are refused unless
+        the unit is dimensionless."""
+        raw = self._unwrap(value, key)
+        if isinstance(raw, bool):
+            raise self.fail(key, f"must be a quantity in {unit}", raw)
+        if isinstance(raw, (int, float)):
+            if UREG.Quantity(1, unit).dimensionless:
+                q = float(raw)
+            else:
+                raise self.fail(key, f"has no unit; write it with one, e.g. '{raw} {_example_unit(unit)}'", raw)
+        elif isinstance(raw, str):
+            try:
+                parsed = UREG.Quantity(raw.replace("^", "**"))
+            except Exception:
+                raise self.fail(key, "is not a quantity with a unit", raw) from None
+            if not isinstance(parsed, pint.Quantity):
+                parsed = UREG.Quantity(parsed, "")
+            target = UREG.Quantity(1, unit)
+            if parsed.dimensionless and not target.dimensionless:
+                raise self.fail(key, f"has no unit; write it with one, e.g. '{raw} {_example_unit(unit)}'", raw)
+            try:
+                q = float(parsed.to(unit).magnitude)
+            except pint.DimensionalityError:
+                raise self.fail(key, f"has the wrong dimension: expected {target.dimensionality}, got "
+                                     f"{parsed.dimensionality}", raw) from None
+        else:
+            raise self.fail(key, f"must be a quantity in {unit}", raw)
+        if not math.isfinite(q):
+            raise self.fail(key, "must be finite", raw)
+        if positive and q <= 0:
+            raise self.fail(key, "must be positive", raw)
+        if nonnegative and q < 0:
+            raise self.fail(key, "must not be negative", raw)
+        return q
+
+    def number(self, value, key, kind=float, positive=False, choices=None):
+        raw = self._unwrap(value, key)
+        if choices is not None:
+            if raw not in choices:
+                raise self.fail(key, f"must be one of {list(choices)}", raw)
+            return raw
+        if kind is int:
+            if isinstance(raw, bool) or not isinstance(raw, int):
+                raise self.fail(key, "must be an integer", raw)
+        elif kind is bool:
+            if not isinstance(raw, bool):
+                raise self.fail(key, "must be true or false", raw)
+            return raw
+        elif isinstance(raw, bool) or not isinstance(raw, (int, float)):
+            raise self.fail(key, "must be a number", raw)
+        if positive and raw <= 0:
+            raise self.fail(key, "must be positive", raw)
+        return kind(raw)
+
+    def text(self, value, key):
+        raw = self._unwrap(value, key)
+        if not isinstance(raw, str):
+            raise self.fail(key, "must be a string", raw)
+        return raw
+
+
+def _short(d) -> str:
+    return ", ".join(f"{k} = {v}" for k, v in d.items())
+
+
+def _example_unit(unit: str) -> str:
+    return {"m": "in", "Pa": "psi", "kg/m**3": "slug/ft^3", "kg": "lb", "s": "s", "rad/s": "rpm",
+            "rad": "deg", "Hz": "Hz", "N": "lbf"}.get(unit, unit)
+
+
+# --------------------------------------------------------------------------------------------
+def _material(r: _Reader, name, data) -> Material:
+    key = f"materials.{name}"
+    d = r.table(data, key, {"E", "density", "yield_strength", "endurance_limit", "poisson", "viscoelastic"},
+                {"E", "density"})
+    opt = {}
+    if "yield_strength" in d:
+        opt["yield_strength_Pa"] = r.quantity(d["yield_strength"], f"{key}.yield_strength", "Pa", positive=True)
+    if "endurance_limit" in d:
+        opt["endurance_limit_Pa"] = r.quantity(d["endurance_limit"], f"{key}.endurance_limit", "Pa", positive=True)
+    if "poisson" in d:
+        opt["poisson"] = r.number(d["poisson"], f"{key}.poisson")
+    return Material(name, r.quantity(d["E"], f"{key}.E", "Pa", positive=True),
+                    r.quantity(d["density"], f"{key}.density", "kg/m**3", nonnegative=True), **opt)
+
+
+def _viscoelastic(r: _Reader, name, data):
+    if "viscoelastic" not in data:
+        return None
+    key = f"materials.{name}.viscoelastic"
+    d = r.table(data["viscoelastic"], key, {"instantaneous_modulus", "relaxed_modulus", "relaxation_time"},
+                {"instantaneous_modulus", "relaxed_modulus", "relaxation_time"})
+    return StandardLinearSolid(r.quantity(d["instantaneous_modulus"], f"{key}.instantaneous_modulus", "Pa", True),
+                               r.quantity(d["relaxed_modulus"], f"{key}.relaxed_modulus", "Pa", True),
+                               r.quantity(d["relaxation_time"], f"{key}.relaxation_time", "s", True))
+
+
+def _section(r: _Reader, name, data) -> Section:
+    key = f"sections.{name}"
+    d = r.table(data, key, {"width", "depth", "area", "inertia"}, {"depth"})
+    depth = r.quantity(d["depth"], f"{key}.depth", "m", positive=True)
+    if "width" in d:
+        if "area" in d or "inertia" in d:
+            raise r.fail(key, "give either width or area and inertia, not both")
+        return Section.rectangle(r.quantity(d["width"], f"{key}.width", "m", positive=True), depth)
+    if "area" not in d or "inertia" not in d:
+        raise r.fail(f"{key}.width", "is required (or give both area and inertia)")
+    return Section(r.quantity(d["area"], f"{key}.area", "m**2", positive=True),
+                   r.quantity(d["inertia"], f"{key}.inertia", "m**4", positive=True), depth)
+
+
+def _lookup(r, table, name, key, what):
+    if name not in table:
+        raise r.fail(key, f"unknown {what} (defined: {', '.join(sorted(table)) or 'none'})", name)
+    return table[name]
+
+
+def _damping(r: _Reader, data, key) -> Damping:
+    d = r.table(data, key, {"ratio", "frequency", "stiffness", "mass"})
+    if "ratio" in d:
+        if "stiffness" in d or "mass" in d:
+            raise r.fail(key, "give either ratio and frequency or Rayleigh stiffness/mass coefficients")
+        if "frequency" not in d:
+            raise r.fail(f"{key}.frequency", "is required with a damping ratio (the frequency it holds at)")
+        ratio = r.quantity(d["ratio"], f"{key}.ratio", "", nonnegative=True)
+        return Damping.modal(ratio, r.quantity(d["frequency"], f"{key}.frequency", "Hz", positive=True))
+    return Damping(r.quantity(d.get("stiffness", "0 s"), f"{key}.stiffness", "s", nonnegative=True),
+                   r.quantity(d.get("mass", "0 1/s"), f"{key}.mass", "1/s", nonnegative=True))
+
+
+def _link(r: _Reader, name, data, sections, materials, viscos, segments) -> Link:
+    key = f"links.{name}"
+    d = r.table(data, key, {"length", "section", "material", "segments", "point_masses", "damping", "start_block",
+                            "end_block"}, {"length", "section", "material"})
+    length = r.quantity(d["length"], f"{key}.length", "m", positive=True)
+    sec = _lookup(r, sections, r.text(d["section"], f"{key}.section"), f"{key}.section", "section")
+    mat_name = r.text(d["material"], f"{key}.material")
+    mat = _lookup(r, materials, mat_name, f"{key}.material", "material")
+    n = r.number(d.get("segments", segments), f"{key}.segments", int, positive=True)
+    masses = []
+    pms = d.get("point_masses", [])
+    if not isinstance(pms, list):
+        raise r.fail(f"{key}.point_masses", "must be a list of tables", pms)
+    for i, pm in enumerate(pms):
+        pk = f"{key}.point_masses[{i}]"
+        p = r.table(pm, pk, {"position", "mass", "weight", "inertia", "label"}, {"position"})
+        if ("mass" in p) == ("weight" in p):
+            raise r.fail(pk, "give exactly one of mass and weight")
+        mass = (r.quantity(p["mass"], f"{pk}.mass", "kg", nonnegative=True) if "mass" in p
+                else r.quantity(p["weight"], f"{pk}.weight", "N", nonnegative=True) / G0)
+        masses.append(PointMass(r.quantity(p["position"], f"{pk}.position", "m"), mass,
+                                r.quantity(p.get("inertia", "0 kg*m^2"), f"{pk}.inertia", "kg*m**2", nonnegative=True),
+                                str(p.get("label", f"{name} mass {i}"))))
+    blocks = {}
+    for end in ("start_block", "end_block"):
+        if end in d:
+            bk = f"{key}.{end}"
+            b = r.table(d[end], bk, {"length", "section", "material"}, {"length", "section", "material"})
+            blocks[end] = EndBlock(r.quantity(b["length"], f"{bk}.length", "m", positive=True),
+                                   _lookup(r, sections, r.text(b["section"], f"{bk}.section"), f"{bk}.section", "section"),
+                                   _lookup(r, materials, r.text(b["material"], f"{bk}.material"), f"{bk}.material",
+                                           "material"))
+    damping = _damping(r, d["damping"], f"{key}.damping") if "damping" in d else Damping()
+    try:
+        return Link(name, length, sec, mat, n, tuple(masses), damping, viscos.get(mat_name), **blocks)
+    except TMMError as exc:
+        raise r.fail(key, str(exc)) from None
+
+
+def load(path_or_name) -> Scenario:
+    """Load a scenario from a path or from the name of a file in ``scenarios/``."""
+    path = Path(path_or_name)
+    if not path.suffix:
+        path = SCENARIO_DIR / f"{path_or_name}.toml"
+    if not path.exists():
+        available = ", ".join(sorted(p.stem for p in SCENARIO_DIR.glob("*.toml")))
+        raise ScenarioError(f"scenario '{path_or_name}' not found (file {path}); available: {available}")
+    try:
+        data = tomllib.loads(path.read_text(encoding="utf-8"))
+    except tomllib.TOMLDecodeError as exc:
+        raise ScenarioError(f"scenario '{path}': not valid TOML: {exc}") from None
+    return from_dict(data, str(path), default_name=path.stem)
+
+
+def from_dict(data: dict, path: str = "<dict>", default_name: str = "scenario") -> Scenario:
+    """Build a :class:`Scenario` from parsed TOML data (``path`` is only used in messages)."""
+    r = _Reader(path)
+    top = r.table(data, "", {"scenario", "linkage", "materials", "sections", "links", "drive", "gravity", "gauges",
+                             "solver", "output"}, {"linkage", "links"})
+    meta = r.table(top.get("scenario", {}), "scenario", {"name", "description", "sources"})
+    solver = r.table(top.get("solver", {}), "solver", {"tmm", "exudyn", "mujoco"})
+    tmm = _tmm_settings(r, solver.get("tmm", {}))
+
+    mats_raw = r.table(top.get("materials", {}), "materials", set(top.get("materials", {})))
+    materials = {k: _material(r, k, v) for k, v in mats_raw.items()}
+    viscos = {}
+    for k, v in mats_raw.items():
+        sls = _viscoelastic(r, k, v)
+        if sls is not None:
+            if not np.isclose(sls.instantaneous_modulus_Pa, materials[k].E_Pa, rtol=1e-9):
+                raise r.fail(f"materials.{k}.E", "must equal viscoelastic.instantaneous_modulus for a viscoelastic "
+                                                 "material", v["E"])
+            viscos[k] = sls
+    secs_raw = r.table(top.get("sections", {}), "sections", set(top.get("sections", {})))
+    sections = {k: _section(r, k, v) for k, v in secs_raw.items()}
+
+    lk = r.table(top["linkage"], "linkage", {"type", "ground", "pivot", "ground_angle", "branch"}, {"type", "ground"})
+    r.number(lk["type"], "linkage.type", choices=("four-bar",))
+    ground = r.quantity(lk["ground"], "linkage.ground", "m", positive=True)
+    pivot = lk.get("pivot", ["0 m", "0 m"])
+    if not isinstance(pivot, list) or len(pivot) != 2:
+        raise r.fail("linkage.pivot", "must be a list of two coordinates", pivot)
+    pivot = tuple(r.quantity(p, f"linkage.pivot[{i}]", "m") for i, p in enumerate(pivot))
+    ground_angle = r.quantity(lk.get("ground_angle", "0 deg"), "linkage.ground_angle", "rad")
+    branch = {"open": 1, "crossed": -1}[r.number(lk.get("branch", "open"), "linkage.branch", choices=("open", "crossed"))]
+
+    links_raw = r.table(top["links"], "links", {"crank", "coupler", "rocker"}, {"crank", "coupler", "rocker"})
+    links = {k: _link(r, k, v, sections, materials, viscos, tmm.segments) for k, v in links_raw.items()}
+    mech = FourBarMechanism(links["crank"], links["coupler"], links["rocker"], ground, pivot, ground_angle, branch)
+
+    drive = _drive(r, top.get("drive", {}))
+    try:
+        mech.motion(np.linspace(0, 2 * np.pi, 73) + drive.start_angle_rad)
+    except TMMError as exc:
+        raise r.fail("linkage", f"the crank cannot turn a full revolution: {exc}") from None
+
+    gauges = []
+    for name, g in r.table(top.get("gauges", {}), "gauges", set(top.get("gauges", {}))).items():
+        gk = f"gauges.{name}"
+        gd = r.table(g, gk, {"link", "position", "face"}, {"link", "position"})
+        link = r.number(gd["link"], f"{gk}.link", choices=("crank", "coupler", "rocker"))
+        pos = r.quantity(gd["position"], f"{gk}.position", "m", nonnegative=True)
+        if pos > links[link].length_m:
+            raise r.fail(f"{gk}.position", f"lies beyond the end of the {link} ({links[link].length_m:.6g} m)",
+                         gd["position"])
+        gauges.append(Gauge(name, link, pos, r.number(gd.get("face", "top"), f"{gk}.face", choices=("top", "bottom"))))
+
+    gravity = None
+    if "gravity" in top:
+        gv = r.table(top["gravity"], "gravity", {"vector"}, {"vector"})["vector"]
+        if not isinstance(gv, list) or len(gv) != 2:
+            raise r.fail("gravity.vector", "must be a list of two accelerations", gv)
+        gravity = tuple(r.quantity(x, f"gravity.vector[{i}]", "m/s**2") for i, x in enumerate(gv))
+
+    ex = r.table(solver.get("exudyn", {}), "solver.exudyn", {"elements", "step", "spectral_radius", "newton_tolerance"})
+    exudyn = ExudynSettings(
+        r.number(ex.get("elements", 8), "solver.exudyn.elements", int, positive=True),
+        r.quantity(ex.get("step", "1e-4 s"), "solver.exudyn.step", "s", positive=True),
+        r.number(ex.get("spectral_radius", 0.9), "solver.exudyn.spectral_radius"),
+        r.number(ex.get("newton_tolerance", 1e-6), "solver.exudyn.newton_tolerance", positive=True))
+    if not 0 <= exudyn.spectral_radius <= 1:
+        raise r.fail("solver.exudyn.spectral_radius", "must lie in [0, 1]", exudyn.spectral_radius)
+    mj = r.table(solver.get("mujoco", {}), "solver.mujoco", {"step", "servo_frequency", "solref_factor", "solimp"})
+    mujoco = MujocoSettings(
+        r.quantity(mj.get("step", "1e-4 s"), "solver.mujoco.step", "s", positive=True),
+        r.quantity(mj["servo_frequency"], "solver.mujoco.servo_frequency", "Hz", positive=True)
+        if "servo_frequency" in mj else None,
+        r.number(mj.get("solref_factor", 2.0), "solver.mujoco.solref_factor", positive=True),
+        r.number(mj.get("solimp", 0.9999), "solver.mujoco.solimp"))
+    out = r.table(top.get("output", {}), "output", {"revolutions", "sample_step"})
+    output = OutputSettings(r.number(out.get("revolutions", 3.0), "output.revolutions", positive=True),
+                            r.quantity(out["sample_step"], "output.sample_step", "s", positive=True)
+                            if "sample_step" in out else None)
+    sources = meta.get("sources", [])
+    if isinstance(sources, str):
+        sources = [sources]
+    return Scenario(str(meta.get("name", default_name)), str(meta.get("description", "")),
+                    Path(path) if path != "<dict>" else None, tuple(sources), mech, drive, tuple(gauges), gravity,
+                    tmm, exudyn, mujoco, output, tuple(r.assumptions), data)
+
+
+def _drive(r: _Reader, data) -> DriveSpec:
+    d = r.table(data, "drive", {"mode", "speed", "rotation", "start_angle"})
+    mode = r.number(d.get("mode", "prescribed"), "drive.mode", choices=("prescribed", "motor"))
+    speed = r.quantity(d.get("speed", "0 rpm"), "drive.speed", "rad/s", nonnegative=True)
+    rotation = r.number(d.get("rotation", "ccw"), "drive.rotation", choices=("ccw", "cw"))
+    return DriveSpec(mode, speed if rotation == "ccw" else -speed,
+                     r.quantity(d.get("start_angle", "0 deg"), "drive.start_angle", "rad"))
+
+
+def _tmm_settings(r: _Reader, data) -> TMMSettings:
+    d = r.table(data, "solver.tmm", {"segments", "integrator", "step", "beam_column", "start", "steady_tolerance",
+                                     "max_revolutions", "coupling"})
+    step_s = step_rad = None
+    if "step" in d:
+        raw = r._unwrap(d["step"], "solver.tmm.step")
+        q = UREG.Quantity(str(raw).replace("^", "**")) if isinstance(raw, str) else None
+        if q is not None and isinstance(q, pint.Quantity) and q.dimensionality == UREG.Quantity(1, "s").dimensionality:
+            step_s = r.quantity(raw, "solver.tmm.step", "s", positive=True)
+        else:
+            step_rad = r.quantity(raw, "solver.tmm.step", "rad", positive=True)
+    else:
+        step_rad = math.radians(1.0)
+    cp = r.table(d.get("coupling", {}), "solver.tmm.coupling", {"coriolis", "centrifugal", "angular_acceleration"})
+    coupling = Coupling(*(r.number(cp.get(k, False), f"solver.tmm.coupling.{k}", bool)
+                          for k in ("coriolis", "centrifugal", "angular_acceleration")))
+    return TMMSettings(
+        r.number(d.get("segments", 8), "solver.tmm.segments", int, positive=True),
+        r.number(d.get("integrator", "generalized_alpha"), "solver.tmm.integrator",
+                 choices=("generalized_alpha", "newmark", "houbolt")),
+        step_s, step_rad,
+        r.number(d.get("beam_column", True), "solver.tmm.beam_column", bool),
+        r.number(d.get("start", "quasi_static"), "solver.tmm.start", choices=("quasi_static", "rest")),
+        r.number(d.get("steady_tolerance", 1e-3), "solver.tmm.steady_tolerance", positive=True),
+        r.number(d.get("max_revolutions", 60), "solver.tmm.max_revolutions", int, positive=True),
+        coupling)
