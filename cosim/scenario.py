@@ -26,7 +26,8 @@ File layout (all tables except ``[scenario]``, ``[linkage]``, ``[links.*]`` are 
     [gravity]       vector = [gx, gy]
     [gauges.X]      link, position, face = "top" | "bottom"
     [solver.tmm]    segments, integrator, step, beam_column, start, steady_tolerance, max_revolutions,
-                    coupling = {coriolis, centrifugal, angular_acceleration}
+                    coupling = {coriolis, centrifugal, angular_acceleration},
+                    axial_force = "quasi_static" | "iterated" | "none"
     [solver.exudyn] elements, step, spectral_radius, newton_tolerance
     [solver.mujoco] step, servo_frequency, solref_factor, solimp
     [output]        revolutions, sample_step
@@ -83,6 +84,7 @@ class TMMSettings:
     steady_tolerance: float = 1e-3
     max_revolutions: int = 60
     coupling: Coupling = Coupling()
+    axial_force: str = "quasi_static"
 
 
 @dataclass(frozen=True)
@@ -456,7 +458,7 @@ def _drive(r: _Reader, data) -> DriveSpec:
 
 def _tmm_settings(r: _Reader, data) -> TMMSettings:
     d = r.table(data, "solver.tmm", {"segments", "integrator", "step", "beam_column", "start", "steady_tolerance",
-                                     "max_revolutions", "coupling"})
+                                     "max_revolutions", "coupling", "axial_force"})
     step_s = step_rad = None
     if "step" in d:
         raw = r._unwrap(d["step"], "solver.tmm.step")
@@ -479,4 +481,6 @@ def _tmm_settings(r: _Reader, data) -> TMMSettings:
         r.number(d.get("start", "quasi_static"), "solver.tmm.start", choices=("quasi_static", "rest")),
         r.number(d.get("steady_tolerance", 1e-3), "solver.tmm.steady_tolerance", positive=True),
         r.number(d.get("max_revolutions", 60), "solver.tmm.max_revolutions", int, positive=True),
-        coupling)
+        coupling,
+        r.number(d.get("axial_force", "quasi_static"), "solver.tmm.axial_force",
+                 choices=("quasi_static", "iterated", "none")))

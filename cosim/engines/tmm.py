@@ -34,7 +34,8 @@ class TMMEngine:
         s = scenario.tmm
         self.scenario = scenario
         self.td = TimeDomain(scenario.mechanism, integrator=s.integrator, coupling=s.coupling,
-                             beam_column=s.beam_column, gravity=scenario.gravity, gauges=scenario.gauges)
+                             beam_column=s.beam_column, gravity=scenario.gravity, gauges=scenario.gauges,
+                             axial_force=s.axial_force)
         ref_speed = scenario.drive.speed_rad_s or speed
         if s.step_s is not None:
             self._dt = s.step_s
