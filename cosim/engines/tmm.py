@@ -54,6 +54,20 @@ class TMMEngine:
             self.cache = (N, ref_speed, angles, self.td._configurations(angles, np.full(N, ref_speed), np.zeros(N),
                                                                          self._dt))
         self.links = self.td.links
+        self._frames = {}     # id(configuration batch) -> per link (rigid node positions, cos, sin)
+
+    def _frame(self, cfg):
+        """Rigid node positions and link orientation of every configuration of a batch."""
+        key = id(cfg)
+        if key not in self._frames:
+            if len(self._frames) > 4:
+                self._frames.clear()
+            out = {}
+            for link in self.links:
+                lm = cfg["motion"].link(link.name)
+                out[link.name] = (lm.point(link.stations)[0], np.cos(lm.angle), np.sin(lm.angle))
+            self._frames[key] = (cfg, out)
+        return self._frames[key][1]
 
     def _config(self, angle, speed, accel):
         """(configuration batch, index) for the next step: the cached revolution if it applies."""
@@ -75,21 +89,25 @@ class TMMEngine:
         ks = self.k + 1 + np.arange(n)
         t = self.t0 + ks * self._dt          # integer step count, never accumulated
         angle, speed, accel = (np.asarray(x, dtype=float) for x in drive.prescribed(t))
-        outs, nodes = [], {l.name: [] for l in self.links}
+        outs, zs, frames = [], [], {l.name: ([], [], []) for l in self.links}
         for i in range(n):
             cfg, idx = self._config(float(angle[i]), float(speed[i]), float(accel[i]))
             self.k += 1
             z, out = self.march.step_with(cfg, idx)
             outs.append(out)
-            local = self.td.unstack(z)
-            for link in self.links:
-                lm = cfg["motion"].link(link.name)
-                rigid = lm.point(link.stations)[0][idx]
-                c, s = math.cos(lm.angle[idx]), math.sin(lm.angle[idx])
-                u, w = local[link.name][:, 0], local[link.name][:, 1]
-                nodes[link.name].append(rigid + np.stack([c * u - s * w, s * u + c * w], -1))
+            zs.append(z)
+            for name, (rigid, c, s) in self._frame(cfg).items():
+                frames[name][0].append(rigid[idx])
+                frames[name][1].append(c[idx])
+                frames[name][2].append(s[idx])
         outs = np.array(outs)
+        local = self.td.unstack(np.array(zs))
+        nodes = {}
+        for name, (rigid, c, s) in frames.items():
+            c, s = np.array(c)[:, None], np.array(s)[:, None]
+            u, w = local[name][..., 0], local[name][..., 1]
+            nodes[name] = np.array(rigid) + np.stack([c * u - s * w, s * u + c * w], -1)
         if not np.all(np.isfinite(outs)):
             raise EngineError(f"tmm: non-finite response before t = {t_next:.6g} s")
         gauges = {g.name: (outs[:, 1 + 2 * i], outs[:, 2 + 2 * i]) for i, g in enumerate(self.td.gauges)}
-        return EngineOutput(t, angle, speed, outs[:, 0], gauges, {k: np.array(v) for k, v in nodes.items()})
+        return EngineOutput(t, angle, speed, outs[:, 0], gauges, nodes)
