@@ -30,7 +30,22 @@ File layout (all tables except ``[scenario]``, ``[linkage]``, ``[links.*]`` are 
                     axial_force = "quasi_static" | "iterated" | "none"
     [solver.exudyn] elements, step, spectral_radius, newton_tolerance
     [solver.mujoco] step, servo_frequency, solref_factor, solimp
+    [motor]         rated_power, rated_speed, rated_voltage (derive the constants below that are not
+                    given: :func:`cosim.motor.derive_pm_dc_motor`, its knobs efficiency,
+                    copper_loss_share, coulomb_share, electrical_time_constant, rotor_inertia_per_power),
+                    resistance, inductance, torque_constant, back_emf, rotor_inertia, viscous_friction,
+                    coulomb_friction, supply_voltage, gear_ratio, flywheel_inertia | flywheels =
+                    [{diameter, thickness, density, count}], shaft_stiffness, shaft_damping,
+                    controller = {bandwidth, current_bandwidth, current_limit} | {kp, ki}, setpoint = {profile, start, t0, duration},
+                    reversible
+    [coupling]      macro_step, scheme = "jacobi" | "gauss_seidel" | "iterated", extrapolation =
+                    "constant" | "linear", interface_jacobian, tolerance, max_iterations,
+                    start = "steady" | "rest"
     [output]        revolutions, sample_step
+
+Time steps (``solver.*.step``, ``coupling.macro_step``) are written in seconds or as a crank
+angle ("1 deg"), which is converted with the drive speed. The macro step must be a whole multiple
+of every engine's step.
 """
 from __future__ import annotations
 
@@ -104,6 +119,20 @@ class MujocoSettings:
 
 
 @dataclass(frozen=True)
+class CouplingSettings:
+    """Co-simulation coupling (see :mod:`cosim.master`). ``macro_step_s`` None: the largest engine
+    step, if the others divide it."""
+
+    macro_step_s: float | None = None
+    scheme: str = "gauss_seidel"
+    extrapolation: str = "linear"
+    interface_jacobian: bool = True
+    tolerance: float = 1e-6
+    max_iterations: int = 20
+    start: str = "steady"
+
+
+@dataclass(frozen=True)
 class OutputSettings:
     revolutions: float = 3.0
     sample_step_s: float | None = None
@@ -127,6 +156,19 @@ class Scenario:
     output: OutputSettings
     assumptions: tuple
     raw: dict = field(repr=False, default_factory=dict)
+    motor: object = None                  # cosim.motor.MotorParameters, or None without a [motor] table
+    coupling: CouplingSettings = CouplingSettings()
+
+    def engine_step_s(self, engine: str) -> float:
+        """Internal step of an engine [s]."""
+        if engine == "tmm":
+            if self.tmm.step_s is not None:
+                return self.tmm.step_s
+            if not self.drive.speed_rad_s:
+                raise ScenarioError(f"scenario '{self.path}': key 'solver.tmm.step': a crank-angle step needs a "
+                                    "non-zero drive.speed")
+            return self.tmm.step_rad / abs(self.drive.speed_rad_s)
+        return {"exudyn": self.exudyn.step_s, "mujoco": self.mujoco.step_s}[engine]
 
     @property
     def crank_speed_rad_s(self) -> float:
@@ -143,6 +185,7 @@ class _Reader:
 
     def __init__(self, path: str):
         self.path = path
+        self.speed = 0.0          # drive speed [rad/s], for steps written as crank angles
         self.assumptions: list[Assumption] = []
 
     def fail(self, key: str, msg: str, value=None) -> ScenarioError:
@@ -364,7 +407,7 @@ def from_dict(data: dict, path: str = "<dict>", default_name: str = "scenario") 
     """Build a :class:`Scenario` from parsed TOML data (``path`` is only used in messages)."""
     r = _Reader(path)
     top = r.table(data, "", {"scenario", "linkage", "materials", "sections", "links", "drive", "gravity", "gauges",
-                             "solver", "output"}, {"linkage", "links"})
+                             "solver", "output", "motor", "coupling"}, {"linkage", "links"})
     meta = r.table(top.get("scenario", {}), "scenario", {"name", "description", "sources"})
     solver = r.table(top.get("solver", {}), "solver", {"tmm", "exudyn", "mujoco"})
     tmm = _tmm_settings(r, solver.get("tmm", {}))
@@ -397,6 +440,9 @@ def from_dict(data: dict, path: str = "<dict>", default_name: str = "scenario") 
     mech = FourBarMechanism(links["crank"], links["coupler"], links["rocker"], ground, pivot, ground_angle, branch)
 
     drive = _drive(r, top.get("drive", {}))
+    r.speed = drive.speed_rad_s
+    if "step" in solver.get("tmm", {}) and tmm.step_rad is not None and not drive.speed_rad_s:
+        raise r.fail("solver.tmm.step", "a crank-angle step needs a non-zero drive.speed", solver["tmm"]["step"])
     try:
         mech.motion(np.linspace(0, 2 * np.pi, 73) + drive.start_angle_rad)
     except TMMError as exc:
@@ -423,14 +469,14 @@ def from_dict(data: dict, path: str = "<dict>", default_name: str = "scenario") 
     ex = r.table(solver.get("exudyn", {}), "solver.exudyn", {"elements", "step", "spectral_radius", "newton_tolerance"})
     exudyn = ExudynSettings(
         r.number(ex.get("elements", 8), "solver.exudyn.elements", int, positive=True),
-        r.quantity(ex.get("step", "1e-4 s"), "solver.exudyn.step", "s", positive=True),
+        _step(r, ex.get("step", "1e-4 s"), "solver.exudyn.step"),
         r.number(ex.get("spectral_radius", 0.9), "solver.exudyn.spectral_radius"),
         r.number(ex.get("newton_tolerance", 1e-6), "solver.exudyn.newton_tolerance", positive=True))
     if not 0 <= exudyn.spectral_radius <= 1:
         raise r.fail("solver.exudyn.spectral_radius", "must lie in [0, 1]", exudyn.spectral_radius)
     mj = r.table(solver.get("mujoco", {}), "solver.mujoco", {"step", "servo_frequency", "solref_factor", "solimp"})
     mujoco = MujocoSettings(
-        r.quantity(mj.get("step", "1e-4 s"), "solver.mujoco.step", "s", positive=True),
+        _step(r, mj.get("step", "1e-4 s"), "solver.mujoco.step"),
         r.quantity(mj["servo_frequency"], "solver.mujoco.servo_frequency", "Hz", positive=True)
         if "servo_frequency" in mj else None,
         r.number(mj.get("solref_factor", 2.0), "solver.mujoco.solref_factor", positive=True),
@@ -439,12 +485,148 @@ def from_dict(data: dict, path: str = "<dict>", default_name: str = "scenario") 
     output = OutputSettings(r.number(out.get("revolutions", 3.0), "output.revolutions", positive=True),
                             r.quantity(out["sample_step"], "output.sample_step", "s", positive=True)
                             if "sample_step" in out else None)
+    motor = _motor(r, top["motor"], drive, mech) if "motor" in top else None
+    if drive.mode == "motor" and motor is None:
+        raise r.fail("drive.mode", "needs a [motor] table", "motor")
+    coupling = _coupling(r, top.get("coupling", {}))
     sources = meta.get("sources", [])
     if isinstance(sources, str):
         sources = [sources]
     return Scenario(str(meta.get("name", default_name)), str(meta.get("description", "")),
                     Path(path) if path != "<dict>" else None, tuple(sources), mech, drive, tuple(gauges), gravity,
-                    tmm, exudyn, mujoco, output, tuple(r.assumptions), data)
+                    tmm, exudyn, mujoco, output, tuple(r.assumptions), data, motor, coupling)
+
+
+def _step(r: _Reader, value, key: str) -> float:
+    """A time step in seconds, or a crank angle converted with the drive speed."""
+    raw = r._unwrap(value, key)
+    try:
+        q = UREG.Quantity(str(raw).replace("^", "**")) if isinstance(raw, str) else None
+    except Exception:
+        q = None
+    if isinstance(q, pint.Quantity) and q.dimensionality == UREG.Quantity(1, "rad").dimensionality and \
+            str(q.units) != "dimensionless":
+        if not r.speed:
+            raise r.fail(key, "a crank-angle step needs a non-zero drive.speed", raw)
+        return r.quantity(raw, key, "rad", positive=True) / abs(r.speed)
+    return r.quantity(raw, key, "s", positive=True)
+
+
+def _coupling(r: _Reader, data) -> CouplingSettings:
+    d = r.table(data, "coupling", {"macro_step", "scheme", "extrapolation", "interface_jacobian", "tolerance",
+                                   "max_iterations", "start"})
+    c = CouplingSettings(
+        _step(r, d["macro_step"], "coupling.macro_step") if "macro_step" in d else None,
+        r.number(d.get("scheme", "gauss_seidel"), "coupling.scheme", choices=("jacobi", "gauss_seidel", "iterated")),
+        r.number(d.get("extrapolation", "linear"), "coupling.extrapolation", choices=("constant", "linear")),
+        r.number(d.get("interface_jacobian", True), "coupling.interface_jacobian", bool),
+        r.number(d.get("tolerance", 1e-6), "coupling.tolerance", positive=True),
+        r.number(d.get("max_iterations", 20), "coupling.max_iterations", int, positive=True),
+        r.number(d.get("start", "steady"), "coupling.start", choices=("steady", "rest")))
+    return c
+
+
+MOTOR_CONSTANTS = {"resistance": ("resistance_ohm", "ohm"), "inductance": ("inductance_H", "H"),
+                   "torque_constant": ("torque_constant_Nm_A", "N*m/A"),
+                   "back_emf": ("back_emf_V_s_rad", "V*s/rad"), "rotor_inertia": ("rotor_inertia_kg_m2", "kg*m**2"),
+                   "viscous_friction": ("viscous_friction_Nm_s_rad", "N*m*s/rad"),
+                   "coulomb_friction": ("coulomb_friction_Nm", "N*m")}
+
+
+def _motor(r: _Reader, data, drive: DriveSpec, mech):
+    from .motor import MotorParameters, SetPoint, derive_pm_dc_motor
+
+    knobs = {"efficiency": ("efficiency", ""), "copper_loss_share": ("copper_loss_share", ""),
+             "coulomb_share": ("coulomb_share", ""), "electrical_time_constant": ("electrical_time_constant_s", "s"),
+             "rotor_inertia_per_power": ("rotor_inertia_per_W", "kg*m**2/W")}
+    d = r.table(data, "motor", set(MOTOR_CONSTANTS) | set(knobs) | {
+        "rated_power", "rated_speed", "rated_voltage", "supply_voltage", "gear_ratio", "flywheel_inertia", "flywheels",
+        "shaft_stiffness", "shaft_damping", "controller", "setpoint", "reversible"})
+    values = {}
+    for key, (name, unit) in MOTOR_CONSTANTS.items():
+        if key in d:
+            strict = key in ("resistance", "inductance", "torque_constant", "back_emf")
+            values[name] = r.quantity(d[key], f"motor.{key}", unit, positive=strict, nonnegative=not strict)
+    rating = [k for k in ("rated_power", "rated_speed", "rated_voltage") if k in d]
+    missing = [k for k in MOTOR_CONSTANTS if MOTOR_CONSTANTS[k][0] not in values]
+    if missing:
+        if len(rating) < 3:
+            need = sorted({"rated_power", "rated_speed", "rated_voltage"} - set(rating))
+            raise r.fail(f"motor.{need[0]}", f"is required to derive the motor constants not given "
+                                             f"({', '.join(missing)})")
+        P = r.quantity(d["rated_power"], "motor.rated_power", "W", positive=True)
+        w = r.quantity(d["rated_speed"], "motor.rated_speed", "rad/s", positive=True)
+        V = r.quantity(d["rated_voltage"], "motor.rated_voltage", "V", positive=True)
+        kw = {name: r.quantity(d[k], f"motor.{k}", unit, positive=True) for k, (name, unit) in knobs.items() if k in d}
+        try:
+            derived, why = derive_pm_dc_motor(P, w, V, **kw)
+        except InputError as exc:
+            raise r.fail("motor.rated_power", str(exc)) from None
+        for key in missing:
+            name, unit = MOTOR_CONSTANTS[key]
+            values[name] = derived[name]
+            r.assumptions.append(Assumption(f"motor.{key}", f"{derived[name]:.6g} {unit.replace('**', '^')}", why))
+    if "supply_voltage" in d:
+        values["supply_voltage_V"] = r.quantity(d["supply_voltage"], "motor.supply_voltage", "V", positive=True)
+    elif "rated_voltage" in d:
+        values["supply_voltage_V"] = UREG.Quantity(str(r._unwrap(d["rated_voltage"], "")).replace("^", "**")).to("V").m
+    else:
+        raise r.fail("motor.supply_voltage", "is required (or give rated_voltage)")
+    values["gear_ratio"] = r.number(d.get("gear_ratio", 1.0), "motor.gear_ratio", positive=True)
+    if "flywheel_inertia" in d and "flywheels" in d:
+        raise r.fail("motor.flywheels", "give either flywheel_inertia or flywheels, not both")
+    J_fw = r.quantity(d.get("flywheel_inertia", "0 kg*m^2"), "motor.flywheel_inertia", "kg*m**2", nonnegative=True)
+    fws = d.get("flywheels", [])
+    if not isinstance(fws, list):
+        raise r.fail("motor.flywheels", "must be a list of tables", fws)
+    for i, fw in enumerate(fws):
+        fk = f"motor.flywheels[{i}]"
+        f = r.table(fw, fk, {"diameter", "thickness", "density", "count"}, {"diameter", "thickness", "density"})
+        radius = 0.5 * r.quantity(f["diameter"], f"{fk}.diameter", "m", positive=True)
+        mass = (r.quantity(f["density"], f"{fk}.density", "kg/m**3", positive=True) * math.pi * radius**2 *
+                r.quantity(f["thickness"], f"{fk}.thickness", "m", positive=True))
+        J_fw += r.number(f.get("count", 1), f"{fk}.count", int, positive=True) * 0.5 * mass * radius**2   # solid disk
+    values["flywheel_inertia_kg_m2"] = J_fw
+    if "shaft_stiffness" in d:
+        values["shaft_stiffness_Nm_rad"] = r.quantity(d["shaft_stiffness"], "motor.shaft_stiffness", "N*m/rad",
+                                                      positive=True)
+    values["shaft_damping_Nm_s_rad"] = r.quantity(d.get("shaft_damping", "0 N*m*s/rad"), "motor.shaft_damping",
+                                                  "N*m*s/rad", nonnegative=True)
+    values["reversible"] = r.number(d.get("reversible", False), "motor.reversible", bool)
+
+    sp = r.table(d.get("setpoint", {}), "motor.setpoint", {"profile", "start", "t0", "duration"})
+    speed = drive.speed_rad_s
+    sign = -1.0 if speed < 0 else 1.0
+    setpoint = SetPoint(r.number(sp.get("profile", "constant"), "motor.setpoint.profile",
+                                 choices=("constant", "ramp", "step")), speed,
+                        sign * r.quantity(sp.get("start", "0 rpm"), "motor.setpoint.start", "rad/s", nonnegative=True),
+                        r.quantity(sp.get("t0", "0 s"), "motor.setpoint.t0", "s", nonnegative=True),
+                        r.quantity(sp.get("duration", "0 s"), "motor.setpoint.duration", "s", nonnegative=True))
+    values["setpoint"] = setpoint
+    ctrl = r.table(d.get("controller", {}), "motor.controller", {"bandwidth", "kp", "ki", "current_bandwidth",
+                                                                 "current_limit"})
+    if "current_limit" in ctrl:
+        values["current_limit_A"] = r.quantity(ctrl["current_limit"], "motor.controller.current_limit", "A",
+                                               positive=True)
+    if "bandwidth" in ctrl and ("kp" in ctrl or "ki" in ctrl):
+        raise r.fail("motor.controller", "give either bandwidth or kp and ki")
+    if "kp" in ctrl or "ki" in ctrl:
+        values["kp_V_s_rad"] = r.quantity(ctrl.get("kp", "0 V*s/rad"), "motor.controller.kp", "V*s/rad",
+                                          nonnegative=True)
+        values["ki_V_rad"] = r.quantity(ctrl.get("ki", "0 V/rad"), "motor.controller.ki", "V/rad", nonnegative=True)
+    try:
+        params = MotorParameters(**values)
+        if "kp" not in ctrl and "ki" not in ctrl:
+            bw = r.quantity(ctrl.get("bandwidth", "2 Hz"), "motor.controller.bandwidth", "Hz", positive=True)
+            bwi = (r.quantity(ctrl["current_bandwidth"], "motor.controller.current_bandwidth", "Hz", positive=True)
+                   if "current_bandwidth" in ctrl else None)
+            params = params.with_gains_for(bw, float(np.mean(mech.crank_inertia(np.linspace(0, 2 * math.pi, 72,
+                                                                                            endpoint=False))[0])), bwi)
+        elif "current_bandwidth" in ctrl:
+            raise r.fail("motor.controller.current_bandwidth", "needs bandwidth (the gains are designed from both)")
+    except InputError as exc:
+        raise r.fail("motor", str(exc)) from None
+    return params
 
 
 def _drive(r: _Reader, data) -> DriveSpec:

@@ -96,3 +96,33 @@ def test_toggle_is_refused():
         fourbar_motion(g, th_toggle)
     with pytest.raises(AssemblyError, match="toggle"):
         slider_crank_motion(SliderCrankGeometry(1.0, 1.0, offset=0.0), np.pi / 2)
+
+
+def test_rigid_body_and_reflected_inertia():
+    """A uniform rod with a point mass: mass, centre and central inertia in closed form; the
+    crank's reflected inertia J(q) of a four-bar and its derivative against finite differences
+    of the closed-form positions (kinetic energy at unit crank speed)."""
+    from tmm_core import FourBarMechanism, Link, Material, PointMass, Section
+    mat = Material("al", 70e9, 2700.0)
+    sec = Section.rectangle(0.02, 0.005)
+    L, m_p = 0.3, 0.05
+    rod = Link("coupler", L, sec, mat, 6, (PointMass(L, m_p, 1e-6, "tip"),))
+    m_rod = 2700.0 * sec.area_m2 * L
+    m, xc, J = rod.rigid_body()
+    assert m == pytest.approx(m_rod + m_p)
+    assert xc == pytest.approx((m_rod * L / 2 + m_p * L) / m)
+    assert J == pytest.approx(m_rod * L**2 / 12 + m_rod * (L / 2 - xc) ** 2 + m_p * (L - xc) ** 2 + 1e-6)
+    mech = FourBarMechanism(Link("crank", 0.1, sec, mat, 4), rod, Link("rocker", 0.28, sec, mat, 4), 0.25)
+    q = np.linspace(0.1, 6.0, 7)
+    Jq, dJ, _ = mech.crank_inertia(q)
+    h = 1e-6
+    ke = np.zeros_like(q)
+    for link in mech.links():
+        mm, x, Jc = link.rigid_body()
+        p1, p0 = mech.motion(q + h).link(link.name), mech.motion(q - h).link(link.name)
+        v = (p1.point(x)[0] - p0.point(x)[0]) / (2 * h)
+        w = (p1.angle - p0.angle) / (2 * h)
+        ke += mm * np.sum(v**2, -1) + Jc * w**2
+    np.testing.assert_allclose(Jq, ke, rtol=1e-7)
+    np.testing.assert_allclose(dJ, (mech.crank_inertia(q + 1e-5)[0] - mech.crank_inertia(q - 1e-5)[0]) / 2e-5,
+                               rtol=1e-5, atol=1e-9)

@@ -132,6 +132,22 @@ class Link:
         m[1:] += 0.5 * seg
         return m
 
+    def rigid_body(self):
+        """Exact rigid-body mass properties ``(mass [kg], centre of mass x [m] from the start
+        joint, z inertia about the centre of mass [kg m^2])``: every mesh segment (span and end
+        blocks) as a uniform rod (m = rho A h, I = m h^2 / 12), plus the point masses with their
+        own rotary inertia."""
+        x = self.stations
+        h = np.diff(x)
+        m = np.concatenate([self.segment_mass_per_length() * h, [p.mass_kg for p in self.point_masses]])
+        xc = np.concatenate([0.5 * (x[1:] + x[:-1]), [p.position_m for p in self.point_masses]])
+        Jc = np.concatenate([m[:len(h)] * h**2 / 12.0, [p.inertia_kg_m2 for p in self.point_masses]])
+        mass = float(m.sum())
+        if not mass > 0:
+            raise InputError(f"link '{self.name}' has no mass")
+        com = float(m @ xc / mass)
+        return mass, com, float(Jc.sum() + m @ (xc - com) ** 2)
+
     def node_masses(self):
         """Lumped mass [kg] and rotary inertia [kg m^2] at each node, shape (n_nodes,) each.
 
@@ -201,6 +217,34 @@ class FourBarMechanism:
         """Load case at the positions of ``motion``; loads are ``{link: array}`` as in :class:`LoadCase`."""
         return LoadCase(self.joint_positions(motion), dict(node_loads or {}), dict(distributed_loads or {}),
                         dict(node_stiffness or {}))
+
+    def crank_inertia(self, crank_angle, gravity=None, lumped: bool = False):
+        """Rigid linkage seen at the crank (equivalent-inertia form of its equation of motion,
+        ``J(q) q'' + J'(q) q'^2 / 2 - Q_g(q) = T_drive``), at crank angles ``q`` [rad] (array):
+        ``(J [kg m^2], dJ/dq [kg m^2/rad], Q_g [N m])``. J is twice the kinetic energy at unit
+        crank speed; Q_g is the generalized gravity force (CCW positive) for ``gravity`` [m/s^2].
+        ``lumped``: the transfer-matrix mass model (node masses and rotary inertias,
+        :meth:`Link.node_masses`) instead of the exact distributed mass."""
+        q = np.atleast_1d(np.asarray(crank_angle, dtype=float))
+        mo = self.motion(q, 1.0, 0.0)   # at unit speed and zero crank acceleration: v = dr/dq, a = dv/dq
+        J = np.zeros(q.shape)
+        dJ = np.zeros(q.shape)
+        Qg = np.zeros(q.shape)
+        g = np.zeros(2) if gravity is None else np.asarray(gravity, dtype=float)
+        for link in self.links():
+            if lumped:
+                m, Jc = link.node_masses()
+                xc = link.stations
+            else:
+                m, xc, Jc = link.rigid_body()
+                m, xc, Jc = np.array([m]), np.array([xc]), np.array([Jc])
+            lm = mo.link(link.name)
+            _, v, a = lm.point(xc)
+            w, al = lm.omega[..., None], lm.alpha[..., None]
+            J += np.sum(m * np.sum(v * v, -1) + Jc * w**2, -1)
+            dJ += 2.0 * np.sum(m * np.sum(v * a, -1) + Jc * w * al, -1)
+            Qg += np.sum(m * (v @ g), -1)
+        return J, dJ, Qg
 
     def gravity_loads(self, g=(0.0, -9.80665)):
         """Distributed self-weight ``{link: (n, 2)}`` [N/m] for gravity vector ``g`` [m/s^2]."""

@@ -1,8 +1,10 @@
 """Engine protocol shared by the transfer-matrix, exudyn and MuJoCo engines.
 
 Sign conventions (all engines): crank angle from the ground line A->D, counter-clockwise
-positive, radians; the *drive torque* is the moment the drive applies to the crank at its pivot,
-counter-clockwise positive [N m]; gauge strains are dimensionless, positive = tension on the
+positive, radians; the *drive torque* is the moment the linkage takes at the crank pivot,
+counter-clockwise positive [N m] (the torque a drive must apply to the crank to move the
+linkage; when an engine also carries the drive's own inertia, that inertia's share
+J_drive alpha is not included); gauge strains are dimensionless, positive = tension on the
 gauged face (:class:`tmm_core.Gauge`), bending = that face's bending strain, axial = N/EA.
 Node positions are global [m].
 
@@ -10,6 +12,12 @@ A master advances every engine over macro steps with :meth:`Engine.advance`. A d
 either a *prescribed* crank motion (a function of time returning angle, speed, acceleration;
 the engine follows it and reports the torque it takes) or a *torque* (the engine integrates the
 crank motion; kinematically driven engines refuse it).
+
+Engines are either *kinematic* (``kinematic = True``: the crank motion is an input, as in the
+transfer-matrix model with the crank clamped at its pivot) or *torque-driven* (they integrate the
+crank; a motor coupled to them puts its rotor and flywheel inertia on their crank through
+``reset(..., drive_inertia_kg_m2=...)``). ``save()``/``restore()`` let a master repeat a macro
+step (iterated coupling).
 """
 from __future__ import annotations
 
@@ -65,13 +73,22 @@ class EngineOutput:
 
 class Engine(Protocol):
     name: str
+    kinematic: bool
 
     @property
     def internal_step_s(self) -> float: ...
 
-    def reset(self, scenario: Scenario, t0: float, angle: float, speed: float) -> None: ...
+    def reset(self, scenario: Scenario, t0: float, angle: float, speed: float,
+              drive_inertia_kg_m2: float = 0.0) -> None: ...
+
+    def initial_output(self) -> EngineOutput:
+        """One sample at the reset time (drive torque NaN where the engine does not know it yet)."""
 
     def advance(self, t_next: float, drive: DriveInput) -> EngineOutput: ...
+
+    def save(self): ...
+
+    def restore(self, token) -> None: ...
 
 
 def constant_speed_profile(speed: float, start_angle: float = 0.0, t0: float = 0.0) -> CrankProfile:

@@ -49,6 +49,7 @@ HUB_INERTIA_KG_M2 = 1e-8
 
 class ExudynEngine:
     name = "exudyn"
+    kinematic = False
 
     def __init__(self):
         self._h = None
@@ -61,7 +62,13 @@ class ExudynEngine:
         return self._h
 
     # -- model ---------------------------------------------------------------------------------
-    def reset(self, scenario: Scenario, t0: float, angle: float, speed: float) -> None:
+    def reset(self, scenario: Scenario, t0: float, angle: float, speed: float, drive_inertia_kg_m2: float = 0.0) -> None:
+        """Build the model at crank ``angle`` [rad] and ``speed`` [rad/s] at ``t0`` [s];
+        ``drive_inertia_kg_m2`` (a motor's rotor and flywheel at the crank) sits on the hub."""
+        if not (np.isfinite(drive_inertia_kg_m2) and drive_inertia_kg_m2 >= 0):
+            raise EngineError(f"exudyn: drive inertia must not be negative, got {drive_inertia_kg_m2!r} kg m^2")
+        self._hub_inertia = HUB_INERTIA_KG_M2 + float(drive_inertia_kg_m2)
+        self._speed0 = speed
         settings = scenario.exudyn
         mech = scenario.mechanism
         links = [dataclasses.replace(l, n_segments=settings.elements) for l in mech.links()]
@@ -96,7 +103,7 @@ class ExudynEngine:
         hub_node = mbs.AddNode(NodeRigidBody2D(referenceCoordinates=[A[0], A[1], self._angle0],
                                                initialVelocities=[0.0, 0.0, speed]))
         self._hub_node = hub_node
-        hub = mbs.AddObject(ObjectRigidBody2D(nodeNumber=hub_node, mass=HUB_MASS_KG, inertia=HUB_INERTIA_KG_M2))
+        hub = mbs.AddObject(ObjectRigidBody2D(nodeNumber=hub_node, mass=HUB_MASS_KG, inertia=self._hub_inertia))
         hc = [mbs.AddMarker(MarkerNodeCoordinate(nodeNumber=hub_node, coordinate=i)) for i in range(3)]
         mbs.AddObject(CoordinateConstraint(markerNumbers=[mg, hc[0]]))
         mbs.AddObject(CoordinateConstraint(markerNumbers=[mg, hc[1]]))
@@ -199,6 +206,27 @@ class ExudynEngine:
     def _set_mode(self, prescribed: bool):
         self.mbs.SetObjectParameter(self._drive_constraint, "activeConnector", prescribed)
 
+    def initial_output(self) -> EngineOutput:
+        return EngineOutput(np.array([self.t0]), np.array([self._angle0]), np.array([self._speed0]), np.array([np.nan]))
+
+    def save(self):
+        """The state the next SolveDynamic starts from (its initial configuration), with the
+        accelerations the generalized-alpha start uses."""
+        sd = self.mbs.systemData
+        init = exu.ConfigurationType.Initial
+        return (self.k, self._drive, [np.array(v, copy=True) for v in sd.GetSystemState(init)],
+                np.array(sd.GetODE2Coordinates_tt(init), copy=True))
+
+    def restore(self, token) -> None:
+        self.k, drive, state, acc = token
+        if (drive.prescribed is not None) != (self._drive.prescribed is not None):
+            self._set_mode(drive.prescribed is not None)
+        self._drive = drive
+        sd = self.mbs.systemData
+        for config in (exu.ConfigurationType.Initial, exu.ConfigurationType.Current):
+            sd.SetSystemState(state, config)
+            sd.SetODE2Coordinates_tt(acc, config)
+
     # -- stepping ------------------------------------------------------------------------------
     def advance(self, t_next: float, drive: DriveInput) -> EngineOutput:
         t_start = self.t0 + self.k * self._h
@@ -232,6 +260,8 @@ class ExudynEngine:
             torque = -float(mbs.GetObjectOutput(self._drive_constraint, OVT.Force))
         else:
             torque = float(self._drive.torque_at(t))
+        # The linkage takes what the hub (with the drive's inertia) does not keep.
+        torque -= self._hub_inertia * float(mbs.GetNodeOutput(self._hub_node, OVT.Coordinates_tt)[2])
         gauges = {}
         for name, (sensors, depth, face) in self._gauge_sensors.items():
             kappa = np.mean([mbs.GetSensorValues(sk) for sk, _ in sensors])

@@ -41,7 +41,7 @@ import mujoco
 import numpy as np
 from mujoco import rollout
 
-from tmm_core import LoadCase, gauge_strains, solve_static
+from tmm_core import InputError, LoadCase, gauge_strains, solve_static
 
 from ..scenario import Scenario
 from .base import DriveInput, EngineError, EngineOutput, steps_in
@@ -53,32 +53,18 @@ SERVO_GROUP, MOTOR_GROUP = 1, 2
 
 
 def link_inertia(link):
-    """Exact rigid-body ``(mass [kg], centre of mass x [m] from the start joint, inertia about the
-    centre of mass about z [kg m^2])`` of a link: every mesh segment (span and end blocks) as a
-    uniform rod (m = rho A h, I = m h^2 / 12) plus the point masses with their own inertia."""
-    x = link.stations
-    h = np.diff(x)
-    m = np.concatenate([link.segment_mass_per_length() * h, [p.mass_kg for p in link.point_masses]])
-    xc = np.concatenate([0.5 * (x[1:] + x[:-1]), [p.position_m for p in link.point_masses]])
-    Jc = np.concatenate([m[:len(h)] * h**2 / 12.0, [p.inertia_kg_m2 for p in link.point_masses]])
-    mass = float(m.sum())
-    if not mass > 0:
-        raise EngineError(f"mujoco: link '{link.name}' has no mass; a rigid body needs a positive mass")
-    com = float(m @ xc / mass)
-    return mass, com, float(Jc.sum() + m @ (xc - com) ** 2)
+    """Exact rigid-body (mass, centre of mass x, z inertia about it) of a link (see
+    :meth:`tmm_core.Link.rigid_body`)."""
+    try:
+        return link.rigid_body()
+    except InputError as exc:
+        raise EngineError(f"mujoco: {exc}; a rigid body needs a positive mass") from None
 
 
 def reflected_inertia(mech, n: int = 72) -> np.ndarray:
-    """Linkage inertia seen at the crank, 2 x kinetic energy at unit crank speed [kg m^2], at ``n``
-    crank positions over a revolution (closed-form velocities; used only to size the servo)."""
-    motion = mech.motion(np.linspace(0.0, 2 * math.pi, n, endpoint=False), 1.0)
-    J = np.zeros(n)
-    for link in mech.links():
-        m, xc, Jc = link_inertia(link)
-        lm = motion.link(link.name)
-        v = lm.point(xc)[1]
-        J += m * np.sum(v**2, -1) + Jc * lm.omega**2
-    return J
+    """Linkage inertia seen at the crank [kg m^2] at ``n`` crank positions over a revolution
+    (used only to size the servo)."""
+    return mech.crank_inertia(np.linspace(0.0, 2 * math.pi, n, endpoint=False))[0]
 
 
 def _wrap(a: float) -> float:
@@ -91,6 +77,7 @@ def _f(*v):
 
 class MujocoEngine:
     name = "mujoco"
+    kinematic = False
 
     def __init__(self):
         self._dt = None
@@ -152,9 +139,14 @@ class MujocoEngine:
   <sensor>{''.join(sensors)}</sensor>
 </mujoco>"""
 
-    def reset(self, scenario: Scenario, t0: float, angle: float, speed: float) -> None:
+    def reset(self, scenario: Scenario, t0: float, angle: float, speed: float, drive_inertia_kg_m2: float = 0.0) -> None:
         """Build the model and put the linkage at crank ``angle`` [rad] turning at ``speed`` [rad/s]
-        (coupler and rocker from the closed-form kinematics), at time ``t0`` [s]."""
+        (coupler and rocker from the closed-form kinematics), at time ``t0`` [s].
+        ``drive_inertia_kg_m2``: a motor's rotor and flywheel inertia at the crank, carried as the
+        crank's armature when driven by a torque."""
+        if not (np.isfinite(drive_inertia_kg_m2) and drive_inertia_kg_m2 >= 0):
+            raise EngineError(f"mujoco: drive inertia must not be negative, got {drive_inertia_kg_m2!r} kg m^2")
+        self.drive_inertia = float(drive_inertia_kg_m2)
         s = scenario.mujoco
         mech = self.mech = scenario.mechanism
         self.scenario, self._dt, self.t0, self.k = scenario, s.step_s, t0, 0
@@ -186,9 +178,20 @@ class MujocoEngine:
         mujoco.mj_getState(self.model, d, self.state, mujoco.mjtState.mjSTATE_FULLPHYSICS)
 
     def _set_drive(self, prescribed: bool) -> None:
-        """Prescribed: servo on with its armature; torque: motor only, no armature."""
+        """Prescribed: servo on with its armature; torque: motor only, the drive's inertia as armature."""
         self.model.opt.disableactuator = 1 << (MOTOR_GROUP if prescribed else SERVO_GROUP)
-        self.model.dof_armature[0] = self.armature if prescribed else 0.0
+        self.model.dof_armature[0] = self.armature if prescribed else self.drive_inertia
+
+    def initial_output(self) -> EngineOutput:
+        q, w = self.data.qpos[0], self.data.qvel[0]
+        return EngineOutput(np.array([self.t0]), np.array([q]), np.array([w]), np.array([np.nan]))
+
+    def save(self):
+        return self.k, self.state.copy()
+
+    def restore(self, token) -> None:
+        self.k, state = token
+        self.state = state.copy()
 
     # -- stepping -----------------------------------------------------------------------------
     def advance(self, t_next: float, drive: DriveInput) -> EngineOutput:

@@ -20,6 +20,7 @@ from .base import DriveInput, EngineError, EngineOutput, steps_in
 
 class TMMEngine:
     name = "tmm"
+    kinematic = True      # takes a crank motion, returns the drive torque
 
     def __init__(self):
         self._dt = None
@@ -30,7 +31,9 @@ class TMMEngine:
             raise EngineError("tmm: reset() the engine before asking for its step")
         return self._dt
 
-    def reset(self, scenario: Scenario, t0: float, angle: float, speed: float) -> None:
+    def reset(self, scenario: Scenario, t0: float, angle: float, speed: float, drive_inertia_kg_m2: float = 0.0) -> None:
+        """Start at crank ``angle`` [rad] and ``speed`` [rad/s] at ``t0`` [s]. The drive's inertia
+        stays with the motor (the crank motion is prescribed), so ``drive_inertia_kg_m2`` is unused."""
         s = scenario.tmm
         self.scenario = scenario
         self.td = TimeDomain(scenario.mechanism, integrator=s.integrator, coupling=s.coupling,
@@ -44,6 +47,7 @@ class TMMEngine:
         else:
             raise EngineError("tmm: a crank-angle step needs a non-zero drive speed; give solver.tmm.step in s")
         self.t0, self.k = t0, 0
+        self._angle0, self._speed0 = angle, speed
         self.march = self.td.begin(self._dt, angle, speed, 0.0, start=s.start)
         self.cache = None
         N = 2 * math.pi / (abs(ref_speed) * self._dt) if ref_speed else 0.0
@@ -69,16 +73,37 @@ class TMMEngine:
             self._frames[key] = (cfg, out)
         return self._frames[key][1]
 
-    def _config(self, angle, speed, accel):
-        """(configuration batch, index) for the next step: the cached revolution if it applies."""
-        if self.cache is not None:
-            N, w, angles, cfg = self.cache
-            idx = (self.k + 1) % N
-            d = (angle - angles[idx] + math.pi) % (2 * math.pi) - math.pi
-            if abs(d) < 1e-9 and speed == w and accel == 0.0:
-                return cfg, idx
-        cfg = self.td._configurations(np.array([angle]), np.array([speed]), np.array([accel]), self._dt, maps=False)
-        return cfg, 0
+    def _cached(self, k, angle, speed, accel):
+        """Index into the cached revolution for step ``k`` if the crank state matches it, else None."""
+        if self.cache is None:
+            return None
+        N, w, angles, _ = self.cache
+        idx = k % N
+        d = (angle - angles[idx] + math.pi) % (2 * math.pi) - math.pi
+        return idx if abs(d) < 1e-9 and speed == w and accel == 0.0 else None
+
+    def reflected_inertia(self, angles) -> np.ndarray:
+        """Rigid-body inertia of this engine's (lumped) mass model seen at the crank [kg m^2]: the
+        master's interface Jacobian, dT_drive/d(crank acceleration)."""
+        return self.td.mech.crank_inertia(angles, lumped=True)[0]
+
+    def initial_output(self) -> EngineOutput:
+        """The state at reset: drive torque and gauge strains of the start (quasi-static or rest)."""
+        out = self.march.out
+        gauges = {g.name: (out[1 + 2 * i:2 + 2 * i], out[2 + 2 * i:3 + 2 * i]) for i, g in enumerate(self.td.gauges)}
+        return EngineOutput(np.array([self.t0]), np.array([self._angle0]), np.array([self._speed0]), out[:1].copy(),
+                            gauges)
+
+    def save(self):
+        """Snapshot for a coupling iteration (the march state is replaced, never mutated, per step)."""
+        m = self.march
+        return (self.k, m.state, m.z, m.out, m.q_sls, getattr(m, "_P", None))
+
+    def restore(self, token) -> None:
+        m = self.march
+        self.k, m.state, m.z, m.out, m.q_sls, P = token
+        if P is not None:
+            m._P = P
 
     def advance(self, t_next: float, drive: DriveInput) -> EngineOutput:
         if drive.prescribed is None:
@@ -90,10 +115,27 @@ class TMMEngine:
         t = self.t0 + ks * self._dt          # integer step count, never accumulated
         angle, speed, accel = (np.asarray(x, dtype=float) for x in drive.prescribed(t))
         outs, zs, frames = [], [], {l.name: ([], [], []) for l in self.links}
+        cached = [self._cached(int(k), float(a), float(w), float(x)) for k, a, w, x in zip(ks, angle, speed, accel)]
+        batch = None
+        if any(c is None for c in cached):
+            # Every step the cache does not cover, factorized in one vectorised batch.
+            rest = [i for i, c in enumerate(cached) if c is None]
+            if self.td.axial_force == "iterated":
+                motion = self.td.mech.motion(angle[rest], speed[rest], accel[rest])
+                batch = ({"motion": motion}, {i: j for j, i in enumerate(rest)})
+            else:
+                batch = (self.td._configurations(angle[rest], speed[rest], accel[rest], self._dt, maps=False),
+                         {i: j for j, i in enumerate(rest)})
         for i in range(n):
-            cfg, idx = self._config(float(angle[i]), float(speed[i]), float(accel[i]))
+            if cached[i] is not None:
+                cfg, idx = self.cache[3], cached[i]
+            else:
+                cfg, idx = batch[0], batch[1][i]
             self.k += 1
-            z, out = self.march.step_with(cfg, idx)
+            if "factor" in cfg:
+                z, out = self.march.step_with(cfg, idx)
+            else:   # iterated axial force: the march iterates each step on its own axial force
+                z, out = self.march.advance(float(angle[i]), float(speed[i]), float(accel[i]))
             outs.append(out)
             zs.append(z)
             for name, (rigid, c, s) in self._frame(cfg).items():

@@ -1,0 +1,506 @@
+"""Co-simulation master: every engine driven by its own simulated motor, or by a prescribed crank.
+
+Time runs on a fixed macro step H: the end of macro step k is ``t0 + (k + 1) H``, computed from
+the integer step count, never accumulated. H must be a whole multiple of every engine's internal
+step. Each engine is one *channel* with its own :class:`cosim.motor.Motor`:
+
+* torque-driven engines (exudyn, MuJoCo) carry the motor's rotor and flywheel inertia on their
+  crank; the motor receives the engine's crank motion and returns the drive torque;
+* kinematic engines (the transfer-matrix model, crank clamped) report the load torque the
+  linkage takes; the motor integrates the crank against it and returns the crank motion.
+
+Coupling schemes (``[coupling] scheme``):
+
+``jacobi``
+    engine and motor advance side by side from the interface values at the start of the step,
+    each extrapolating the other's output (``extrapolation``: ``constant`` holds the last value,
+    ``linear`` extrapolates the last two macro-step ends). Explicit; global error O(H) with
+    constant and O(H^2) with linear extrapolation.
+``gauss_seidel``
+    one side goes first with extrapolated inputs, the other follows with the first side's actual
+    trajectory over the step: torque-driven engines go first (the motor then sees the real crank
+    speed), kinematic engines go second (they follow the motor's crank exactly). Same orders as
+    Jacobi with smaller constants.
+``iterated``
+    the macro step is repeated (engine state saved and restored) until the interface signal
+    changes by less than ``tolerance`` relative to its magnitude (fixed-point iteration, at most
+    ``max_iterations``); the coupling error then vanishes up to the interpolation of the
+    engine's samples.
+
+``interface_jacobian`` (kinematic engines): the linkage's load torque contains J_r(q) q'', with
+the rigid linkage's reflected inertia J_r (closed form). Left in the extrapolated load, it is an
+explicit "added inertia" that makes the coupling unstable once J_r exceeds the drive's own
+inertia (the FE crank-rocker's linkage reaches 1.6 times its motor-plus-flywheel inertia near
+q = 0). With the Jacobian the motor integrates ``(J + J_r) q'' = T_drive - (T_load - J_r q'')``
+and only the remainder is extrapolated.
+
+``prescribed`` mode drives every engine at the scenario's constant crank speed (no motor), for a
+like-for-like comparison of strains. Start-up is ``steady`` (at the set-point speed, current and
+integrator in equilibrium) or ``rest``.
+
+After every macro step ``callback(MacroStep)`` is called; returning True stops the run early. An
+engine that fails stops only its own channel; every result up to the failure is kept.
+"""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.interpolate import CubicHermiteSpline, CubicSpline
+
+from tmm_core import InputError, TMMError
+
+from .engines import make_engine
+from .engines.base import DriveInput, EngineError, EngineOutput, EngineRun, concatenate, constant_speed_profile
+from .motor import Motor, MotorState, MotorTrace
+from .scenario import CouplingSettings, Scenario
+
+MODES = ("prescribed", "motor")
+
+
+class CouplingError(EngineError):
+    """An iterated macro step did not converge, or the coupling set-up is inconsistent."""
+
+
+# -- results -------------------------------------------------------------------------------------
+@dataclass
+class ChannelResult:
+    """One engine's run: its outputs, its motor's trace (None in prescribed mode), the number of
+    coupling passes per macro step, and how it ended."""
+
+    engine: str
+    run: EngineRun
+    motor: MotorTrace | None
+    passes: np.ndarray
+    status: str = "completed"           # completed | stopped | failed
+    error: str | None = None
+    t0: float = 0.0
+    angle0: float = 0.0
+    motor_parameters: object = None     # cosim.motor.MotorParameters in motor mode
+
+    def speed_fluctuation(self) -> dict:
+        """Per-revolution crank speed statistics of the engine's crank (:func:`speed_fluctuation`)."""
+        r = self.run
+        return speed_fluctuation(r.t, r.crank_angle, r.crank_speed, self.angle0, self.t0)
+
+    def energy_balance(self, t_start: float | None = None, t_end: float | None = None) -> dict:
+        """Energy flows over a time window (:func:`energy_balance`)."""
+        return energy_balance(self, t_start, t_end)
+
+
+@dataclass
+class CoSimResult:
+    scenario: Scenario
+    mode: str
+    coupling: CouplingSettings
+    macro_step_s: float
+    t_end_s: float
+    channels: dict
+    status: str                         # completed | stopped | failed
+
+    def __getitem__(self, engine: str) -> ChannelResult:
+        return self.channels[engine]
+
+
+@dataclass
+class MacroStep:
+    """What a callback sees after macro step ``step`` (1-based) ending at ``t`` [s]."""
+
+    step: int
+    n_steps: int
+    t: float
+    outputs: dict                       # {engine: (EngineOutput, MotorTrace | None)}
+    failed: dict = field(default_factory=dict)   # {engine: error message}, newly failed this step
+
+
+# -- interface signals ---------------------------------------------------------------------------
+def _extrapolate(history, t, order: int):
+    """Value at times ``t`` from ``history`` = [(t_i, x_i), ...] at the last macro-step ends:
+    the last value (order 0) or the line through the last two (order 1)."""
+    t_a, x_a = history[-1]
+    if order == 0 or len(history) < 2:
+        return np.full(np.shape(t), x_a, dtype=float) if np.ndim(t) else float(x_a)
+    t_p, x_p = history[-2]
+    return x_a + (x_a - x_p) / (t_a - t_p) * (np.asarray(t, dtype=float) - t_a)
+
+
+def _crank_extrapolation(t_a, angle, speed, accel):
+    """Crank motion from the state at ``t_a`` with constant acceleration: (angle, speed, accel)(t)."""
+    def motion(t):
+        tau = np.asarray(t, dtype=float) - t_a
+        return angle + speed * tau + 0.5 * accel * tau**2, speed + accel * tau, np.full(np.shape(tau), float(accel))
+    return motion
+
+
+def _crank_interpolation(t, angle, speed, accel=None):
+    """Crank motion through samples: angle cubic Hermite (consistent with the speeds), speed and
+    acceleration piecewise linear (the acceleration from the Hermite spline if not given)."""
+    spline = CubicHermiteSpline(t, angle, speed)
+
+    def motion(tq):
+        tq = np.asarray(tq, dtype=float)
+        a = np.interp(tq, t, accel) if accel is not None else spline(tq, 2)
+        return spline(tq), np.interp(tq, t, speed), a
+    return motion
+
+
+def _linear(t, x):
+    return lambda tq: np.interp(tq, t, x)
+
+
+class _ReflectedInertia:
+    """The rigid linkage's reflected inertia J_r(q) [kg m^2] (interface Jacobian), tabulated over
+    a revolution and interpolated linearly (scalar calls stay in pure Python: the motor's
+    integrator calls it at every stage)."""
+
+    def __init__(self, inertia, n: int = 1440):
+        self.n, self.dq = n, 2 * math.pi / n
+        J = inertia(np.arange(n) * self.dq)
+        self.table = np.r_[J, J[0]]
+        self.values = self.table.tolist()
+        self.max = float(J.max())
+
+    def __call__(self, angle):
+        if np.ndim(angle):
+            x = np.mod(np.asarray(angle, dtype=float), 2 * math.pi) / self.dq
+            return np.interp(x, np.arange(self.n + 1), self.table)
+        x = (float(angle) % (2 * math.pi)) / self.dq
+        k = min(int(x), self.n - 1)
+        f = x - k
+        return self.values[k] * (1.0 - f) + self.values[k + 1] * f
+
+
+# -- channels ------------------------------------------------------------------------------------
+class _Channel:
+    """One engine and (in motor mode) its motor, advanced macro step by macro step."""
+
+    def __init__(self, name, engine, scenario: Scenario, mode: str, coupling: CouplingSettings):
+        self.name, self.engine, self.scenario, self.mode, self.c = name, engine, scenario, mode, coupling
+        self.order = 1 if coupling.extrapolation == "linear" else 0
+        self.outputs, self.traces, self.passes = [], [], []
+        self.motor = Motor(scenario.motor, integrates_crank=engine.kinematic) if mode == "motor" else None
+        self.J_r = None     # interface Jacobian, set at start
+        self.t0, self.angle0 = 0.0, 0.0
+
+    # -- start -----------------------------------------------------------------------------------
+    def start(self, t0: float, angle: float, speed: float) -> None:
+        self.t0, self.angle0 = t0, angle
+        extra = {}
+        if self.motor is not None and not self.engine.kinematic:
+            extra["drive_inertia_kg_m2"] = self.motor.crank_side_inertia_kg_m2
+        self.engine.reset(self.scenario, t0, angle, speed, **extra)
+        if self.engine.kinematic and self.c.interface_jacobian and self.mode == "motor":
+            # The engine's own rigid mass model if it has one, else the exact rigid linkage.
+            source = getattr(self.engine, "reflected_inertia", None) or \
+                (lambda q: self.scenario.mechanism.crank_inertia(q)[0])
+            self.J_r = _ReflectedInertia(source)
+        if self.motor is None:
+            self.profile = constant_speed_profile(self.scenario.drive.speed_rad_s, angle, t0)
+            return
+        self.state: MotorState = self.motor.start(t0, angle, speed)
+        first = self.engine.initial_output()
+        load = float(first.drive_torque[0]) if self.engine.kinematic else float("nan")
+        # Interface values at the macro-step ends: crank (t, angle, speed, accel), the motor's drive
+        # torque, and for kinematic engines the load torque the linkage takes.
+        self.crank_hist = [(t0, angle, speed, 0.0)]
+        self.drive_hist = [(t0, self._drive_torque_now())]
+        self.load_hist = [(t0, load)]
+
+    def _drive_torque_now(self) -> float:
+        """The motor's drive torque in its current state, n (Kt i - T_f(omega_m)) [N m] (with a
+        compliant shaft in its steady start the shaft carries the same torque)."""
+        p = self.motor.p
+        wm = p.gear_ratio * self.state.rotor_speed_rad_s
+        return p.gear_ratio * (p.torque_constant_Nm_A * self.state.current_A - float(self.motor._friction(wm)))
+
+    # -- one macro step ---------------------------------------------------------------------------
+    def step(self, t_a: float, t_b: float):
+        if self.motor is None:
+            out = self.engine.advance(t_b, DriveInput(prescribed=self.profile))
+            self.outputs.append(out)
+            self.passes.append(1)
+            return out, None
+        h = self.engine.internal_step_s
+        n = int(round((t_b - t_a) / h))
+        samples = t_a + (t_b - t_a) * np.arange(1, n + 1) / n     # engine sample times, the last exactly t_b
+        if self.engine.kinematic:
+            out, trace, passes = self._kinematic_step(t_a, t_b, samples)
+        else:
+            out, trace, passes = self._torque_step(t_a, t_b, samples)
+        self.outputs.append(out)
+        self.traces.append(trace)
+        self.passes.append(passes)
+        for hist in (self.crank_hist, self.drive_hist, self.load_hist):
+            del hist[:-2]
+        return out, trace
+
+    def _check(self, passes, t_b, new, old, hint):
+        """True when the iterated interface signal has converged; raises after max_iterations."""
+        change = float(np.max(np.abs(new - old)))
+        if change <= self.c.tolerance * max(float(np.max(np.abs(new))), 1e-12):
+            return True
+        if passes >= self.c.max_iterations:
+            raise CouplingError(f"{self.name}: iterated coupling did not converge in {self.c.max_iterations} passes "
+                                f"before t = {t_b:.6g} s (last change {change:.3g} N m); {hint}")
+        return False
+
+    # torque-driven engine: the engine takes the motor torque, the motor takes the engine's crank.
+    def _torque_step(self, t_a, t_b, samples):
+        c = self.c
+        torque_guess = lambda t: _extrapolate(self.drive_hist, t, self.order)       # noqa: E731
+        t_h, q_h, w_h, _ = self.crank_hist[-1]
+        slope = 0.0
+        if len(self.crank_hist) > 1 and self.order:
+            slope = (w_h - self.crank_hist[-2][2]) / (t_h - self.crank_hist[-2][0])
+        extrapolated = _crank_extrapolation(t_h, q_h, w_h, slope)
+        saved = self.engine.save() if c.scheme == "iterated" else None
+        passes = 0
+        while True:
+            passes += 1
+            if c.scheme == "jacobi":
+                new_state, trace = self.motor.advance(self.state, t_b, crank=lambda t: extrapolated(t)[:2],
+                                                      samples=samples)
+                out = self.engine.advance(t_b, DriveInput(torque=torque_guess))
+                break
+            out = self.engine.advance(t_b, DriveInput(torque=torque_guess))
+            crank = _crank_interpolation(np.r_[t_a, out.t], np.r_[q_h, out.crank_angle], np.r_[w_h, out.crank_speed])
+            new_state, trace = self.motor.advance(self.state, t_b, crank=lambda t: crank(t)[:2], samples=samples)
+            if c.scheme == "gauss_seidel":
+                break
+            tt = np.r_[t_a, samples]
+            T_new = np.r_[self.drive_hist[-1][1], trace.drive_torque_Nm]
+            if self._check(passes, t_b, T_new, torque_guess(tt), "reduce coupling.macro_step"):
+                break
+            torque_guess = _linear(tt, T_new)
+            self.engine.restore(saved)
+        self.state = new_state
+        self.crank_hist.append((t_b, float(out.crank_angle[-1]), float(out.crank_speed[-1]), 0.0))
+        self.drive_hist.append((t_b, float(trace.drive_torque_Nm[-1])))
+        return out, trace, passes
+
+    # kinematic engine: the motor integrates the crank against the linkage's load torque.
+    def _kinematic_step(self, t_a, t_b, samples):
+        c = self.c
+        t_h, q_h, w_h, a_h = self.crank_hist[-1]
+        T_guess = lambda t: _extrapolate(self.load_hist, t, self.order)     # noqa: E731
+        accel_hist = [(t, a) for t, _, _, a in self.crank_hist]
+        a_guess = lambda t: _extrapolate(accel_hist, t, self.order)         # noqa: E731
+        saved = self.engine.save() if c.scheme == "iterated" else None
+        passes = 0
+        while True:
+            passes += 1
+            load, inertia = self._load_functions(T_guess, a_guess, q_h, w_h, t_a)
+            new_state, trace = self.motor.advance(self.state, t_b, load_torque=load, load_inertia=inertia,
+                                                  samples=samples, load_inertia_max=self.J_r.max if self.J_r else 0.0)
+            if c.scheme == "jacobi":
+                profile = _crank_extrapolation(t_a, q_h, w_h, a_h if self.order else 0.0)
+            else:
+                profile = _crank_interpolation(np.r_[t_a, samples], np.r_[q_h, trace.crank_angle_rad],
+                                               np.r_[w_h, trace.crank_speed_rad_s],
+                                               np.r_[a_h, trace.crank_acceleration_rad_s2])
+            out = self.engine.advance(t_b, DriveInput(prescribed=profile))
+            if c.scheme != "iterated":
+                break
+            tt = np.r_[t_a, out.t]
+            T_new = np.r_[self.load_hist[-1][1], out.drive_torque]
+            if self._check(passes, t_b, T_new, T_guess(tt),
+                           "reduce coupling.macro_step or set coupling.interface_jacobian = true"):
+                break
+            T_guess = _linear(tt, T_new)
+            a_guess = _linear(np.r_[t_a, samples], np.r_[a_h, trace.crank_acceleration_rad_s2])
+            self.engine.restore(saved)
+        self.state = new_state
+        self.crank_hist.append((t_b, new_state.crank_angle_rad, new_state.crank_speed_rad_s,
+                                float(trace.crank_acceleration_rad_s2[-1])))
+        self.drive_hist.append((t_b, float(trace.drive_torque_Nm[-1])))
+        self.load_hist.append((t_b, float(out.drive_torque[-1])))
+        return out, trace, passes
+
+    def _load_functions(self, T_guess, a_guess, q_a, w_a, t_a):
+        """The load torque (vectorised over time) and interface inertia the motor integrates against."""
+        if self.J_r is None:
+            return T_guess, None
+        J_r = self.J_r
+
+        def load(t):
+            # The inertial part J_r(q) q'' of the guess moves to the motor's left-hand side; the
+            # guess's angle is extrapolated (its error enters at second order only).
+            t = np.asarray(t, dtype=float)
+            return T_guess(t) - J_r(q_a + w_a * (t - t_a)) * a_guess(t)
+        return load, J_r
+
+    # -- results ---------------------------------------------------------------------------------
+    def result(self, wall_time_s: float, status: str, error: str | None) -> ChannelResult:
+        run = concatenate(self.name, self.outputs, wall_time_s)
+        motor = MotorTrace.concatenate(self.traces) if self.motor is not None else None
+        return ChannelResult(self.name, run, motor, np.array(self.passes, dtype=int), status, error,
+                             self.t0, self.angle0, None if self.motor is None else self.motor.p)
+
+
+# -- the master ----------------------------------------------------------------------------------
+def macro_step_for(scenario: Scenario, engines, coupling: CouplingSettings | None = None) -> float:
+    """The macro step [s]: the scenario's, or the largest engine step if the others divide it.
+    Raises :class:`CouplingError` naming the engine whose step does not divide it."""
+    coupling = coupling or scenario.coupling
+    steps = {e: scenario.engine_step_s(e) for e in engines}
+    H = coupling.macro_step_s if coupling.macro_step_s is not None else max(steps.values())
+    for e, h in steps.items():
+        n = H / h
+        if round(n) < 1 or abs(n - round(n)) > 1e-6 * max(1.0, n):
+            raise CouplingError(f"the macro step {H:.9g} s is not a whole multiple of the {e} step {h:.9g} s "
+                                f"({n:.6g} times it); set coupling.macro_step or solver.{e}.step")
+    return H
+
+
+class CoSimulation:
+    """Run a scenario through several engines, each coupled to its own motor (or prescribed).
+
+    ``engines``: names ('tmm', 'exudyn', 'mujoco') or ``{name: engine}`` (engines already built).
+    ``mode``: 'prescribed' or 'motor' (default: the scenario's drive mode).
+    """
+
+    def __init__(self, scenario: Scenario, engines=("tmm",), mode: str | None = None,
+                 coupling: CouplingSettings | None = None):
+        self.scenario = scenario
+        self.mode = mode or scenario.drive.mode
+        if self.mode not in MODES:
+            raise InputError(f"drive mode must be one of {MODES}, got {self.mode!r}")
+        if self.mode == "motor" and scenario.motor is None:
+            raise InputError(f"scenario '{scenario.name}' has no [motor] table; run it in 'prescribed' mode or add one")
+        if not scenario.drive.speed_rad_s:
+            raise InputError(f"scenario '{scenario.name}': drive.speed (the crank speed or set-point) must not be zero")
+        self.coupling = coupling or scenario.coupling
+        if isinstance(engines, dict):
+            self.engines = dict(engines)
+        else:
+            if not engines:
+                raise InputError("give at least one engine")
+            self.engines = {name: make_engine(name) for name in engines}
+        self.macro_step_s = macro_step_for(scenario, list(self.engines), self.coupling)
+
+    def duration_for(self, revolutions: float) -> float:
+        """Simulated time [s] of ``revolutions`` at the set-point (or prescribed) crank speed."""
+        return revolutions * 2 * math.pi / abs(self.scenario.drive.speed_rad_s)
+
+    def run(self, duration_s: float | None = None, *, revolutions: float | None = None, callback=None,
+            t0: float = 0.0) -> CoSimResult:
+        """Advance every engine to ``duration_s`` (or ``revolutions`` at the set-point speed;
+        default: the scenario's output revolutions), rounded up to whole macro steps."""
+        sc, H = self.scenario, self.macro_step_s
+        if duration_s is None:
+            duration_s = self.duration_for(sc.output.revolutions if revolutions is None else revolutions)
+        if not duration_s > 0:
+            raise InputError(f"duration must be positive, got {duration_s!r} s")
+        n_steps = int(math.ceil(duration_s / H - 1e-9))
+        start_speed = sc.drive.speed_rad_s
+        if self.mode == "motor":
+            start_speed = 0.0 if self.coupling.start == "rest" else float(sc.motor.setpoint(t0))
+        angle0 = sc.drive.start_angle_rad
+
+        channels, clocks, status, errors = {}, {}, {}, {}
+        for name, engine in self.engines.items():
+            ch = channels[name] = _Channel(name, engine, sc, self.mode, self.coupling)
+            tic = time.perf_counter()
+            try:
+                ch.start(t0, angle0, start_speed)
+                status[name] = "running"
+            except (EngineError, TMMError) as exc:
+                status[name], errors[name] = "failed", str(exc)
+            clocks[name] = time.perf_counter() - tic      # wall time includes the set-up
+        stopped = False
+        for k in range(n_steps):
+            t_a, t_b = t0 + k * H, t0 + (k + 1) * H
+            outputs, failed = {}, {}
+            for name, ch in channels.items():
+                if status[name] != "running":
+                    continue
+                tic = time.perf_counter()
+                try:
+                    outputs[name] = ch.step(t_a, t_b)
+                except (EngineError, TMMError) as exc:
+                    status[name], errors[name] = "failed", str(exc)
+                    failed[name] = str(exc)
+                clocks[name] += time.perf_counter() - tic
+            if callback is not None and callback(MacroStep(k + 1, n_steps, t_b, outputs, failed)):
+                stopped = True
+                break
+            if not any(s == "running" for s in status.values()):
+                break
+        results = {}
+        for name, ch in channels.items():
+            st = status[name]
+            if st == "running":
+                st = "stopped" if stopped else "completed"
+            results[name] = ch.result(clocks[name], st, errors.get(name))
+        sts = {r.status for r in results.values()}
+        overall = "failed" if "failed" in sts else ("stopped" if "stopped" in sts else "completed")
+        t_end = max((float(r.run.t[-1]) for r in results.values() if len(r.run.t)), default=t0)
+        return CoSimResult(sc, self.mode, self.coupling, H, t_end, results, overall)
+
+
+# -- derived outputs -----------------------------------------------------------------------------
+def revolutions_of(t, angle, start_angle: float = 0.0):
+    """Times [s] at which the crank completes each revolution from ``start_angle`` (linear
+    interpolation of the angle samples; either direction of rotation)."""
+    t, angle = np.asarray(t, dtype=float), np.asarray(angle, dtype=float)
+    if len(t) < 2:
+        return np.zeros(0)
+    turns = np.maximum.accumulate(np.abs(angle - start_angle) / (2 * math.pi))
+    marks = np.arange(1, int(np.floor(turns.max())) + 1)
+    return np.interp(marks, turns, t) if len(marks) else np.zeros(0)
+
+
+def speed_fluctuation(t, angle, speed, start_angle: float = 0.0, t0: float = 0.0) -> dict:
+    """Per complete crank revolution: ``t_start``, ``t_end`` [s], ``mean`` (2 pi / period),
+    ``max``, ``min`` [rad/s] of the speed samples and ``fluctuation`` = (max - min) / mean."""
+    t, speed = np.asarray(t, dtype=float), np.abs(np.asarray(speed, dtype=float))
+    ends = revolutions_of(t, angle, start_angle)
+    starts = np.r_[t0, ends[:-1]]
+    out = {k: [] for k in ("t_start", "t_end", "mean", "max", "min", "fluctuation")}
+    for a, b in zip(starts, ends):
+        sel = (t >= a) & (t <= b)
+        if not np.any(sel):
+            continue
+        mean = 2 * math.pi / (b - a)
+        hi, lo = float(speed[sel].max()), float(speed[sel].min())
+        for key, v in zip(out, (a, b, mean, hi, lo, (hi - lo) / mean)):
+            out[key].append(v)
+    return {k: np.array(v) for k, v in out.items()}
+
+
+def energy_balance(channel: ChannelResult, t_start: float | None = None, t_end: float | None = None) -> dict:
+    """Energy flows [J] of a motor-driven channel between two motor sample times (default: its
+    last complete revolution): electrical energy in; copper and friction losses; the change of
+    magnetic energy (1/2 L i^2) and of the drive's kinetic energy (1/2 J_fw w^2 + 1/2 J_rotor
+    w_m^2); and the mechanical work the linkage takes, integrated from the *engine's* load torque
+    and crank speed (trapezoidal rule over the engine's samples). ``residual_J`` is the input
+    minus all the rest; it checks the coupling, because the linkage work comes from the engine
+    while everything else comes from the motor. (The elastic energy of a compliant shaft is not
+    counted: over a steady revolution it returns to its start value.)"""
+    tr, p = channel.motor, channel.motor_parameters
+    if tr is None or p is None:
+        raise InputError(f"{channel.engine}: an energy balance needs a motor-driven run")
+    run = channel.run
+    if t_start is None or t_end is None:
+        ends = np.r_[channel.t0, revolutions_of(run.t, run.crank_angle, channel.angle0)]
+        if len(ends) < 2:
+            raise InputError(f"{channel.engine}: no complete revolution to balance")
+        t_start, t_end = ends[-2], ends[-1]
+    # Window ends on engine samples (a subset of the motor's sample times).
+    ta, tb = (float(run.t[int(np.argmin(np.abs(run.t - x)))]) for x in (t_start, t_end))
+    ia, ib = (int(np.argmin(np.abs(tr.t - x))) for x in (ta, tb))
+    sel = (run.t >= ta - 1e-12) & (run.t <= tb + 1e-12)
+    d = lambda x: float(x[ib] - x[ia])          # noqa: E731
+    W_link = float(np.trapezoid(run.drive_torque[sel] * run.crank_speed[sel], run.t[sel]))
+    kinetic = 0.5 * p.flywheel_inertia_kg_m2 * tr.crank_speed_rad_s**2 + 0.5 * p.rotor_inertia_kg_m2 * \
+        tr.motor_speed_rad_s**2
+    out = {"t_start_s": ta, "t_end_s": tb, "electrical_in_J": d(tr.energy_in_J),
+           "copper_loss_J": d(tr.copper_loss_J), "friction_loss_J": d(tr.friction_loss_J),
+           "magnetic_energy_change_J": 0.5 * p.inductance_H * d(tr.current_A**2),
+           "drive_kinetic_energy_change_J": d(kinetic), "linkage_work_J": W_link,
+           "drive_work_J": d(tr.drive_work_J)}
+    out["residual_J"] = (out["electrical_in_J"] - out["copper_loss_J"] - out["friction_loss_J"] -
+                         out["magnetic_energy_change_J"] - out["drive_kinetic_energy_change_J"] - W_link)
+    return out
