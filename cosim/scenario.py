@@ -43,6 +43,8 @@ File layout (all tables except ``[scenario]``, ``[linkage]``, ``[links.*]`` are 
                     start = "steady" | "rest"
     [output]        revolutions, sample_step
 
+A file may start with ``extends = "base/<rig>"``: it is merged over that base file.
+
 Time steps (``solver.*.step``, ``coupling.macro_step``) are written in seconds or as a crank
 angle ("1 deg"), which is converted with the drive speed. The macro step must be a whole multiple
 of every engine's step.
@@ -394,13 +396,47 @@ def load(path_or_name) -> Scenario:
     if not path.suffix:
         path = SCENARIO_DIR / f"{path_or_name}.toml"
     if not path.exists():
-        available = ", ".join(sorted(p.stem for p in SCENARIO_DIR.glob("*.toml")))
+        available = ", ".join(scenario_names())
         raise ScenarioError(f"scenario '{path_or_name}' not found (file {path}); available: {available}")
+    data = _read_with_bases(path, [])
+    return from_dict(data, str(path), default_name=path.stem)
+
+
+def _read_with_bases(path: Path, chain: list) -> dict:
+    """Parse a scenario file; ``extends = "base/name"`` (relative to the file, ``.toml`` optional)
+    merges the file over its base (tables merge key by key, other values replace), so a rig is
+    written once and each test speed only states what differs."""
+    if path.resolve() in chain:
+        raise ScenarioError(f"scenario '{path}': 'extends' loops back ({' -> '.join(str(p) for p in chain)})")
     try:
         data = tomllib.loads(path.read_text(encoding="utf-8"))
     except tomllib.TOMLDecodeError as exc:
         raise ScenarioError(f"scenario '{path}': not valid TOML: {exc}") from None
-    return from_dict(data, str(path), default_name=path.stem)
+    except OSError as exc:
+        raise ScenarioError(f"scenario '{path}': cannot be read ({exc.strerror})") from None
+    base = data.pop("extends", None)
+    if base is None:
+        return data
+    if not isinstance(base, str):
+        raise ScenarioError(f"scenario '{path}': key 'extends' = {base!r}: must be the name of a base file")
+    base_path = path.parent / base
+    if not base_path.suffix:
+        base_path = base_path.with_suffix(".toml")
+    if not base_path.exists():
+        raise ScenarioError(f"scenario '{path}': key 'extends' = {base!r}: no file {base_path}")
+    return _merge(_read_with_bases(base_path, chain + [path.resolve()]), data)
+
+
+def _merge(base: dict, over: dict) -> dict:
+    out = dict(base)
+    for k, v in over.items():
+        out[k] = _merge(out[k], v) if isinstance(v, dict) and isinstance(out.get(k), dict) else v
+    return out
+
+
+def scenario_names() -> list:
+    """Names of the runnable scenario files in ``scenarios/`` (bases under ``scenarios/base`` excluded)."""
+    return sorted(p.stem for p in SCENARIO_DIR.glob("*.toml"))
 
 
 def from_dict(data: dict, path: str = "<dict>", default_name: str = "scenario") -> Scenario:
