@@ -14,7 +14,7 @@ $(STAMP): pyproject.toml
 	touch $(STAMP)
 
 run: $(STAMP)
-	$(BIN)/python -m scenarios.static_fourbar
+	$(BIN)/cosim run crank_rocker_373rpm
 
 test: $(STAMP)
 	$(BIN)/python -m pytest
@@ -23,7 +23,7 @@ test-all: $(STAMP)
 	$(BIN)/python -m pytest -m ""
 
 bench: $(STAMP)
-	$(BIN)/python -m tests.benchmarks.run_all
+	$(BIN)/python -m tests.benchmarks.ked_benchmark
 
 clean:
 	rm -rf $(VENV) build *.egg-info

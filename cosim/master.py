@@ -39,7 +39,8 @@ like-for-like comparison of strains. Start-up is ``steady`` (at the set-point sp
 integrator in equilibrium) or ``rest``.
 
 After every macro step ``callback(MacroStep)`` is called; returning True stops the run early. An
-engine that fails stops only its own channel; every result up to the failure is kept.
+engine that fails stops only its own channel; every result up to the failure is kept. A
+KeyboardInterrupt during the run ends it with status ``interrupted`` and the results so far.
 """
 from __future__ import annotations
 
@@ -74,7 +75,7 @@ class ChannelResult:
     run: EngineRun
     motor: MotorTrace | None
     passes: np.ndarray
-    status: str = "completed"           # completed | stopped | failed
+    status: str = "completed"           # completed | stopped | interrupted | failed
     error: str | None = None
     t0: float = 0.0
     angle0: float = 0.0
@@ -98,7 +99,7 @@ class CoSimResult:
     macro_step_s: float
     t_end_s: float
     channels: dict
-    status: str                         # completed | stopped | failed
+    status: str                         # completed | stopped | interrupted | failed
 
     def __getitem__(self, engine: str) -> ChannelResult:
         return self.channels[engine]
@@ -409,33 +410,37 @@ class CoSimulation:
             except (EngineError, TMMError) as exc:
                 status[name], errors[name] = "failed", str(exc)
             clocks[name] = time.perf_counter() - tic      # wall time includes the set-up
-        stopped = False
-        for k in range(n_steps):
-            t_a, t_b = t0 + k * H, t0 + (k + 1) * H
-            outputs, failed = {}, {}
-            for name, ch in channels.items():
-                if status[name] != "running":
-                    continue
-                tic = time.perf_counter()
-                try:
-                    outputs[name] = ch.step(t_a, t_b)
-                except (EngineError, TMMError) as exc:
-                    status[name], errors[name] = "failed", str(exc)
-                    failed[name] = str(exc)
-                clocks[name] += time.perf_counter() - tic
-            if callback is not None and callback(MacroStep(k + 1, n_steps, t_b, outputs, failed)):
-                stopped = True
-                break
-            if not any(s == "running" for s in status.values()):
-                break
+        stopped = None
+        try:
+            for k in range(n_steps):
+                t_a, t_b = t0 + k * H, t0 + (k + 1) * H
+                outputs, failed = {}, {}
+                for name, ch in channels.items():
+                    if status[name] != "running":
+                        continue
+                    tic = time.perf_counter()
+                    try:
+                        outputs[name] = ch.step(t_a, t_b)
+                    except (EngineError, TMMError) as exc:
+                        status[name], errors[name] = "failed", str(exc)
+                        failed[name] = str(exc)
+                    clocks[name] += time.perf_counter() - tic
+                if callback is not None and callback(MacroStep(k + 1, n_steps, t_b, outputs, failed)):
+                    stopped = "stopped"
+                    break
+                if not any(s == "running" for s in status.values()):
+                    break
+        except KeyboardInterrupt:
+            # Ctrl-C (or SIGTERM turned into it by the caller): keep every completed macro step.
+            stopped = "interrupted"
         results = {}
         for name, ch in channels.items():
             st = status[name]
             if st == "running":
-                st = "stopped" if stopped else "completed"
+                st = stopped or "completed"
             results[name] = ch.result(clocks[name], st, errors.get(name))
         sts = {r.status for r in results.values()}
-        overall = "failed" if "failed" in sts else ("stopped" if "stopped" in sts else "completed")
+        overall = next((s for s in ("failed", "interrupted", "stopped") if s in sts), "completed")
         t_end = max((float(r.run.t[-1]) for r in results.values() if len(r.run.t)), default=t0)
         return CoSimResult(sc, self.mode, self.coupling, H, t_end, results, overall)
 

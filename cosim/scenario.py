@@ -41,7 +41,7 @@ File layout (all tables except ``[scenario]``, ``[linkage]``, ``[links.*]`` are 
     [coupling]      macro_step, scheme = "jacobi" | "gauss_seidel" | "iterated", extrapolation =
                     "constant" | "linear", interface_jacobian, tolerance, max_iterations,
                     start = "steady" | "rest"
-    [output]        revolutions, sample_step
+    [output]        revolutions, sample_step, engines (the default engines of `cosim run`)
 
 A file may start with ``extends = "base/<rig>"``: it is merged over that base file.
 
@@ -138,6 +138,7 @@ class CouplingSettings:
 class OutputSettings:
     revolutions: float = 3.0
     sample_step_s: float | None = None
+    engines: tuple = ("tmm", "exudyn", "mujoco")     # the engines `cosim run` uses by default
 
 
 @dataclass(frozen=True)
@@ -517,10 +518,13 @@ def from_dict(data: dict, path: str = "<dict>", default_name: str = "scenario") 
         if "servo_frequency" in mj else None,
         r.number(mj.get("solref_factor", 2.0), "solver.mujoco.solref_factor", positive=True),
         r.number(mj.get("solimp", 0.9999), "solver.mujoco.solimp"))
-    out = r.table(top.get("output", {}), "output", {"revolutions", "sample_step"})
+    out = r.table(top.get("output", {}), "output", {"revolutions", "sample_step", "engines"})
+    engines = r._unwrap(out.get("engines", ["tmm", "exudyn", "mujoco"]), "output.engines")
+    if not isinstance(engines, list) or not engines or any(e not in ("tmm", "exudyn", "mujoco") for e in engines):
+        raise r.fail("output.engines", "must be a non-empty list of 'tmm', 'exudyn', 'mujoco'", engines)
     output = OutputSettings(r.number(out.get("revolutions", 3.0), "output.revolutions", positive=True),
                             r.quantity(out["sample_step"], "output.sample_step", "s", positive=True)
-                            if "sample_step" in out else None)
+                            if "sample_step" in out else None, tuple(engines))
     motor = _motor(r, top["motor"], drive, mech) if "motor" in top else None
     if drive.mode == "motor" and motor is None:
         raise r.fail("drive.mode", "needs a [motor] table", "motor")
@@ -702,3 +706,43 @@ def _tmm_settings(r: _Reader, data) -> TMMSettings:
         coupling,
         r.number(d.get("axial_force", "quasi_static"), "solver.tmm.axial_force",
                  choices=("quasi_static", "iterated", "none")))
+
+
+def resolved(scenario: Scenario) -> dict:
+    """Everything the run used, TOML-ready: ``[resolved]`` holds every value in SI after units,
+    defaults and derivations (field names carry the units), ``assumptions`` every declared
+    assumption with its rationale, ``[input]`` the file as written (bases merged)."""
+    import dataclasses
+
+    def clean(x):
+        if dataclasses.is_dataclass(x) and not isinstance(x, type):
+            return clean({f.name: getattr(x, f.name) for f in dataclasses.fields(x)})
+        if isinstance(x, dict):
+            return {str(k): clean(v) for k, v in x.items() if v is not None}
+        if isinstance(x, (list, tuple)):
+            return [clean(v) for v in x if v is not None]
+        if isinstance(x, Path):
+            return str(x)
+        if hasattr(x, "item") and getattr(x, "ndim", 1) == 0:
+            x = x.item()
+        if isinstance(x, np.ndarray):
+            return clean(x.tolist())
+        if isinstance(x, float) and not math.isfinite(x):
+            return str(x)
+        return x
+
+    mech = scenario.mechanism
+    return {
+        "scenario": {"name": scenario.name, "description": scenario.description,
+                     "file": str(scenario.path) if scenario.path else "", "sources": list(scenario.sources)},
+        "resolved": clean({
+            "linkage": {"ground_m": mech.ground_m, "pivot_m": list(mech.pivot), "ground_angle_rad": mech.ground_angle,
+                        "branch": "open" if mech.branch == 1 else "crossed"},
+            "links": {link.name: link for link in mech.links()},
+            "drive": scenario.drive, "gauges": {g.name: g for g in scenario.gauges},
+            "gravity_m_s2": list(scenario.gravity) if scenario.gravity else None,
+            "solver": {"tmm": scenario.tmm, "exudyn": scenario.exudyn, "mujoco": scenario.mujoco},
+            "motor": scenario.motor, "coupling": scenario.coupling, "output": scenario.output}),
+        "assumptions": [{"key": a.key, "value": a.value, "rationale": a.rationale} for a in scenario.assumptions],
+        "input": clean(scenario.raw),
+    }

@@ -29,7 +29,7 @@ def test_cosim_version_and_list():
     out = subprocess.run([sys.executable, "-m", "cosim.cli", "--version"], capture_output=True, text=True, cwd=ROOT)
     assert out.returncode == 0 and out.stdout.startswith("cosim ")
     out = subprocess.run([sys.executable, "-m", "cosim.cli", "list"], capture_output=True, text=True, cwd=ROOT)
-    assert out.returncode == 0 and "static_fourbar" in out.stdout
+    assert out.returncode == 0 and "crank_rocker_373rpm" in out.stdout
 
 
 def test_fe_crank_rocker_peaks_are_written_for_every_speed(tmp_path):

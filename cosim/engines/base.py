@@ -84,6 +84,9 @@ class Engine(Protocol):
     def initial_output(self) -> EngineOutput:
         """One sample at the reset time (drive torque NaN where the engine does not know it yet)."""
 
+    def node_stations(self) -> dict:
+        """{link: local x [m] of the nodes in EngineOutput.nodes} (after reset)."""
+
     def advance(self, t_next: float, drive: DriveInput) -> EngineOutput: ...
 
     def save(self): ...

@@ -206,6 +206,10 @@ class ExudynEngine:
     def _set_mode(self, prescribed: bool):
         self.mbs.SetObjectParameter(self._drive_constraint, "activeConnector", prescribed)
 
+    def node_stations(self) -> dict:
+        """Local x [m] of the nodes this engine reports (its own mesh), per link."""
+        return {name: link.stations for name, link in self.links.items()}
+
     def initial_output(self) -> EngineOutput:
         return EngineOutput(np.array([self.t0]), np.array([self._angle0]), np.array([self._speed0]), np.array([np.nan]))
 

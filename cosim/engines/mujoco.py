@@ -182,6 +182,10 @@ class MujocoEngine:
         self.model.opt.disableactuator = 1 << (MOTOR_GROUP if prescribed else SERVO_GROUP)
         self.model.dof_armature[0] = self.armature if prescribed else self.drive_inertia
 
+    def node_stations(self) -> dict:
+        """Local x [m] of the nodes (sites) this engine reports, per link."""
+        return {link.name: link.stations for link in self.mech.links()}
+
     def initial_output(self) -> EngineOutput:
         q, w = self.data.qpos[0], self.data.qvel[0]
         return EngineOutput(np.array([self.t0]), np.array([q]), np.array([w]), np.array([np.nan]))

@@ -82,6 +82,10 @@ class TMMEngine:
         d = (angle - angles[idx] + math.pi) % (2 * math.pi) - math.pi
         return idx if abs(d) < 1e-9 and speed == w and accel == 0.0 else None
 
+    def node_stations(self) -> dict:
+        """Local x [m] of the nodes this engine reports, per link."""
+        return {link.name: link.stations for link in self.links}
+
     def reflected_inertia(self, angles) -> np.ndarray:
         """Rigid-body inertia of this engine's (lumped) mass model seen at the crank [kg m^2]: the
         master's interface Jacobian, dT_drive/d(crank acceleration)."""

@@ -1,0 +1,59 @@
+"""Text tables of a finished run (``cosim compare <run-dir>``), read from its summary.json."""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+
+def load_summary(run_dir) -> dict:
+    path = Path(run_dir)
+    if path.is_dir():
+        path = path / "summary.json"
+    if not path.exists():
+        raise FileNotFoundError(f"no summary.json in {Path(run_dir)} (is it a run folder under logs/?)")
+    try:
+        return json.loads(path.read_text(encoding="utf-8"))
+    except json.JSONDecodeError as exc:
+        raise ValueError(f"{path}: not valid JSON ({exc})") from None
+
+
+def _fmt(x, digits=1):
+    return "-" if x is None else f"{x:.{digits}f}"
+
+
+def comparison_table(summary: dict) -> str:
+    """Gauge extremes of the last revolution per engine (microstrain), drive torque range, wall
+    and simulated time; records and scores where the summary has them."""
+    lines = [f"scenario {summary.get('scenario')}  status {summary.get('status')}  mode {summary.get('mode')}  "
+             f"revolutions {summary.get('revolutions')}"]
+    engines = summary.get("engines", {})
+    gauges = sorted({g for e in engines.values() for g in (e.get("gauges") or {})})
+    head = f"{'gauge':<14} {'engine':<8} {'bend max':>9} {'bend min':>9} {'axial max':>9} {'axial min':>9}  [microstrain]"
+    lines += ["", head, "-" * len(head)]
+    for g in gauges:
+        for name, e in engines.items():
+            s = (e.get("gauges") or {}).get(g)
+            if s is None:
+                continue
+            lines.append(f"{g:<14} {name:<8} {_fmt(s['bending_max_ue']):>9} {_fmt(s['bending_min_ue']):>9} "
+                         f"{_fmt(s['axial_max_ue']):>9} {_fmt(s['axial_min_ue']):>9}")
+        for rec in (summary.get("records") or {}).get(g, []):
+            lines.append(f"{g:<14} {'record':<8} {_fmt(rec.get('bending_max_ue')):>9} {_fmt(rec.get('bending_min_ue')):>9} "
+                         f"{_fmt(rec.get('axial_max_ue')):>9} {_fmt(rec.get('axial_min_ue')):>9}  {rec.get('label', '')}")
+    head = f"{'engine':<8} {'status':<11} {'wall [s]':>9} {'sim [s]':>8} {'torque max':>10} {'torque min':>10}  [N m]"
+    lines += ["", head, "-" * len(head)]
+    for name, e in engines.items():
+        lines.append(f"{name:<8} {e.get('status', '?'):<11} {_fmt(e.get('wall_time_s'), 2):>9} "
+                     f"{_fmt(e.get('sim_time_s'), 3):>8} {_fmt(e.get('drive_torque_max_Nm'), 2):>10} "
+                     f"{_fmt(e.get('drive_torque_min_Nm'), 2):>10}" + (f"  {e['error']}" if e.get("error") else ""))
+    speed = {n: e["speed"] for n, e in engines.items() if e.get("speed")}
+    if speed:
+        lines += ["", "crank speed (motor): mean [rpm] and (max - min) / mean of the last revolution"]
+        for n, s in speed.items():
+            lines.append(f"  {n:<8} {s['mean_rpm_last']:.2f} rpm  fluctuation {100 * s['fluctuation_last']:.2f} %")
+    scores = summary.get("scores")
+    if scores:
+        lines += ["", "scores against records"]
+        for row in scores if isinstance(scores, list) else []:
+            lines.append("  " + "  ".join(f"{k}={v}" for k, v in row.items()))
+    return "\n".join(lines)

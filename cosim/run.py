@@ -1,0 +1,223 @@
+"""One run of a scenario through the engines, with its log folder and rerun recording.
+
+``logs/<scenario>-<timestamp>/`` receives:
+
+* ``scenario.resolved.toml``: the scenario as run (every value in SI after units, defaults and
+  derivations; every assumption with its rationale; the file as written);
+* ``traces.csv``: time column and one column per trace, units in the names
+  (:mod:`cosim.traces`), appended every macro step;
+* ``run.rrd``: the rerun recording (:mod:`cosim.recording`);
+* ``summary.json``: ``scenario``, ``status``, per engine ``wall_time_s``, ``sim_time_s``,
+  ``status``, ``error`` and, for the last revolution, ``gauges.<g>.{bending,axial}_{max,min}_ue``
+  and the drive torque range; in motor mode the speed fluctuation and the energy balance.
+
+``summary.json`` is written at the start with ``status = "incomplete"`` and rewritten every few
+seconds, so a run that is killed leaves a summary that says so; an interrupted run (Ctrl-C,
+SIGTERM) writes ``"interrupted"``; a run in which an engine failed writes ``"failed"`` with the
+engine's message and keeps the other engines' results.
+"""
+from __future__ import annotations
+
+import math
+import signal
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from . import __version__
+from .engines import ENGINES, EngineUnavailable, make_engine
+from .master import CoSimulation, InputError
+from .runlog import run_folder, write_json
+from .scenario import Scenario, load, resolved
+from .traces import TraceWriter
+
+SUMMARY_EVERY_S = 2.0
+
+
+@dataclass
+class RunOptions:
+    engines: tuple = ENGINES
+    mode: str | None = None              # 'prescribed' | 'motor'; default: the scenario's drive.mode
+    revolutions: float | None = None     # default: the scenario's output.revolutions
+    out: Path | None = None              # default: logs/<scenario>-<timestamp>
+    viewer: str = "save"                 # 'save' (headless, default) | 'spawn' | 'connect' | 'none'
+    connect_url: str | None = None
+    exaggeration: float = 20.0
+    progress: bool = True
+
+
+@dataclass
+class RunResult:
+    folder: Path
+    summary: dict
+    result: object = None                # cosim.master.CoSimResult
+    notes: list = field(default_factory=list)
+
+
+def _on_sigterm(signum, frame):
+    # The master ends a run cleanly on KeyboardInterrupt, keeping its results.
+    raise KeyboardInterrupt(f"signal {signum}")
+
+
+def last_revolution_stats(run, period: float, t0: float = 0.0) -> dict:
+    """Gauge and torque extremes over the engine's last revolution [microstrain, N m]."""
+    if len(run.t) == 0:
+        return {}
+    mask = run.t > run.t[-1] - period * (1 - 1e-9)
+    complete = run.t[-1] - t0 >= period * (1 - 1e-9)
+    out = {"window_s": [float(run.t[mask][0]), float(run.t[-1])], "complete_revolution": bool(complete),
+           "drive_torque_max_Nm": float(np.max(run.drive_torque[mask])),
+           "drive_torque_min_Nm": float(np.min(run.drive_torque[mask])), "gauges": {}}
+    for g, (bending, axial) in run.gauges.items():
+        b, a = np.asarray(bending)[mask] * 1e6, np.asarray(axial)[mask] * 1e6
+        entry = {"bending_max_ue": float(b.max()), "bending_min_ue": float(b.min()),
+                 "axial_max_ue": float(a.max()), "axial_min_ue": float(a.min())}
+        prev = (run.t > run.t[-1] - 2 * period * (1 - 1e-9)) & ~mask
+        if np.any(prev) and complete:
+            pb = np.asarray(bending)[prev] * 1e6
+            # Revolution-to-revolution change of the bending range: how steady the last one is.
+            entry["bending_range_change"] = float(abs(np.ptp(b) - np.ptp(pb)) / max(np.ptp(b), 1e-30))
+        out["gauges"][g] = entry
+    return out
+
+
+def _engine_summary(ch, scenario: Scenario, sim_t0: float) -> dict:
+    run = ch.run
+    d = {"status": ch.status, "error": ch.error, "wall_time_s": float(run.wall_time_s),
+         "sim_time_s": float(run.t[-1] - sim_t0) if len(run.t) else 0.0, "samples": int(len(run.t)),
+         "coupling_passes_mean": float(np.mean(ch.passes)) if len(ch.passes) else 0.0}
+    d.update(last_revolution_stats(run, scenario.revolution_period_s, sim_t0))
+    if ch.motor is not None and len(run.t):
+        f = ch.speed_fluctuation()
+        if len(f["mean"]):
+            d["speed"] = {"mean_rpm_last": float(f["mean"][-1] * 30 / math.pi),
+                          "fluctuation_last": float(f["fluctuation"][-1]),
+                          "fluctuation_per_revolution": [float(x) for x in f["fluctuation"]]}
+        try:
+            d["energy_J"] = ch.energy_balance()
+        except InputError as exc:
+            d["energy_J"] = {"note": str(exc)}
+        tr = ch.motor
+        d["motor"] = {"current_max_A": float(np.max(tr.current_A)), "current_min_A": float(np.min(tr.current_A)),
+                      "voltage_max_V": float(np.max(tr.voltage_V)), "voltage_min_V": float(np.min(tr.voltage_V))}
+    return d
+
+
+def run_scenario(scenario, options: RunOptions = RunOptions(), callback=None) -> RunResult:
+    """Run a scenario (name, path or :class:`Scenario`) through ``options.engines`` and write the
+    log folder. Returns the folder and the summary; never raises for an engine's failure (it is
+    in the summary), only for bad input before anything runs."""
+    sc = scenario if isinstance(scenario, Scenario) else load(scenario)
+    for e in options.engines:
+        if e not in ENGINES:
+            raise InputError(f"unknown engine {e!r}; choose from {', '.join(ENGINES)}")
+    if options.viewer not in ("save", "spawn", "connect", "none"):
+        raise InputError(f"viewer must be save, spawn, connect or none, got {options.viewer!r}")
+    mode = options.mode or sc.drive.mode
+    engines, unavailable = {}, {}
+    for name in options.engines:
+        try:
+            engines[name] = make_engine(name)
+        except EngineUnavailable as exc:
+            unavailable[name] = str(exc)
+    if not engines:
+        raise InputError("no engine could be started: " + "; ".join(unavailable.values()))
+    cosim = CoSimulation(sc, engines, mode=mode)         # checks mode, motor table and macro step
+    revolutions = sc.output.revolutions if options.revolutions is None else options.revolutions
+    if not revolutions > 0:
+        raise InputError(f"revolutions must be positive, got {revolutions!r}")
+    duration = cosim.duration_for(revolutions)
+
+    folder = run_folder(sc.name, options.out)
+    import tomli_w
+    (folder / "scenario.resolved.toml").write_text(tomli_w.dumps(resolved(sc)), encoding="utf-8")
+    summary = {"scenario": sc.name, "status": "incomplete", "bench_version": __version__, "mode": mode,
+               "engines_requested": list(options.engines), "revolutions": revolutions,
+               "duration_s": duration, "macro_step_s": cosim.macro_step_s,
+               "coupling": {"scheme": cosim.coupling.scheme, "extrapolation": cosim.coupling.extrapolation}
+               if mode == "motor" else None,
+               "started": time.strftime("%Y-%m-%dT%H:%M:%S"), "progress": 0.0,
+               "engines": {n: {"status": "unavailable", "error": msg} for n, msg in unavailable.items()},
+               "files": {"traces": "traces.csv", "recording": "run.rrd" if options.viewer != "none" else None,
+                         "scenario": "scenario.resolved.toml"}}
+    write_json(folder / "summary.json", summary)
+
+    writer = TraceWriter(folder / "traces.csv")
+    recorder = [None]
+    notes = []
+
+    def recorder_for_first_step():
+        # Built at the first macro step: the engines are reset then and know their meshes.
+        from .recording import Recorder
+        rec = Recorder(sc, {n: e.node_stations() for n, e in engines.items() if _has_stations(e)}, mode,
+                       save_path=folder / "run.rrd", spawn=options.viewer == "spawn",
+                       connect=options.connect_url if options.viewer == "connect" else None,
+                       exaggeration=options.exaggeration)
+        rec.log_text("scenario", (folder / "scenario.resolved.toml").read_text(encoding="utf-8"))
+        return rec
+
+    bar = None
+    if options.progress:
+        from tqdm import tqdm
+        bar = tqdm(total=1.0, unit="run", desc=f"{sc.name} ({', '.join(engines)})", leave=True, disable=None,
+                   bar_format="{desc}: {percentage:3.0f}%|{bar}| {elapsed}<{remaining}")
+    last_write = [time.monotonic()]
+    failures = {}
+
+    def on_step(step):
+        writer.write_step(step.outputs)
+        if options.viewer != "none":
+            if recorder[0] is None:
+                recorder[0] = recorder_for_first_step()
+            recorder[0].log_macro_step(step)
+        failures.update(step.failed)
+        frac = step.step / step.n_steps
+        if bar is not None:
+            bar.update(frac - bar.n)
+        if time.monotonic() - last_write[0] > SUMMARY_EVERY_S:
+            summary["progress"] = frac
+            summary["sim_time_s"] = step.t
+            write_json(folder / "summary.json", summary)
+            last_write[0] = time.monotonic()
+        return callback(step) if callback is not None else None
+
+    previous = signal.signal(signal.SIGTERM, _on_sigterm)
+    status, result = None, None
+    try:
+        result = cosim.run(duration, callback=on_step)
+        status = result.status
+        if status == "interrupted":
+            notes.append("interrupted by the user or a signal; the files hold every completed macro step")
+    except KeyboardInterrupt:          # during set-up, before the master's loop
+        status = "interrupted"
+        notes.append("interrupted during set-up")
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+        writer.close()
+        if bar is not None:
+            bar.close()
+        if recorder[0] is not None:
+            recorder[0].close()
+    summary["status"] = status
+    summary["finished"] = time.strftime("%Y-%m-%dT%H:%M:%S")
+    if result is not None:
+        summary["progress"] = 1.0 if status == "completed" else summary.get("progress", 0.0)
+        for name, ch in result.channels.items():
+            summary["engines"][name] = _engine_summary(ch, sc, 0.0)
+    else:
+        for name in engines:
+            summary["engines"].setdefault(name, {"status": "interrupted"})
+    if notes:
+        summary["notes"] = notes
+    write_json(folder / "summary.json", summary)
+    return RunResult(folder, summary, result, notes)
+
+
+def _has_stations(engine) -> bool:
+    try:
+        engine.node_stations()
+        return True
+    except Exception:        # an engine whose reset failed has no mesh
+        return False

@@ -1,0 +1,175 @@
+"""Speed sweeps: peak strain against crank speed, per engine and gauge.
+
+Every point is an independent prescribed-speed run of the scenario at one speed (``drive.speed``
+replaced, steps given as crank angles scale with it), from which the last revolution's peaks are
+kept. Points run in parallel through a ``concurrent.futures`` executor: a process pool on the
+local cores, or, given a scheduler address, a Dask distributed cluster (``Client.get_executor``),
+so a sweep that outgrows one machine needs an address, not new code.
+
+Output folder ``logs/<scenario>-sweep-<timestamp>/``: ``sweep.csv`` (one row per speed, engine
+and gauge), ``summary.json`` and ``sweep.rrd`` (peaks against speed; the sequence timeline
+``crank_speed_rpm`` carries the speed). Rows are appended as points finish, so an interrupted
+sweep keeps what it computed.
+"""
+from __future__ import annotations
+
+import copy
+import math
+import os
+import re
+import time
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from pathlib import Path
+
+import numpy as np
+
+from .runlog import run_folder, write_csv, write_json
+from .scenario import ScenarioError, from_dict, load
+
+RANGE = re.compile(r"^\s*([0-9.eE+-]+)\s*:\s*([0-9.eE+-]+)\s*:\s*([0-9.eE+-]+)\s*$")
+
+
+def parse_rpm(text: str) -> np.ndarray:
+    """``"100:400:25"`` (start:stop:step, stop included when on the grid) or ``"95,241,373"`` [rpm]."""
+    text = str(text).strip()
+    m = RANGE.match(text)
+    try:
+        if m:
+            a, b, h = (float(x) for x in m.groups())
+            if not (h > 0 and b >= a > 0):
+                raise ValueError
+            n = int(math.floor((b - a) / h + 1e-9))
+            values = a + h * np.arange(n + 1)
+        else:
+            values = np.array([float(x) for x in text.split(",") if x.strip()])
+            if not len(values) or np.any(values <= 0):
+                raise ValueError
+    except ValueError:
+        raise ValueError(f"malformed rpm range {text!r}: write start:stop:step with 0 < start <= stop and step > 0 "
+                         "(e.g. 100:400:25), or a list 95,241,373") from None
+    return values
+
+
+def sweep_point(raw: dict, path: str, rpm: float, engines: tuple, revolutions: float) -> dict:
+    """One speed: prescribed run, last-revolution peaks per engine and gauge (runs in a worker)."""
+    from .master import CoSimulation
+    from .run import last_revolution_stats
+
+    data = copy.deepcopy(raw)
+    data.setdefault("drive", {})["speed"] = f"{rpm} rpm"
+    data["drive"]["mode"] = "prescribed"
+    sc = from_dict(data, path)
+    tic = time.perf_counter()
+    res = CoSimulation(sc, engines, mode="prescribed").run(revolutions=revolutions)
+    out = {"rpm": rpm, "wall_time_s": time.perf_counter() - tic, "engines": {}}
+    for name, ch in res.channels.items():
+        out["engines"][name] = {"status": ch.status, "error": ch.error,
+                                **last_revolution_stats(ch.run, sc.revolution_period_s)}
+    return out
+
+
+def _rows(point: dict) -> list:
+    rows = []
+    for engine, e in point["engines"].items():
+        gauges = e.get("gauges") or {"": {}}
+        for g, stats in gauges.items():
+            rows.append({"rpm": point["rpm"], "engine": engine, "gauge": g, "status": e["status"],
+                         **{k: stats.get(k) for k in ("bending_max_ue", "bending_min_ue", "axial_max_ue", "axial_min_ue")},
+                         "drive_torque_max_Nm": e.get("drive_torque_max_Nm"),
+                         "drive_torque_min_Nm": e.get("drive_torque_min_Nm"), "error": e.get("error") or ""})
+    return rows
+
+
+def run_sweep(scenario: str, rpm, engines=("tmm",), revolutions: float | None = None, workers: int | None = None,
+              scheduler: str | None = None, out: Path | None = None, progress: bool = True,
+              record: bool = True) -> tuple:
+    """Run the sweep; returns ``(folder, summary)``."""
+    sc = load(scenario)
+    rpms = parse_rpm(rpm) if isinstance(rpm, str) else np.asarray(rpm, dtype=float)
+    revs = sc.output.revolutions if revolutions is None else revolutions
+    from .engines import ENGINES
+    for e in engines:
+        if e not in ENGINES:
+            raise ScenarioError(f"unknown engine {e!r}; choose from {', '.join(ENGINES)}")
+    folder = run_folder(f"{sc.name}-sweep", out)
+    summary = {"scenario": sc.name, "status": "incomplete", "rpm": rpms.tolist(), "engines": list(engines),
+               "revolutions": revs, "executor": f"dask {scheduler}" if scheduler else "local processes",
+               "points": []}
+    write_json(folder / "summary.json", summary)
+    client = None
+    if scheduler:
+        from distributed import Client
+        client = Client(scheduler)
+        executor = client.get_executor()
+    else:
+        executor = ProcessPoolExecutor(max_workers=workers or os.cpu_count() or 1)
+    bar = None
+    if progress:
+        from tqdm import tqdm
+        bar = tqdm(total=len(rpms), unit="point", desc=f"sweep {sc.name}", disable=None)
+    rows, points = [], []
+    tic = time.perf_counter()
+    try:
+        futures = [executor.submit(sweep_point, sc.raw, str(sc.path or sc.name), float(r), tuple(engines), revs)
+                   for r in rpms]
+        for fut in as_completed(futures):
+            try:
+                point = fut.result()
+            except Exception as exc:       # a worker that died or raised: keep the others
+                point = {"rpm": None, "error": f"{type(exc).__name__}: {exc}", "engines": {}}
+            points.append(point)
+            rows += _rows(point)
+            summary["points"] = sorted(points, key=lambda p: (p["rpm"] is None, p["rpm"] or 0))
+            write_json(folder / "summary.json", summary)
+            if rows:
+                write_csv(folder / "sweep.csv", sorted(rows, key=lambda r: (r["rpm"], r["engine"], r["gauge"])))
+            if bar is not None:
+                bar.update(1)
+        summary["status"] = "completed" if all(
+            e.get("status") == "completed" for p in points for e in p["engines"].values()) and \
+            all(p["rpm"] is not None for p in points) else "failed"
+    except KeyboardInterrupt:
+        summary["status"] = "interrupted"
+    finally:
+        if bar is not None:
+            bar.close()
+        if client is not None:
+            client.close()
+        else:
+            executor.shutdown(cancel_futures=True)
+    summary["wall_time_s"] = time.perf_counter() - tic
+    write_json(folder / "summary.json", summary)
+    if record and points:
+        _record(folder / "sweep.rrd", sc.name, summary["points"])
+    return folder, summary
+
+
+def _record(path: Path, name: str, points: list) -> None:
+    """Peaks against speed in rerun (one multi-series entity per engine and gauge)."""
+    import rerun as rr
+    import rerun.blueprint as rrb
+
+    rec = rr.RecordingStream("flexlink-bench-sweep", recording_id=f"{name}-sweep")
+    rec.save(str(path))
+    points = [p for p in points if p.get("rpm") is not None]
+    rpm = np.array([p["rpm"] for p in points])
+    views = []
+    series = {}
+    for p in points:
+        for engine, e in p["engines"].items():
+            for g, s in (e.get("gauges") or {}).items():
+                series.setdefault((engine, g), []).append((p["rpm"], s["bending_max_ue"], s["bending_min_ue"]))
+    for (engine, g), values in sorted(series.items()):
+        values = np.array(sorted(values))
+        entity = f"/{engine}/peaks/{g}"
+        rec.log(entity, rr.SeriesLines(names=[f"{engine} +peak bending [µε]", f"{engine} -peak bending [µε]"]),
+                static=True)
+        rec.send_columns(entity, indexes=[rr.TimeColumn("crank_speed_rpm", sequence=np.rint(values[:, 0]).astype(int))],
+                         columns=rr.Scalars.columns(scalars=values[:, 1:]))
+    for g in sorted({g for _, g in series}):
+        views.append(rrb.TimeSeriesView(name=f"{g}: peak bending vs speed [rpm]",
+                                        contents=[f"/{e}/peaks/{g}" for e, gg in series if gg == g]))
+    if views:
+        rec.send_blueprint(rrb.Blueprint(rrb.Vertical(*views), collapse_panels=True))
+    rec.flush()
+    del rpm

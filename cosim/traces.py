@@ -1,0 +1,124 @@
+"""The run's trace table, ``traces.csv``: one time column and one column per trace.
+
+Columns are named ``<engine>.<quantity>_<unit>`` (``tmm.drive_torque_Nm``,
+``exudyn.coupler_mid.bending_ue`` with ue = microstrain, ``motor.tmm.current_A``); the first is
+``time_s``. Engines sample at different times (exudyn once per macro step, the transfer-matrix
+model and MuJoCo at every internal step), so the rows are the union of all sample times and a
+cell is empty where a trace has no sample.
+
+The file is appended macro step by macro step, one write and flush per step, so a run that is
+interrupted or killed leaves every completed step on disk; :func:`read_traces` reads such a file
+and drops (and reports) a last line cut off by the kill.
+"""
+from __future__ import annotations
+
+import csv
+import io
+from pathlib import Path
+
+import numpy as np
+
+from .motor import MotorTrace
+
+MOTOR_FIELDS = ("current_A", "voltage_V", "torque_em_Nm", "drive_torque_Nm", "motor_speed_rad_s",
+                "setpoint_rad_s", "electrical_power_W", "copper_loss_W", "friction_loss_W")
+TIME_DECIMALS = 12         # engines' clocks agree to an ulp; round before taking the union
+
+
+def engine_columns(engine: str, out) -> list:
+    """(column, values) of one engine's EngineOutput."""
+    cols = [(f"{engine}.crank_angle_rad", out.crank_angle), (f"{engine}.crank_speed_rad_s", out.crank_speed),
+            (f"{engine}.drive_torque_Nm", out.drive_torque)]
+    for g, (bending, axial) in out.gauges.items():
+        cols += [(f"{engine}.{g}.bending_ue", np.asarray(bending) * 1e6), (f"{engine}.{g}.axial_ue",
+                                                                          np.asarray(axial) * 1e6)]
+    for name, (unit, values) in out.extras.items():
+        unit = unit.replace(" ", "").replace("/", "_")
+        cols.append((f"{engine}.{name if name.endswith('_' + unit) else f'{name}_{unit}'}", values))
+    return cols
+
+
+def motor_columns(engine: str, trace: MotorTrace) -> list:
+    return [(f"motor.{engine}.{f}", getattr(trace, f)) for f in MOTOR_FIELDS]
+
+
+class TraceWriter:
+    """Appends macro steps to ``traces.csv``; the header is fixed by the first step's outputs
+    (engines that failed before it have no columns)."""
+
+    def __init__(self, path: Path):
+        self.path = Path(path)
+        self.columns = None
+        self.fh = None
+        self.rows = 0
+
+    def write_step(self, outputs: dict) -> None:
+        """``outputs``: {engine: (EngineOutput, MotorTrace | None)} of one macro step."""
+        series = []     # (column, t, values)
+        for engine, (out, trace) in outputs.items():
+            series += [(c, out.t, v) for c, v in engine_columns(engine, out)]
+            if trace is not None:
+                series += [(c, trace.t, v) for c, v in motor_columns(engine, trace)]
+        if not series:
+            return
+        if self.columns is None:
+            self.columns = [c for c, _, _ in series]
+            self.fh = open(self.path, "w", newline="", encoding="utf-8")
+            self.fh.write(",".join(["time_s"] + self.columns) + "\n")
+            self.fh.flush()
+        index = {c: j for j, c in enumerate(self.columns)}
+        times = np.unique(np.round(np.concatenate([np.asarray(t, dtype=float) for _, t, _ in series]), TIME_DECIMALS))
+        table = np.full((len(times), len(self.columns)), np.nan)
+        for c, t, v in series:
+            j = index.get(c)
+            if j is None:        # a column the first step did not have (cannot happen with fixed engines)
+                continue
+            rows = np.searchsorted(times, np.round(np.asarray(t, dtype=float), TIME_DECIMALS))
+            table[rows, j] = v
+        buf = io.StringIO()
+        for t, row in zip(times, table):
+            buf.write(repr(float(t)))
+            for x in row:
+                buf.write(",")
+                if x == x:                     # not NaN
+                    buf.write(f"{x:.10g}")
+            buf.write("\n")
+        self.fh.write(buf.getvalue())          # one write per macro step, then flush: a kill loses at most it
+        self.fh.flush()
+        self.rows += len(times)
+
+    def close(self) -> None:
+        if self.fh is not None:
+            self.fh.close()
+            self.fh = None
+
+
+def read_traces(path: Path) -> tuple:
+    """``(columns, array, note)`` from a traces.csv; empty cells are NaN. A last line cut short
+    (a killed run) is dropped and ``note`` says so; any other malformed line raises ValueError
+    naming the line."""
+    path = Path(path)
+    with open(path, newline="", encoding="utf-8") as fh:
+        text = fh.read()
+    complete = text.endswith("\n")
+    lines = text.splitlines()
+    note = None
+    if not lines:
+        raise ValueError(f"{path}: empty trace file")
+    header = next(csv.reader([lines[0]]))
+    body = lines[1:]
+    if body and not complete:
+        body = body[:-1]
+        note = f"{path}: the last line was cut off (interrupted run) and is ignored"
+    data = np.full((len(body), len(header)), np.nan)
+    for i, line in enumerate(body):
+        cells = line.split(",")
+        if len(cells) != len(header):
+            raise ValueError(f"{path}, line {i + 2}: {len(cells)} cells, the header has {len(header)}")
+        for j, cell in enumerate(cells):
+            if cell:
+                try:
+                    data[i, j] = float(cell)
+                except ValueError:
+                    raise ValueError(f"{path}, line {i + 2}, column '{header[j]}': not a number: {cell!r}") from None
+    return header, data, note

@@ -1,0 +1,10 @@
+"""Wang's +/-45 deg graphite-epoxy four-bar (12/2.5/9/9 in, viscoelastic links) at 280 rpm.
+
+Runs the scenario through every engine, like `cosim run wang_composite_280rpm` (same options; --help lists them).
+"""
+import sys
+
+from cosim.cli import run_main
+
+if __name__ == "__main__":
+    sys.exit(run_main("wang_composite_280rpm"))
