@@ -53,7 +53,18 @@ def comparison_table(summary: dict) -> str:
             lines.append(f"  {n:<8} {s['mean_rpm_last']:.2f} rpm  fluctuation {100 * s['fluctuation_last']:.2f} %")
     scores = summary.get("scores")
     if scores:
-        lines += ["", "scores against records"]
-        for row in scores if isinstance(scores, list) else []:
-            lines.append("  " + "  ".join(f"{k}={v}" for k, v in row.items()))
+        head = (f"{'engine':<8} {'gauge':<12} {'record':<18} {'+peak err':>9} {'-peak err':>9} {'rms [ue]':>8} "
+                f"{'corr':>6} {'lag [deg]':>9} {'scale':>6} {'in env':>6}")
+        lines += ["", "scores against records (errors = (model - record) / |record|)", head, "-" * len(head)]
+        for s in scores:
+            lines.append(f"{s['engine']:<8} {s['gauge']:<12} {s['record']:<18} {_pct(s.get('plus_peak_error')):>9} "
+                         f"{_pct(s.get('minus_peak_error')):>9} {_fmt(s.get('rms_error_ue')):>8} "
+                         f"{_fmt(s.get('correlation'), 2):>6} {_fmt(s.get('phase_lag_deg')):>9} "
+                         f"{_fmt(s.get('scale'), 2):>6} {_fmt(s.get('inside_envelope'), 2):>6}")
+    for w in summary.get("record_warnings") or []:
+        lines.append(f"note: {w}")
     return "\n".join(lines)
+
+
+def _pct(x):
+    return "-" if x is None or x != x else f"{100 * x:+.1f}%"

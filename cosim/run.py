@@ -193,19 +193,27 @@ def run_scenario(scenario, options: RunOptions = RunOptions(), callback=None) ->
     except KeyboardInterrupt:          # during set-up, before the master's loop
         status = "interrupted"
         notes.append("interrupted during set-up")
+    except BaseException:
+        if recorder[0] is not None:
+            recorder[0].close()
+        raise
     finally:
         signal.signal(signal.SIGTERM, previous)
         writer.close()
         if bar is not None:
             bar.close()
-        if recorder[0] is not None:
-            recorder[0].close()
     summary["status"] = status
     summary["finished"] = time.strftime("%Y-%m-%dT%H:%M:%S")
     if result is not None:
         summary["progress"] = 1.0 if status == "completed" else summary.get("progress", 0.0)
         for name, ch in result.channels.items():
             summary["engines"][name] = _engine_summary(ch, sc, 0.0)
+        try:
+            score_records(sc, result, summary, recorder[0])
+        except Exception as exc:          # scoring must never lose the run's own results
+            notes.append(f"scoring against records failed: {type(exc).__name__}: {exc}")
+    if recorder[0] is not None:
+        recorder[0].close()
     else:
         for name in engines:
             summary["engines"].setdefault(name, {"status": "interrupted"})
@@ -213,6 +221,76 @@ def run_scenario(scenario, options: RunOptions = RunOptions(), callback=None) ->
         summary["notes"] = notes
     write_json(folder / "summary.json", summary)
     return RunResult(folder, summary, result, notes)
+
+
+def score_records(sc: Scenario, result, summary: dict, recorder=None) -> None:
+    """Records of the scenario's rig at its speed: listed in the summary, scored against every
+    engine's last revolution (peaks records: peak errors; histories over crank angle: peak, RMS,
+    correlation, phase lag, scale, envelope), drawn in the recording under /records."""
+    from .compare import convention_warnings, score_history, score_peaks, sign_check
+    from .records import history_over_angle, peaks_at, records_for
+
+    recs = records_for(sc)
+    if not recs:
+        return
+    rpm = abs(sc.drive.speed_rad_s) * 30 / math.pi
+    gauges = {g.name: g for g in sc.gauges}
+    summary["records"], scores, warnings = {}, [], []
+    summary["records_used"] = [{"name": r.name, "kind": r.kind, "format": r.format,
+                                "source": r.provenance.get("source"), "table": r.provenance.get("table")}
+                               for r in recs]
+    for rec in recs:
+        if rec.format == "peaks":
+            for g, p in peaks_at(rec, rpm).items():
+                summary["records"].setdefault(g, []).append({"label": rec.label, **p})
+                if recorder is not None:
+                    recorder.log_reference(g, rec.name, bending_ue=(p.get("bending_max_ue"), p.get("bending_min_ue")),
+                                           kind=rec.kind)
+                if g in gauges:
+                    warnings += convention_warnings(rec, gauges[g])
+                for engine, ch in result.channels.items():
+                    stats = summary["engines"][engine].get("gauges", {}).get(g)
+                    if stats is None:
+                        continue
+                    sc_ = score_peaks(stats["bending_max_ue"], stats["bending_min_ue"], p.get("bending_max_ue"),
+                                      p.get("bending_min_ue"))
+                    scores.append({"engine": engine, "gauge": g, "record": rec.name, "kind": rec.kind, **sc_})
+        elif rec.format == "history" and rec.index[1] == "deg":
+            hist = history_over_angle(rec)
+            for g, series in hist.items():
+                if g == "angle_rad" or g not in gauges or "bending_ue" not in series:
+                    continue
+                warnings += convention_warnings(rec, gauges[g])
+                rb = series["bending_ue"]
+                summary["records"].setdefault(g, []).append({"label": rec.label, "bending_max_ue": float(rb.max()),
+                                                             "bending_min_ue": float(rb.min())})
+                if recorder is not None:
+                    recorder.log_reference(g, rec.name, angle=hist["angle_rad"], bending_ue=rb, kind=rec.kind)
+                for engine, ch in result.channels.items():
+                    run = ch.run
+                    if not len(run.t) or g not in run.gauges:
+                        continue
+                    last = run.t > run.t[-1] - sc.revolution_period_s * (1 - 1e-9)
+                    sc_ = score_history(run.crank_angle[last], run.gauges[g][0][last] * 1e6, hist["angle_rad"], rb)
+                    hint = sign_check(sc_)
+                    if hint:
+                        warnings.append(f"{engine} vs {rec.name} at {g}: {hint}")
+                    scores.append({"engine": engine, "gauge": g, "record": rec.name, "kind": rec.kind, **sc_})
+        else:
+            summary["records"].setdefault("_values", []).append(
+                {"label": rec.label, "values": [{k: v for k, v in r.items() if k in ("quantity", "link", "value",
+                                                                                      "unit", "note")}
+                                                for r in rec.rows]})
+    summary["scores"] = scores
+    summary["record_warnings"] = sorted(set(warnings))
+    if recorder is not None and scores:
+        lines = [f"{s['engine']:8s} {s['gauge']:12s} {s['record']:18s} +peak {_pct(s.get('plus_peak_error'))} "
+                 f"-peak {_pct(s.get('minus_peak_error'))}" for s in scores]
+        recorder.log_text("records/scores", "\n".join(lines + [""] + summary["record_warnings"]))
+
+
+def _pct(x):
+    return "   -   " if x is None or x != x else f"{100 * x:+6.1f}%"
 
 
 def _has_stations(engine) -> bool:

@@ -13,7 +13,7 @@ run's resolved scenario. Errors name the file, the key and the value.
 
 File layout (all tables except ``[scenario]``, ``[linkage]``, ``[links.*]`` are optional)::
 
-    [scenario]      name, description, sources
+    [scenario]      name, description, sources, rig (records of that rig are compared)
     [linkage]       type = "four-bar", ground, pivot, ground_angle, branch = "open" | "crossed"
     [materials.X]   E, density, yield_strength, endurance_limit, poisson,
                     viscoelastic = {instantaneous_modulus, relaxed_modulus, relaxation_time}
@@ -161,6 +161,7 @@ class Scenario:
     raw: dict = field(repr=False, default_factory=dict)
     motor: object = None                  # cosim.motor.MotorParameters, or None without a [motor] table
     coupling: CouplingSettings = CouplingSettings()
+    rig: str | None = None                # the physical rig (records of it are matched by this name)
 
     def engine_step_s(self, engine: str) -> float:
         """Internal step of an engine [s]."""
@@ -445,7 +446,7 @@ def from_dict(data: dict, path: str = "<dict>", default_name: str = "scenario") 
     r = _Reader(path)
     top = r.table(data, "", {"scenario", "linkage", "materials", "sections", "links", "drive", "gravity", "gauges",
                              "solver", "output", "motor", "coupling"}, {"linkage", "links"})
-    meta = r.table(top.get("scenario", {}), "scenario", {"name", "description", "sources"})
+    meta = r.table(top.get("scenario", {}), "scenario", {"name", "description", "sources", "rig"})
     solver = r.table(top.get("solver", {}), "solver", {"tmm", "exudyn", "mujoco"})
     tmm = _tmm_settings(r, solver.get("tmm", {}))
 
@@ -534,7 +535,8 @@ def from_dict(data: dict, path: str = "<dict>", default_name: str = "scenario") 
         sources = [sources]
     return Scenario(str(meta.get("name", default_name)), str(meta.get("description", "")),
                     Path(path) if path != "<dict>" else None, tuple(sources), mech, drive, tuple(gauges), gravity,
-                    tmm, exudyn, mujoco, output, tuple(r.assumptions), data, motor, coupling)
+                    tmm, exudyn, mujoco, output, tuple(r.assumptions), data, motor, coupling,
+                    str(meta["rig"]) if "rig" in meta else None)
 
 
 def _step(r: _Reader, value, key: str) -> float:
@@ -733,7 +735,7 @@ def resolved(scenario: Scenario) -> dict:
 
     mech = scenario.mechanism
     return {
-        "scenario": {"name": scenario.name, "description": scenario.description,
+        "scenario": {"name": scenario.name, "description": scenario.description, "rig": scenario.rig or "",
                      "file": str(scenario.path) if scenario.path else "", "sources": list(scenario.sources)},
         "resolved": clean({
             "linkage": {"ground_m": mech.ground_m, "pivot_m": list(mech.pivot), "ground_angle_rad": mech.ground_angle,

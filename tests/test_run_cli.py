@@ -211,7 +211,8 @@ def test_recording_holds_every_engine_motor_and_strain_series(run_dir):
     out, _ = run_dir
     counts = read_back(out / "run.rrd")
     roots = {e.strip("/").split("/")[0] for e in counts}
-    assert {"tmm", "exudyn", "mujoco", "motor", "scenario"} <= roots, roots
+    assert {"tmm", "exudyn", "mujoco", "motor", "records", "scenario"} <= roots, roots
+    assert counts.get("/records/strain/rocker_mid/fe_table1", 0) > 0
     for engine in ("tmm", "exudyn", "mujoco"):
         for gauge in ("coupler_mid", "rocker_mid"):
             assert counts.get(f"/{engine}/strain/{gauge}", 0) > 10, (engine, gauge)
@@ -219,3 +220,21 @@ def test_recording_holds_every_engine_motor_and_strain_series(run_dir):
     views = read_blueprint(out / "run.rrd")
     gauge_view = [v for v in views if "coupler_mid" in (v.get("name") or "")]
     assert gauge_view and all(f"/{e}/strain/coupler_mid" in gauge_view[0]["contents"] for e in ("tmm", "exudyn", "mujoco"))
+
+
+def test_run_scores_every_engine_against_table_one(run_dir):
+    """`cosim run crank_rocker_373rpm` compares with the FE thesis's Table I at 373 rpm (and its
+    published analysis, Table II) and writes the table."""
+    out, res = run_dir
+    summary = json.loads((out / "summary.json").read_text())
+    scores = {(s["engine"], s["gauge"], s["record"]): s for s in summary["scores"]}
+    for engine in ("tmm", "exudyn", "mujoco"):
+        for gauge in ("coupler_mid", "rocker_mid"):
+            s = scores[(engine, gauge, "fe_table1")]
+            assert s["record_max_ue"] == {"coupler_mid": 79.343, "rocker_mid": 509.222}[gauge]
+            assert s["record_min_ue"] == {"coupler_mid": -135.372, "rocker_mid": -191.322}[gauge]
+            e = summary["engines"][engine]["gauges"][gauge]
+            assert s["plus_peak_error"] == pytest.approx((e["bending_max_ue"] - s["record_max_ue"]) / s["record_max_ue"])
+            assert math.isfinite(scores[(engine, gauge, "fe_table2_373rpm")]["phase_lag_deg"])
+    assert any("face is not stated" in w for w in summary["record_warnings"])
+    assert "scores against records" in res.stdout and "fe_table1" in res.stdout
