@@ -55,7 +55,8 @@ def comparison_table(summary: dict) -> str:
     if scores:
         head = (f"{'engine':<8} {'gauge':<12} {'record':<18} {'+peak err':>9} {'-peak err':>9} {'rms [ue]':>8} "
                 f"{'corr':>6} {'lag [deg]':>9} {'scale':>6} {'in env':>6}")
-        lines += ["", "scores against records (errors = (model - record) / |record|)", head, "-" * len(head)]
+        lines += ["", "scores against records (peak errors = model / record - 1; for - peaks, + = larger magnitude)",
+                  head, "-" * len(head)]
         for s in scores:
             lines.append(f"{s['engine']:<8} {s['gauge']:<12} {s['record']:<18} {_pct(s.get('plus_peak_error')):>9} "
                          f"{_pct(s.get('minus_peak_error')):>9} {_fmt(s.get('rms_error_ue')):>8} "

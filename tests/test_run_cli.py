@@ -234,7 +234,8 @@ def test_run_scores_every_engine_against_table_one(run_dir):
             assert s["record_max_ue"] == {"coupler_mid": 79.343, "rocker_mid": 509.222}[gauge]
             assert s["record_min_ue"] == {"coupler_mid": -135.372, "rocker_mid": -191.322}[gauge]
             e = summary["engines"][engine]["gauges"][gauge]
-            assert s["plus_peak_error"] == pytest.approx((e["bending_max_ue"] - s["record_max_ue"]) / s["record_max_ue"])
+            assert s["plus_peak_error"] == pytest.approx(e["bending_max_ue"] / s["record_max_ue"] - 1)
+            assert s["minus_peak_error"] == pytest.approx(e["bending_min_ue"] / s["record_min_ue"] - 1)
             assert math.isfinite(scores[(engine, gauge, "fe_table2_373rpm")]["phase_lag_deg"])
     assert any("face is not stated" in w for w in summary["record_warnings"])
     assert "scores against records" in res.stdout and "fe_table1" in res.stdout
