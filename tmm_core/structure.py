@@ -18,6 +18,7 @@ entry per crank position).
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import Mapping
 
@@ -28,20 +29,88 @@ from .matrices import F_IDX, field_matrix, frame_rotation, point_matrix, rigid_e
 from .riccati import ChainFactor, chain_states, factor_chain, load_column, sweep_loads
 from .sections import Material, Section
 
-SUPPORTS = ("free", "pinned", "clamped")
+SUPPORTS = ("free", "pinned", "clamped", "slider", "sliding_clamp")
 CONNECTIONS = ("pin", "rigid")
 
 
 @dataclass(frozen=True)
 class Joint:
-    """A joint. ``support``: 'free', 'pinned' (translation fixed) or 'clamped' (all fixed)."""
+    """A joint. ``support``: 'free'; 'pinned' (translation fixed); 'clamped' (all fixed);
+    'slider' (translation free only along ``direction``, rotation free: a pinned slider block);
+    'sliding_clamp' (as 'slider' with the rotation fixed). ``direction`` [rad] from global X."""
 
     name: str
     support: str = "free"
+    direction: float = 0.0
 
     def __post_init__(self):
         if self.support not in SUPPORTS:
             raise InputError(f"joint '{self.name}': support must be one of {SUPPORTS}, got {self.support!r}")
+        require_finite(f"joint '{self.name}': direction", self.direction)
+
+
+@dataclass(frozen=True)
+class Spring:
+    """A translational spring between joints ``a`` and ``b`` (a ground anchor is a pinned joint):
+    stiffness ``k`` [N/m], free length [m]. Its force acts along the rigid-body axis a-b: the
+    preload k (L - free_length) from the configuration plus k times the relative elastic
+    displacement along the axis (Shin §3.3.4.3, Eqs. 3.23-3.26; small deflection: the axis does
+    not turn)."""
+
+    name: str
+    a: str
+    b: str
+    k: float
+    free_length: float
+
+    def __post_init__(self):
+        require_positive(f"spring '{self.name}': k", self.k)
+        require_finite(f"spring '{self.name}': free_length", self.free_length)
+        if self.a == self.b:
+            raise InputError(f"spring '{self.name}': both ends are joint '{self.a}'")
+
+
+@dataclass(frozen=True)
+class RigidBody:
+    """A rigid plate: the ``slaves`` joints (its vertices) translate with the ``master`` joint (its
+    centroid) by the small-rotation kinematics d_s = d_m + theta_m k x (r_s - r_m). Members meet
+    the plate at its vertices through revolutes (members rigidly connected at a vertex turn
+    together, not with the plate); a member welded to the plate connects rigidly to the master.
+    Shin models plates as rigid elements from the centroid to the vertices; this constraint is the
+    same rigid body without an infinite stiffness in the system."""
+
+    name: str
+    master: str
+    slaves: tuple
+
+    def __post_init__(self):
+        if not self.slaves:
+            raise InputError(f"rigid body '{self.name}': needs at least one slave joint")
+        if self.master in self.slaves:
+            raise InputError(f"rigid body '{self.name}': master '{self.master}' is also a slave")
+
+
+@dataclass(frozen=True)
+class SliderJoint:
+    """A block at joint ``block`` sliding along a link through joint ``guide``: the block's
+    displacement equals the guide point's plus a free slide along the member ``along`` (its
+    rigid-body axis), and the block turns with the guide (Shin's sliding joint, sub-loop cases 2
+    and 4). The guide joint must carry a rotation (a member rigidly connected there)."""
+
+    name: str
+    block: str
+    guide: str
+    along: str
+
+
+def constrained_joints(structure) -> set:
+    """Joints whose displacement is given by a constraint (rigid-body slaves, slider blocks)."""
+    out = set()
+    for b in structure.rigid_bodies:
+        out |= set(b.slaves)
+    for s in structure.sliders:
+        out.add(s.block)
+    return out
 
 
 @dataclass(frozen=True)
@@ -118,10 +187,14 @@ class Member:
 
 @dataclass(frozen=True)
 class Structure:
-    """Topology of an instantaneous structure: joints and members."""
+    """Topology of an instantaneous structure: joints and members, plus optional springs,
+    rigid bodies (plates) and slider joints."""
 
     joints: tuple
     members: tuple
+    springs: tuple = ()
+    rigid_bodies: tuple = ()
+    sliders: tuple = ()
 
     def __post_init__(self):
         names = [j.name for j in self.joints]
@@ -134,10 +207,35 @@ class Structure:
             for end in (m.start, m.end):
                 if end not in names:
                     raise InputError(f"member '{m.name}': refers to unknown joint '{end}' (joints: {names})")
-        used = {m.start for m in self.members} | {m.end for m in self.members}
+        for sp in self.springs:
+            for end in (sp.a, sp.b):
+                if end not in names:
+                    raise InputError(f"spring '{sp.name}': refers to unknown joint '{end}' (joints: {names})")
+        for b in self.rigid_bodies:
+            for j in (b.master,) + tuple(b.slaves):
+                if j not in names:
+                    raise InputError(f"rigid body '{b.name}': refers to unknown joint '{j}' (joints: {names})")
+        for sl in self.sliders:
+            for j in (sl.block, sl.guide):
+                if j not in names:
+                    raise InputError(f"slider '{sl.name}': refers to unknown joint '{j}' (joints: {names})")
+            if sl.along not in mnames:
+                raise InputError(f"slider '{sl.name}': refers to unknown member '{sl.along}' (members: {mnames})")
+        dependent = constrained_joints(self)
+        for b in self.rigid_bodies:
+            if b.master in dependent:
+                raise InputError(f"rigid body '{b.name}': its master '{b.master}' is itself constrained")
+        for sl in self.sliders:
+            if sl.guide in dependent:
+                raise InputError(f"slider '{sl.name}': its guide '{sl.guide}' is itself constrained")
+        for j in self.joints:
+            if j.name in dependent and j.support != "free":
+                raise InputError(f"joint '{j.name}': a constrained joint cannot also be supported ({j.support})")
+        used = ({m.start for m in self.members} | {m.end for m in self.members} | {sp.a for sp in self.springs} |
+                {sp.b for sp in self.springs} | {b.master for b in self.rigid_bodies} | dependent)
         for j in self.joints:
             if j.name not in used:
-                raise InputError(f"joint '{j.name}': no member is attached to it")
+                raise InputError(f"joint '{j.name}': nothing (member, spring, plate) is attached to it")
 
     def joint(self, name: str) -> Joint:
         return next(j for j in self.joints if j.name == name)
@@ -232,6 +330,7 @@ class LinearSolution:
     reactions: Mapping[str, np.ndarray]   # {joint: (..., 3)} force/moment applied by ground [N, N, N m]
     negative_eigenvalues: np.ndarray      # (...,) stiffness inertia count (0 when stable)
     joint_displacement: Mapping[str, np.ndarray]  # {joint: (..., 2)} global [m]
+    spring_forces: Mapping[str, np.ndarray] = field(default_factory=dict)  # {spring: (...,)} tension [N]
 
 
 def _rotation_3(angle):
@@ -345,14 +444,20 @@ def _dof_map(structure: Structure):
             rigid_at[m.start] = True
         if m.end_connection == "rigid":
             rigid_at[m.end] = True
+    for b in structure.rigid_bodies:
+        rigid_at[b.master] = True
+    for sl in structure.sliders:
+        if not rigid_at[sl.guide]:
+            raise InputError(f"slider '{sl.name}': the guide joint '{sl.guide}' has no rotation (connect the guide "
+                             "link rigidly there)")
     fixed = []
     for j in structure.joints:
         new((j.name, "x"))
         new((j.name, "y"))
         fixed += [j.support in ("pinned", "clamped")] * 2
-        if rigid_at[j.name] or j.support == "clamped":
+        if rigid_at[j.name] or j.support in ("clamped", "sliding_clamp"):
             new((j.name, "r"))
-            fixed.append(j.support == "clamped")
+            fixed.append(j.support in ("clamped", "sliding_clamp"))
     ends = {}
     for m in structure.members:
         idx = []
@@ -395,6 +500,9 @@ class StructureFactor:
     ends: Mapping[str, np.ndarray] = field(repr=False, default=None)
     fixed: np.ndarray = field(repr=False, default=None)
     labels: tuple = field(repr=False, default=())
+    constraint: np.ndarray | None = field(repr=False, default=None)   # (..., nd, nr): raw = T reduced
+    spring_load: np.ndarray | None = field(repr=False, default=None)  # (..., nd) preload term of r
+    spring_forces: Mapping[str, tuple] = field(repr=False, default=None)  # {spring: (preload, axis, dofs)}
 
 
 def factorize(structure: Structure, case: LoadCase, axial_force: Mapping[str, np.ndarray] | None = None,
@@ -452,15 +560,23 @@ def factorize(structure: Structure, case: LoadCase, axial_force: Mapping[str, np
         Kfull[..., idx[:, None], idx[None, :]] += np.swapaxes(Lam, -1, -2) @ chain.stiffness @ Lam
         members[m.name] = MemberFactor(chain, angle, origin, P, beta, tuple(load_column(T) for T in mats), factor)
 
+    spring_load, spring_forces = _add_springs(structure, case, labels, Kfull, batch)
+    T = _constraint_map(structure, case, labels, fixed, batch)
     free = ~fixed
-    nf = int(free.sum())
-    Kff = Kfull[..., free[:, None] & free[None, :]].reshape(batch + (nf, nf))
+    if T is None:
+        nf = int(free.sum())
+        Kff = Kfull[..., free[:, None] & free[None, :]].reshape(batch + (nf, nf))
+    else:
+        Kff = np.swapaxes(T, -1, -2) @ Kfull @ T
+        free = np.ones(Kff.shape[-1], dtype=bool)
     # The stiffness is symmetric except for rotating-frame (Coriolis, angular-acceleration) node
     # terms; its symmetric part decides stability and the inertia count, the full matrix is solved.
     Ksym = 0.5 * (Kff + np.swapaxes(Kff, -1, -2))
     d = np.sqrt(np.abs(np.diagonal(Kff, axis1=-2, axis2=-1)))
     if check_singular and np.any(d == 0.0):
-        dead = [labels[i] for i in np.flatnonzero(free)[np.any(d == 0.0, axis=tuple(range(d.ndim - 1)))]]
+        reduced = [labels[i] for i in np.flatnonzero(~fixed)] if T is None else \
+            [f"reduced DOF {i}" for i in range(Kff.shape[-1])]
+        dead = [reduced[i] for i in np.flatnonzero(np.any(d == 0.0, axis=tuple(range(d.ndim - 1))))]
         raise SingularStructureError(f"instantaneous structure is singular: no stiffness at DOF(s) {dead}")
     dsafe = np.where(d > 0, d, 1.0)
     Ks = Ksym / dsafe[..., :, None] / dsafe[..., None, :]
@@ -481,7 +597,99 @@ def factorize(structure: Structure, case: LoadCase, axial_force: Mapping[str, np
         raise BucklingError(_buckling_message(structure, members, negative, batch))
     inverse = np.linalg.inv(Kff) if check_singular else np.full_like(Kff, np.nan)
     return StructureFactor(structure, case, batch, members, Kfull, inverse, negative, condition, ends, fixed,
-                           tuple(labels))
+                           tuple(labels), T, spring_load, spring_forces)
+
+
+def _joint_positions(case: LoadCase, name: str):
+    try:
+        return np.asarray(case.joint_positions[name], dtype=float)
+    except KeyError:
+        raise InputError(f"load case: no position for joint {name!r}") from None
+
+
+def _add_springs(structure: Structure, case: LoadCase, labels, Kfull, batch):
+    """Spring stiffness k e e^T into ``Kfull`` (in place) and the preload term of the load vector."""
+    if not structure.springs:
+        return None, {}
+    index = {lab: i for i, lab in enumerate(labels)}
+    load = np.zeros(batch + (len(labels),))
+    forces = {}
+    for sp in structure.springs:
+        d = _joint_positions(case, sp.b) - _joint_positions(case, sp.a)
+        L = np.hypot(d[..., 0], d[..., 1])
+        if np.any(L <= 0):
+            raise InputError(f"spring '{sp.name}': joints '{sp.a}' and '{sp.b}' coincide")
+        e = np.broadcast_to(d / L[..., None], batch + (2,))
+        Ks = sp.k * e[..., :, None] * e[..., None, :]
+        ia = [index[(sp.a, "x")], index[(sp.a, "y")]]
+        ib = [index[(sp.b, "x")], index[(sp.b, "y")]]
+        for i, j, sign in ((ia, ia, 1.0), (ib, ib, 1.0), (ia, ib, -1.0), (ib, ia, -1.0)):
+            Kfull[..., np.ix_(i, j)[0], np.ix_(i, j)[1]] += sign * Ks
+        preload = np.broadcast_to(sp.k * (L - sp.free_length), batch)
+        # A stretched spring pulls a towards b: the load on a is +F e, so its term in r is -F e.
+        load[..., ia] -= preload[..., None] * e
+        load[..., ib] += preload[..., None] * e
+        forces[sp.name] = (preload, e, np.array(ia + ib))
+    return load, forces
+
+
+def _constraint_map(structure: Structure, case: LoadCase, labels, fixed, batch):
+    """``T (..., nd, nr)`` with raw DOFs = T @ reduced DOFs, for slider supports, rigid bodies
+    and slider joints; None when the reduced DOFs are just the free raw DOFs."""
+    sliding = [j for j in structure.joints if j.support in ("slider", "sliding_clamp")]
+    if not (sliding or structure.rigid_bodies or structure.sliders):
+        return None
+    index = {lab: i for i, lab in enumerate(labels)}
+    nd = len(labels)
+    dependent = set()
+    for j in sliding:
+        dependent |= {index[(j.name, "x")], index[(j.name, "y")]}
+    for b in structure.rigid_bodies:
+        for sl in b.slaves:
+            dependent |= {index[(sl, c)] for c in ("x", "y")}     # a vertex's own rotation stays free
+    for sl in structure.sliders:
+        dependent |= {index[(sl.block, c)] for c in ("x", "y", "r") if (sl.block, c) in index}
+    independent = [i for i in range(nd) if not fixed[i] and i not in dependent]
+    n_slide = len(sliding) + len(structure.sliders)
+    nr = len(independent) + n_slide
+    col = {i: k for k, i in enumerate(independent)}
+    T = np.zeros(batch + (nd, nr))
+    for i, k in col.items():
+        T[..., i, k] = 1.0
+    k = len(independent)
+    for j in sliding:
+        T[..., index[(j.name, "x")], k] = math.cos(j.direction)
+        T[..., index[(j.name, "y")], k] = math.sin(j.direction)
+        k += 1
+
+    def follow(slave, master, rotation: bool):
+        """Slave translation (and, for slider blocks, rotation) follow the master's DOFs."""
+        for c in ("x", "y"):
+            T[..., index[(slave, c)], col[index[(master, c)]]] = 1.0
+        if (slave, "r") in index:
+            if rotation:
+                T[..., index[(slave, "r")], col[index[(master, "r")]]] = 1.0
+            else:     # members rigidly joined at a plate vertex turn together, pinned to the plate
+                T[..., index[(slave, "r")], col.setdefault(index[(slave, "r")], len(col))] = 1.0
+
+    for b in structure.rigid_bodies:
+        pm = _joint_positions(case, b.master)
+        r = col[index[(b.master, "r")]]
+        for sl in b.slaves:
+            follow(sl, b.master, rotation=False)
+            rel = np.broadcast_to(_joint_positions(case, sl) - pm, batch + (2,))
+            T[..., index[(sl, "x")], r] = -rel[..., 1]      # d = d_m + theta x (r_s - r_m)
+            T[..., index[(sl, "y")], r] = rel[..., 0]
+    members = {m.name: m for m in structure.members}
+    for sl in structure.sliders:
+        m = members[sl.along]
+        d = _joint_positions(case, m.end) - _joint_positions(case, m.start)
+        e = np.broadcast_to(d / np.hypot(d[..., 0], d[..., 1])[..., None], batch + (2,))
+        follow(sl.block, sl.guide, rotation=True)
+        T[..., index[(sl.block, "x")], k] = e[..., 0]
+        T[..., index[(sl.block, "y")], k] = e[..., 1]
+        k += 1
+    return T
 
 
 def solve_factored(factor: StructureFactor, node_loads: Mapping[str, np.ndarray] | None = None,
@@ -514,8 +722,15 @@ def solve_factored(factor: StructureFactor, node_loads: Mapping[str, np.ndarray]
         sweeps[m.name] = sw
         rfull[..., factor.ends[m.name]] += np.einsum("...ji,...j->...i", _rotation_6(mf.angle), sw.load)
 
-    q = np.zeros(batch + (nd,))
-    q[..., free] = -np.einsum("...ij,...j->...i", factor.free_inverse, rfull[..., free])
+    if factor.spring_load is not None:
+        rfull = rfull + factor.spring_load
+    if factor.constraint is None:
+        q = np.zeros(batch + (nd,))
+        q[..., free] = -np.einsum("...ij,...j->...i", factor.free_inverse, rfull[..., free])
+    else:
+        T = factor.constraint
+        qr = -np.einsum("...ij,...j->...i", factor.free_inverse, np.einsum("...ji,...j->...i", T, rfull))
+        q = np.einsum("...ij,...j->...i", T, qr)
     reaction_full = np.einsum("...ij,...j->...i", factor.stiffness, q) + rfull
 
     members = {}
@@ -535,12 +750,21 @@ def solve_factored(factor: StructureFactor, node_loads: Mapping[str, np.ndarray]
         r = np.zeros(reaction_full.shape[:-1] + (3,))
         r[..., 0] = reaction_full[..., index[(j.name, "x")]]
         r[..., 1] = reaction_full[..., index[(j.name, "y")]]
-        if j.support == "clamped":
+        if j.support in ("clamped", "sliding_clamp"):
             r[..., 2] = reaction_full[..., index[(j.name, "r")]]
         reactions[j.name] = r
     joint_disp = {j.name: np.stack([q[..., index[(j.name, "x")]], q[..., index[(j.name, "y")]]], -1)
                   for j in structure.joints}
-    return LinearSolution(structure, factor.case, members, reactions, factor.negative_eigenvalues, joint_disp)
+    springs = {}
+    for name, (preload, e, dofs) in (factor.spring_forces or {}).items():
+        rel = q[..., dofs[2:]] - q[..., dofs[:2]]
+        springs[name] = preload + structure_spring(structure, name).k * np.sum(rel * e, -1)
+    return LinearSolution(structure, factor.case, members, reactions, factor.negative_eigenvalues, joint_disp,
+                          springs)
+
+
+def structure_spring(structure: Structure, name: str) -> Spring:
+    return next(sp for sp in structure.springs if sp.name == name)
 
 
 def solve_linear(structure: Structure, case: LoadCase, axial_force: Mapping[str, np.ndarray] | None = None,
