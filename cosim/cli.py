@@ -161,6 +161,12 @@ def run_main(scenario: str, args=None) -> int:
     viewer = "connect" if getattr(args, "connect", None) else (args.viewer or "save")
     from .scenario import load
     sc = load(scenario)
+    if getattr(sc, "kind", None) == "structure":       # a structure at one position: static analysis
+        from .structure_scenario import run_static, summary_table
+        folder, summary = run_static(sc, args.out)
+        print(summary_table(summary))
+        print(f"\nwritten to {folder}")
+        return 0
     engines = _engines(args.engines) if args.engines else sc.output.engines
     options = RunOptions(engines=engines, mode=args.drive, revolutions=args.revolutions, out=args.out,
                          viewer=viewer, connect_url=getattr(args, "connect", None), exaggeration=args.exaggeration,

@@ -68,6 +68,11 @@ G0 = 9.80665
 SCENARIO_DIR = Path(__file__).resolve().parent.parent / "scenarios"
 
 
+#: Mechanism types: a four-bar main loop (motion), or a general structure held at one position
+#: (static analysis). Main loops with sub-loops in motion are not supported yet.
+LINKAGE_TYPES = ("four-bar", "structure")
+
+
 class ScenarioError(InputError):
     """A scenario file is malformed; the message names the file, the key and the value."""
 
@@ -445,7 +450,8 @@ def from_dict(data: dict, path: str = "<dict>", default_name: str = "scenario") 
     """Build a :class:`Scenario` from parsed TOML data (``path`` is only used in messages)."""
     r = _Reader(path)
     top = r.table(data, "", {"scenario", "linkage", "materials", "sections", "links", "drive", "gravity", "gauges",
-                             "solver", "output", "motor", "coupling"}, {"linkage", "links"})
+                             "solver", "output", "motor", "coupling", "joints", "plates", "springs", "sliders",
+                             "loads"}, {"linkage", "links"})
     meta = r.table(top.get("scenario", {}), "scenario", {"name", "description", "sources", "rig"})
     solver = r.table(top.get("solver", {}), "solver", {"tmm", "exudyn", "mujoco"})
     tmm = _tmm_settings(r, solver.get("tmm", {}))
@@ -463,8 +469,16 @@ def from_dict(data: dict, path: str = "<dict>", default_name: str = "scenario") 
     secs_raw = r.table(top.get("sections", {}), "sections", set(top.get("sections", {})))
     sections = {k: _section(r, k, v) for k, v in secs_raw.items()}
 
+    kind = r.number(r.table(top["linkage"], "linkage", set(top["linkage"]))["type"] if isinstance(top["linkage"], dict)
+                    and "type" in top["linkage"] else None, "linkage.type", choices=LINKAGE_TYPES)
+    if kind == "structure":
+        from .structure_scenario import build
+        return build(r, top, path, default_name, materials, sections, meta)
+    for key in ("joints", "plates", "springs", "sliders", "loads"):
+        if key in top:
+            raise r.fail(key, f"only a 'structure' linkage has [{key}] (this one is a {kind})")
+
     lk = r.table(top["linkage"], "linkage", {"type", "ground", "pivot", "ground_angle", "branch"}, {"type", "ground"})
-    r.number(lk["type"], "linkage.type", choices=("four-bar",))
     ground = r.quantity(lk["ground"], "linkage.ground", "m", positive=True)
     pivot = lk.get("pivot", ["0 m", "0 m"])
     if not isinstance(pivot, list) or len(pivot) != 2:

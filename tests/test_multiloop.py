@@ -1,0 +1,133 @@
+"""Shin's multiloop mechanism (issue 8): general structures with plates, springs, sliders and
+sub-loops, against the dissertation's Tables 8.1-8.8 (notes seed000 §7.5, §7.6), and the scenario
+format's topology errors."""
+import copy
+import math
+
+import numpy as np
+import pytest
+
+from cosim import scenario as sc
+from cosim.structure_scenario import results, solve
+
+IN, LBF = 0.0254, 4.4482216152605
+
+
+@pytest.fixture(scope="module")
+def small():
+    s = sc.load("shin_multiloop_small")
+    sol = solve(s)
+    return s, sol, results(s, sol)[1]
+
+
+@pytest.fixture(scope="module")
+def large():
+    s = sc.load("shin_multiloop_large")
+    sol = solve(s)
+    return s, sol, results(s, sol)[1]
+
+
+def test_small_deflection_distortion_and_springs(small):
+    """Max distortion 0.0787 in at node 11; spring forces 244.9 (ground) and 229.8 lb (4-11).
+    Measured: 0.07889 in (+0.2 %), 244.88 and 229.81 lb."""
+    s, sol, summary = small
+    d11 = summary["joints"]["11"]
+    assert math.hypot(d11["dX_m"], d11["dY_m"]) / IN == pytest.approx(0.0787, rel=0.01)
+    md = summary["max_distortion"]
+    assert md["value_m"] / IN == pytest.approx(0.0787, rel=0.01)
+    assert md["value_m"] == pytest.approx(math.hypot(d11["dX_m"], d11["dY_m"]), rel=1e-6)   # at node 11
+    assert summary["spring_forces_N"]["spring_3_ground"] / LBF == pytest.approx(244.9, rel=0.002)
+    assert summary["spring_forces_N"]["spring_4_11"] / LBF == pytest.approx(229.8, rel=0.002)
+
+
+def test_small_deflection_crank_pivot_reaction(small):
+    """Table 8.3: (130.4, 329.6, -207.0). Forces within 1 %. The bench's moment is -211.4 lb in:
+    Shin's -207.0 equals the crank's transverse tip force times its length (41.4 lb x 5 in here,
+    -207.1), without the P-delta moment of the 353 lb axial force on the tip deflection (4.3 lb in)
+    that the beam-column field matrices carry; so the moment is checked as V L within 1 % and as a
+    whole within 2.5 %."""
+    s, sol, summary = small
+    r = summary["reactions"]["1"]
+    assert r["Fx_N"] / LBF == pytest.approx(130.4, rel=0.01)
+    assert r["Fy_N"] / LBF == pytest.approx(329.6, rel=0.01)
+    assert r["M_Nm"] / (LBF * IN) == pytest.approx(-207.0, rel=0.025)
+    crank = sol.linear.members["crank"] if hasattr(sol, "linear") else sol.members["crank"]
+    V = float(crank.V[0, 1])
+    L = crank.member.length
+    assert abs(V) * L / (LBF * IN) == pytest.approx(207.0, rel=0.01)
+
+
+def test_small_deflection_min_safety_factor_at_node_3(small):
+    """Min SF 1.86 at node 3 (Table 8.4). Shin's key-node stress uses HORIZ/A as the axial part
+    (notes §7.5); on the coupler's 3-4 side the bench gives 1.853 (0.4 %), and its true minimum
+    is 1.824 on the 2-3 side, where the compressive force adds (1.9 % below Shin)."""
+    s, sol, summary = small
+    sf = summary["min_safety_factor"]
+    assert sf["member"] == "coupler[2-3]" and sf["node"] == 4            # the node at joint 3
+    assert sf["value"] == pytest.approx(1.86, rel=0.02)
+    rows, _ = results(s, sol)
+    right = [r for r in rows if r["member"] == "coupler[3-4]" and r["node"] == 0][0]
+    assert right["safety_factor"] == pytest.approx(1.86, rel=0.01)
+
+
+def test_small_deflection_rigid_plate_and_slider(small):
+    """The plate moves rigidly (Table 8.1: nodes 9, 10, 11 share one rotation) and the slider arm
+    and link 7-8 carry no load (Table 8.2)."""
+    s, sol, summary = small
+    lin = sol.linear if hasattr(sol, "linear") else sol
+    P = s.case.joint_positions
+    d = {j: lin.joint_displacement[j] for j in ("9", "10", "11", "3")}
+    # Small rotation: d_v - d_9 = theta x (r_v - r_9), the same theta for every vertex.
+    def cross(a, b):
+        return a[0] * b[1] - a[1] * b[0]
+    th = [float(cross(P[v] - P["9"], d[v] - d["9"]) / np.dot(P[v] - P["9"], P[v] - P["9"])) for v in ("10", "11", "3")]
+    assert np.ptp(th) < 1e-9 * max(abs(t) for t in th)
+    for m in ("arm", "link_8_7"):
+        assert np.max(np.abs(lin.members[m].N)) < 1e-6 and np.max(np.abs(lin.members[m].M)) < 1e-6
+
+
+def test_large_deflection_against_tables_8_5_to_8_8(large):
+    """Max distortion 4.097 in at node 33 and min SF 0.261 at node 3, within 5 %. Measured: 4.051
+    in (-1.1 %) at the follower's 4th node from 4 (Shin's node 33) and 0.2609."""
+    s, sol, summary = large
+    md = summary["max_distortion"]
+    assert md["member"] == "follower[4-5]" and md["node"] == 4
+    assert md["value_m"] / IN == pytest.approx(4.097, rel=0.05)
+    sf = summary["min_safety_factor"]
+    assert sf["member"].startswith("coupler") and sf["value"] == pytest.approx(0.261, rel=0.05)
+    # Reactions balance the two 300 lb loads exactly.
+    R = summary["reactions"]
+    fx = sum(v["Fx_N"] for v in R.values()) / LBF
+    fy = sum(v["Fy_N"] for v in R.values()) / LBF
+    assert fx == pytest.approx(300.0, rel=1e-9) and fy == pytest.approx(300.0, rel=1e-9)
+    assert R["6"]["Fx_N"] / LBF == pytest.approx(136.2, rel=0.02)
+    assert R["6"]["Fy_N"] / LBF == pytest.approx(84.53, rel=0.02)
+
+
+def _raw(name="shin_multiloop_small"):
+    return copy.deepcopy(sc.load(name).raw)
+
+
+@pytest.mark.parametrize("edit, words", [
+    (lambda r: r["links"]["crank"].update(path=["1", "2", "99"]), r"links.crank.path.*unknown joint"),
+    (lambda r: r["sliders"]["block5"].update(along="nolink"), r"sliders.block5.along.*unknown link"),
+    (lambda r: r["plates"]["plate"].update(vertices=["3", "10", "10"]), r"plates.plate.vertices.*already a vertex"),
+    (lambda r: r["links"].update(extra={"path": ["13", "X"], "section": "bar", "material": "aisi4340"}) or
+     r["joints"].update(X={"position": ["20 in", "20 in"]}), r"links.extra.*dangles at joint 'X'"),
+    (lambda r: r["linkage"].update(type="six-bar"), r"linkage.type.*must be one of"),
+    (lambda r: r["loads"]["slider_13"].update(joint="12x"), r"loads.slider_13"),
+])
+def test_topology_errors_name_the_item(edit, words):
+    raw = _raw()
+    edit(raw)
+    with pytest.raises(sc.ScenarioError, match=words):
+        sc.from_dict(raw, "bad.toml")
+
+
+def test_cosim_run_does_the_static_analysis(tmp_path):
+    from cosim.cli import main
+    assert main(["run", "shin_multiloop_large", "--out", str(tmp_path / "ml")]) == 0
+    import json
+    summary = json.loads((tmp_path / "ml" / "summary.json").read_text())
+    assert summary["status"] == "completed" and summary["kind"] == "structure"
+    assert (tmp_path / "ml" / "nodes.csv").exists()
