@@ -15,6 +15,8 @@ File layout (all tables except ``[scenario]``, ``[linkage]``, ``[links.*]`` are 
 
     [scenario]      name, description, sources, rig (records of that rig are compared)
     [linkage]       type = "four-bar", ground, pivot, ground_angle, branch = "open" | "crossed"
+                    type = "slider-crank", pivot, slide_angle, offset, slider_mass | slider_weight, branch
+                    type = "structure": see :mod:`cosim.structure_scenario`
     [materials.X]   E, density, yield_strength, endurance_limit, poisson,
                     viscoelastic = {instantaneous_modulus, relaxed_modulus, relaxation_time}
     [sections.X]    width, depth  (or area, inertia, depth)
@@ -60,7 +62,7 @@ import numpy as np
 import pint
 
 from tmm_core import (Coupling, Damping, FourBarMechanism, Gauge, InputError, Link, Material, PointMass, Section,
-                      StandardLinearSolid, TMMError)
+                      SliderCrankMechanism, StandardLinearSolid, TMMError)
 from tmm_core.mechanism import EndBlock
 
 UREG = pint.UnitRegistry()
@@ -68,9 +70,9 @@ G0 = 9.80665
 SCENARIO_DIR = Path(__file__).resolve().parent.parent / "scenarios"
 
 
-#: Mechanism types: a four-bar main loop (motion), or a general structure held at one position
-#: (static analysis). Main loops with sub-loops in motion are not supported yet.
-LINKAGE_TYPES = ("four-bar", "structure")
+#: Mechanism types: four-bar or slider-crank main loops (motion), or a general structure held at
+#: one position (static analysis). Main loops with sub-loops in motion are not supported yet.
+LINKAGE_TYPES = ("four-bar", "slider-crank", "structure")
 
 
 class ScenarioError(InputError):
@@ -478,18 +480,33 @@ def from_dict(data: dict, path: str = "<dict>", default_name: str = "scenario") 
         if key in top:
             raise r.fail(key, f"only a 'structure' linkage has [{key}] (this one is a {kind})")
 
-    lk = r.table(top["linkage"], "linkage", {"type", "ground", "pivot", "ground_angle", "branch"}, {"type", "ground"})
-    ground = r.quantity(lk["ground"], "linkage.ground", "m", positive=True)
+    if kind == "slider-crank":
+        lk = r.table(top["linkage"], "linkage", {"type", "pivot", "slide_angle", "offset", "branch", "slider_mass",
+                                                 "slider_weight"}, {"type"})
+    else:
+        lk = r.table(top["linkage"], "linkage", {"type", "ground", "pivot", "ground_angle", "branch"}, {"type", "ground"})
     pivot = lk.get("pivot", ["0 m", "0 m"])
     if not isinstance(pivot, list) or len(pivot) != 2:
         raise r.fail("linkage.pivot", "must be a list of two coordinates", pivot)
     pivot = tuple(r.quantity(p, f"linkage.pivot[{i}]", "m") for i, p in enumerate(pivot))
-    ground_angle = r.quantity(lk.get("ground_angle", "0 deg"), "linkage.ground_angle", "rad")
     branch = {"open": 1, "crossed": -1}[r.number(lk.get("branch", "open"), "linkage.branch", choices=("open", "crossed"))]
-
-    links_raw = r.table(top["links"], "links", {"crank", "coupler", "rocker"}, {"crank", "coupler", "rocker"})
+    names = ("crank", "coupler") if kind == "slider-crank" else ("crank", "coupler", "rocker")
+    links_raw = r.table(top["links"], "links", set(names), set(names))
     links = {k: _link(r, k, v, sections, materials, viscos, tmm.segments) for k, v in links_raw.items()}
-    mech = FourBarMechanism(links["crank"], links["coupler"], links["rocker"], ground, pivot, ground_angle, branch)
+    if kind == "slider-crank":
+        if "slider_mass" in lk and "slider_weight" in lk:
+            raise r.fail("linkage.slider_mass", "give either slider_mass or slider_weight")
+        mass = (r.quantity(lk["slider_weight"], "linkage.slider_weight", "N", nonnegative=True) / G0
+                if "slider_weight" in lk else
+                r.quantity(lk.get("slider_mass", "0 kg"), "linkage.slider_mass", "kg", nonnegative=True))
+        mech = SliderCrankMechanism(links["crank"], links["coupler"],
+                                    r.quantity(lk.get("offset", "0 m"), "linkage.offset", "m"), pivot,
+                                    r.quantity(lk.get("slide_angle", "0 deg"), "linkage.slide_angle", "rad"), branch,
+                                    mass)
+    else:
+        ground = r.quantity(lk["ground"], "linkage.ground", "m", positive=True)
+        ground_angle = r.quantity(lk.get("ground_angle", "0 deg"), "linkage.ground_angle", "rad")
+        mech = FourBarMechanism(links["crank"], links["coupler"], links["rocker"], ground, pivot, ground_angle, branch)
 
     drive = _drive(r, top.get("drive", {}))
     r.speed = drive.speed_rad_s
@@ -504,7 +521,7 @@ def from_dict(data: dict, path: str = "<dict>", default_name: str = "scenario") 
     for name, g in r.table(top.get("gauges", {}), "gauges", set(top.get("gauges", {}))).items():
         gk = f"gauges.{name}"
         gd = r.table(g, gk, {"link", "position", "face"}, {"link", "position"})
-        link = r.number(gd["link"], f"{gk}.link", choices=("crank", "coupler", "rocker"))
+        link = r.number(gd["link"], f"{gk}.link", choices=names)
         pos = r.quantity(gd["position"], f"{gk}.position", "m", nonnegative=True)
         if pos > links[link].length_m:
             raise r.fail(f"{gk}.position", f"lies beyond the end of the {link} ({links[link].length_m:.6g} m)",
@@ -752,8 +769,11 @@ def resolved(scenario: Scenario) -> dict:
         "scenario": {"name": scenario.name, "description": scenario.description, "rig": scenario.rig or "",
                      "file": str(scenario.path) if scenario.path else "", "sources": list(scenario.sources)},
         "resolved": clean({
-            "linkage": {"ground_m": mech.ground_m, "pivot_m": list(mech.pivot), "ground_angle_rad": mech.ground_angle,
-                        "branch": "open" if mech.branch == 1 else "crossed"},
+            "linkage": {k: v for k, v in (("type", type(mech).__name__), ("ground_m", getattr(mech, "ground_m", None)),
+                                          ("offset_m", getattr(mech, "offset_m", None)),
+                                          ("slider_mass_kg", getattr(mech, "slider_mass_kg", None)),
+                                          ("pivot_m", list(mech.pivot)), ("ground_angle_rad", mech.ground_angle),
+                                          ("branch", "open" if mech.branch == 1 else "crossed")) if v is not None},
             "links": {link.name: link for link in mech.links()},
             "drive": scenario.drive, "gauges": {g.name: g for g in scenario.gauges},
             "gravity_m_s2": list(scenario.gravity) if scenario.gravity else None,

@@ -10,7 +10,7 @@ from .kinematics import (FourBarGeometry, FourBarMotion, LinkMotion, SliderCrank
 from .matrices import field_matrix, frame_rotation, point_matrix, rigid_element_matrix, spring_matrix
 from .ked import Coupling, CrankMotion, KEDResult, TimeDomain, quasi_static, rigid_body_loads, time_domain
 from .materials import Damping, StandardLinearSolid
-from .mechanism import FourBarMechanism, Link, PointMass
+from .mechanism import FourBarMechanism, Link, PointMass, SliderCrankMechanism
 from .post import (Gauge, bending_axial_strain, distortion, gauge_strains, soderberg, state_at, static_safety_factor,
                    surface_strains, surface_stresses)
 from .riccati import chain_product, chain_states, condense_chain, factor_chain, sweep_loads

@@ -14,7 +14,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from .errors import InputError, require_finite, require_nonnegative
-from .kinematics import FourBarGeometry, FourBarMotion, LinkMotion, fourbar_motion
+from .kinematics import (FourBarGeometry, FourBarMotion, LinkMotion, SliderCrankGeometry, SliderCrankMotion,
+                         fourbar_motion, slider_crank_motion)
 from .materials import Damping, StandardLinearSolid
 from .sections import Material, Section
 from .structure import Joint, LoadCase, Member, Structure
@@ -167,49 +168,12 @@ class Link:
         return m, J
 
 
-@dataclass(frozen=True)
-class FourBarMechanism:
-    """Four-bar with flexible links. ``ground_m`` is the distance A-D [m]."""
-
-    crank: Link
-    coupler: Link
-    rocker: Link
-    ground_m: float
-    pivot: tuple = (0.0, 0.0)
-    ground_angle: float = 0.0
-    branch: int = 1
-
-    def __post_init__(self):
-        for name, link in zip(FOURBAR_LINKS, (self.crank, self.coupler, self.rocker)):
-            if link.name != name:
-                raise InputError(f"four-bar: the {name} link must be named '{name}', got '{link.name}'")
-
-    @property
-    def geometry(self) -> FourBarGeometry:
-        return FourBarGeometry(self.crank.length_m, self.coupler.length_m, self.rocker.length_m, self.ground_m,
-                               self.pivot, self.ground_angle, self.branch)
-
-    def links(self):
-        return (self.crank, self.coupler, self.rocker)
-
-    def structure(self) -> Structure:
-        """Instantaneous structure: A clamped (crank welded), B and C revolutes, D pinned."""
-        joints = (Joint("A", "clamped"), Joint("B"), Joint("C"), Joint("D", "pinned"))
-        members = (self.crank.member("A", "B", start_connection="rigid"),
-                   self.coupler.member("B", "C"),
-                   self.rocker.member("D", "C"))
-        return Structure(joints, members)
-
-    def motion(self, crank_angle, crank_speed=0.0, crank_acceleration=0.0) -> FourBarMotion:
-        return fourbar_motion(self.geometry, crank_angle, crank_speed, crank_acceleration)
-
-    drive_joint = "A"
-
-    def joint_positions(self, motion: FourBarMotion):
-        return {"A": motion.A, "B": motion.B, "C": motion.C, "D": motion.D}
+class _LinkageMethods:
+    """What every moving single-loop linkage shares (four-bar, slider-crank): loads, load cases,
+    self-weight and the rigid linkage's reflected inertia at the crank."""
 
     def external_loads(self, motion):
-        """Applied loads besides inertia and gravity: none on a bare four-bar."""
+        """Applied loads besides inertia and gravity: none on a bare linkage."""
         return {}
 
     def load_case(self, motion: FourBarMotion, node_loads=None, distributed_loads=None,
@@ -252,6 +216,103 @@ class FourBarMechanism:
         for link in self.links():
             out[link.name] = link.segment_mass_per_length()[:, None] * np.asarray(g, dtype=float)
         return out
+
+
+@dataclass(frozen=True)
+class FourBarMechanism(_LinkageMethods):
+    """Four-bar with flexible links. ``ground_m`` is the distance A-D [m]."""
+
+    crank: Link
+    coupler: Link
+    rocker: Link
+    ground_m: float
+    pivot: tuple = (0.0, 0.0)
+    ground_angle: float = 0.0
+    branch: int = 1
+
+    def __post_init__(self):
+        for name, link in zip(FOURBAR_LINKS, (self.crank, self.coupler, self.rocker)):
+            if link.name != name:
+                raise InputError(f"four-bar: the {name} link must be named '{name}', got '{link.name}'")
+
+    @property
+    def geometry(self) -> FourBarGeometry:
+        return FourBarGeometry(self.crank.length_m, self.coupler.length_m, self.rocker.length_m, self.ground_m,
+                               self.pivot, self.ground_angle, self.branch)
+
+    def links(self):
+        return (self.crank, self.coupler, self.rocker)
+
+    def structure(self) -> Structure:
+        """Instantaneous structure: A clamped (crank welded), B and C revolutes, D pinned."""
+        joints = (Joint("A", "clamped"), Joint("B"), Joint("C"), Joint("D", "pinned"))
+        members = (self.crank.member("A", "B", start_connection="rigid"),
+                   self.coupler.member("B", "C"),
+                   self.rocker.member("D", "C"))
+        return Structure(joints, members)
+
+    def motion(self, crank_angle, crank_speed=0.0, crank_acceleration=0.0) -> FourBarMotion:
+        return fourbar_motion(self.geometry, crank_angle, crank_speed, crank_acceleration)
+
+    drive_joint = "A"
+
+    def joint_positions(self, motion: FourBarMotion):
+        return {"A": motion.A, "B": motion.B, "C": motion.C, "D": motion.D}
+
+@dataclass(frozen=True)
+class SliderCrankMechanism(_LinkageMethods):
+    """Slider-crank with a flexible crank and coupler. The slide runs through the line at
+    ``offset_m`` from the crank pivot, in the direction ``ground_angle`` [rad]; the crank angle is
+    measured from the slide direction. The slider block (``slider_mass_kg``) translates with the
+    coupler's end C; it is carried as a point mass at the coupler's last node (it does not
+    rotate, and a point mass has no rotary inertia, so the two are the same).
+
+    Instantaneous structure (Shin §5.4, with its inconsistent support conditions resolved): A
+    clamped (the crank carries the drive torque), B a revolute, C a *pinned slider block* on a
+    frictionless guide -- displacement normal to the slide zero, force along the slide zero,
+    moment zero. Shin's Eq. 5.23 instead fixes the rotation at D (a sliding clamp), which would
+    weld the coupler to the block; a block on a pin is the physical joint.
+    """
+
+    crank: Link
+    coupler: Link
+    offset_m: float = 0.0
+    pivot: tuple = (0.0, 0.0)
+    ground_angle: float = 0.0
+    branch: int = 1
+    slider_mass_kg: float = 0.0
+
+    def __post_init__(self):
+        for name, link in (("crank", self.crank), ("coupler", self.coupler)):
+            if link.name != name:
+                raise InputError(f"slider-crank: the {name} link must be named '{name}', got '{link.name}'")
+        require_nonnegative("slider-crank slider_mass_kg", self.slider_mass_kg)
+
+    @property
+    def geometry(self) -> SliderCrankGeometry:
+        return SliderCrankGeometry(self.crank.length_m, self.coupler.length_m, self.offset_m, self.pivot,
+                                   self.ground_angle, self.branch)
+
+    def links(self):
+        coupler = self.coupler
+        if self.slider_mass_kg > 0:
+            import dataclasses
+            coupler = dataclasses.replace(coupler, point_masses=tuple(coupler.point_masses) + (
+                PointMass(coupler.length_m, self.slider_mass_kg, 0.0, "slider block"),))
+        return (self.crank, coupler)
+
+    def structure(self) -> Structure:
+        crank, coupler = self.links()
+        joints = (Joint("A", "clamped"), Joint("B"), Joint("C", "slider", self.ground_angle))
+        return Structure(joints, (crank.member("A", "B", start_connection="rigid"), coupler.member("B", "C")))
+
+    def motion(self, crank_angle, crank_speed=0.0, crank_acceleration=0.0) -> SliderCrankMotion:
+        return slider_crank_motion(self.geometry, crank_angle, crank_speed, crank_acceleration)
+
+    drive_joint = "A"
+
+    def joint_positions(self, motion: SliderCrankMotion):
+        return {"A": motion.A, "B": motion.B, "C": motion.C}
 
 
 @dataclass(frozen=True)

@@ -36,8 +36,11 @@ import exudyn as exu
 from exudyn.itemInterface import (CoordinateConstraint, GenericJoint, LoadCoordinate, LoadForceVector,
                                   LoadMassProportional, MarkerBodyMass, MarkerBodyPosition, MarkerBodyRigid,
                                   MarkerNodeCoordinate, MarkerNodePosition, NodePoint2DSlope1, NodePointGround,
-                                  NodeRigidBody2D, ObjectANCFCable2D, ObjectGround, ObjectMassPoint2D,
+                                  NodeRigidBody2D, ObjectANCFCable2D, ObjectGround, ObjectJointPrismatic2D,
+                                  ObjectMassPoint2D,
                                   ObjectRigidBody2D, RevoluteJoint2D, SensorBody)
+
+from tmm_core import SliderCrankMechanism
 
 from ..scenario import Scenario
 from .base import DriveInput, EngineError, EngineOutput, steps_in
@@ -148,11 +151,29 @@ class ExudynEngine:
                                                                                 localPosition=[0, 0, 0]))],
                                    constrainedAxes=[1, 1, 0, 0, 0, 1]))
         mbs.AddObject(RevoluteJoint2D(markerNumbers=[pos_marker(self.nodes["crank"][-1]), pos_marker(self.nodes["coupler"][0])]))
-        mbs.AddObject(RevoluteJoint2D(markerNumbers=[pos_marker(self.nodes["coupler"][-1]), pos_marker(self.nodes["rocker"][-1])]))
-        D = mo.D[0]
-        mbs.AddObject(RevoluteJoint2D(markerNumbers=[mbs.AddMarker(MarkerBodyPosition(bodyNumber=ground,
-                                                                                      localPosition=[D[0], D[1], 0.0])),
-                                                     pos_marker(self.nodes["rocker"][0])]))
+        if isinstance(mech, SliderCrankMechanism):
+            # A light block on a planar prismatic joint along the guide, pinned to the coupler's end
+            # (the block's mass is the coupler end's point mass, as in the other engines).
+            gam = mech.ground_angle
+            e = np.array([math.cos(gam), math.sin(gam)])
+            C, vC = mo.C[0], float(mo.slider_velocity[0]) * e
+            block = mbs.AddNode(NodeRigidBody2D(referenceCoordinates=[C[0], C[1], gam],
+                                                initialVelocities=[vC[0], vC[1], 0.0]))
+            body = mbs.AddObject(ObjectRigidBody2D(nodeNumber=block, mass=HUB_MASS_KG, inertia=HUB_INERTIA_KG_M2))
+            mbs.AddObject(ObjectJointPrismatic2D(
+                markerNumbers=[mbs.AddMarker(MarkerBodyRigid(bodyNumber=ground, localPosition=[C[0], C[1], 0.0])),
+                               mbs.AddMarker(MarkerBodyRigid(bodyNumber=body, localPosition=[0.0, 0.0, 0.0]))],
+                axisMarker0=[e[0], e[1], 0.0], normalMarker1=[0.0, 1.0, 0.0], constrainRotation=True))
+            mbs.AddObject(RevoluteJoint2D(markerNumbers=[pos_marker(self.nodes["coupler"][-1]),
+                                                         mbs.AddMarker(MarkerBodyPosition(bodyNumber=body,
+                                                                                          localPosition=[0, 0, 0]))]))
+        else:
+            mbs.AddObject(RevoluteJoint2D(markerNumbers=[pos_marker(self.nodes["coupler"][-1]),
+                                                         pos_marker(self.nodes["rocker"][-1])]))
+            D = mo.D[0]
+            mbs.AddObject(RevoluteJoint2D(markerNumbers=[mbs.AddMarker(MarkerBodyPosition(bodyNumber=ground,
+                                                                                          localPosition=[D[0], D[1], 0.0])),
+                                                         pos_marker(self.nodes["rocker"][0])]))
         # Gauge sensors: the element(s) around the gauge position.
         self._gauge_sensors = {}
         for g in self.gauges:

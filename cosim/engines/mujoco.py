@@ -41,12 +41,12 @@ import mujoco
 import numpy as np
 from mujoco import rollout
 
-from tmm_core import InputError, LoadCase, gauge_strains, solve_static
+from tmm_core import InputError, LoadCase, SliderCrankMechanism, gauge_strains, solve_static
 
 from ..scenario import Scenario
 from .base import DriveInput, EngineError, EngineOutput, steps_in
 
-LINKS = ("crank", "coupler", "rocker")
+SLIDER_BODY_KG = 1e-6     # the slide joint's block body; the block's mass sits on the coupler's end
 ARMATURE_RATIO = 10.0      # armature / largest reflected linkage inertia at the crank
 SERVO_STEPS = 20.0         # default servo period in internal steps: f_servo = 1 / (20 dt)
 SERVO_GROUP, MOTOR_GROUP = 1, 2
@@ -94,7 +94,6 @@ class MujocoEngine:
         g = scenario.gravity or (0.0, 0.0)
         gam = mech.ground_angle
         A = np.asarray(mech.pivot, dtype=float)
-        D = A + mech.ground_m * np.array([math.cos(gam), math.sin(gam)])
 
         def body(link, pos, euler_z, joint_extra="", inner=""):
             m, xc, Jc = link_inertia(link)
@@ -105,11 +104,24 @@ class MujocoEngine:
                     f'<inertial pos="{_f(xc, 0, 0)}" mass="{m:.17g}" diaginertia="{_f(1e-6 * Jc, Jc, Jc)}"/>'
                     f'{sites}{inner}</body>')
 
-        crank, coupler, rocker = mech.links()
+        links = mech.links()
+        crank, coupler = links[0], links[1]
         tree = body(crank, A, gam, f' armature="{self.armature:.17g}"',
                     body(coupler, (crank.length_m, 0.0), 0.0))
-        tree += body(rocker, D, gam)
-        last = {l.name: f"{l.name}_n{l.n_nodes - 1}" for l in mech.links()}
+        last = {l.name: f"{l.name}_n{l.n_nodes - 1}" for l in links}
+        if self.slider:
+            # A light block on a slide joint along the guide, at the foot of the offset line; the
+            # block's own mass is the coupler's end point mass (mech.links()).
+            foot = A + mech.offset_m * np.array([-math.sin(gam), math.cos(gam)])
+            tree += (f'<body name="slider" pos="{_f(*foot, 0)}" euler="{_f(0, 0, gam)}">'
+                     f'<joint name="slider" type="slide" axis="1 0 0"/>'
+                     f'<inertial pos="0 0 0" mass="{SLIDER_BODY_KG:.17g}" diaginertia="1e-9 1e-9 1e-9"/>'
+                     f'<site name="slider_pin" pos="0 0 0"/></body>')
+            closure = (last["coupler"], "slider_pin")
+        else:
+            D = A + mech.ground_m * np.array([math.cos(gam), math.sin(gam)])
+            tree += body(links[2], D, gam)
+            closure = (last["coupler"], last["rocker"])
         kp, kd = self.gains
         sensors = []
         for link in mech.links():
@@ -121,14 +133,17 @@ class MujocoEngine:
                 sensors.append(f'<framelinacc name="a_{site}" objtype="site" objname="{site}"/>')
         sensors += ['<jointvel name="w_crank" joint="crank"/>', '<actuatorfrc name="f_servo" actuator="servo"/>',
                     '<actuatorfrc name="f_motor" actuator="motor"/>']
-        return f"""<mujoco model="fourbar">
+        if self.slider:
+            sensors += ['<jointpos name="q_slider" joint="slider"/>',
+                        '<framepos name="p_slider_pin" objtype="site" objname="slider_pin"/>']
+        return f"""<mujoco model="{'slidercrank' if self.slider else 'fourbar'}">
   <compiler angle="radian"/>
   <option timestep="{dt:.17g}" integrator="Euler" gravity="{_f(g[0], g[1], 0)}">
     <flag contact="disable"/>
   </option>
   <worldbody>{tree}</worldbody>
   <equality>
-    <connect site1="{last['coupler']}" site2="{last['rocker']}" solref="{_f(s.solref_factor * dt, 1)}"
+    <connect site1="{closure[0]}" site2="{closure[1]}" solref="{_f(s.solref_factor * dt, 1)}"
              solimp="{_f(s.solimp, s.solimp, 0.001, 0.5, 2)}"/>
   </equality>
   <actuator>
@@ -149,6 +164,8 @@ class MujocoEngine:
         self.drive_inertia = float(drive_inertia_kg_m2)
         s = scenario.mujoco
         mech = self.mech = scenario.mechanism
+        self.slider = isinstance(mech, SliderCrankMechanism)
+        self.link_names = tuple(l.name for l in mech.links())
         self.scenario, self._dt, self.t0, self.k = scenario, s.step_s, t0, 0
         J = reflected_inertia(mech)
         self.armature = ARMATURE_RATIO * float(J.max())
@@ -170,8 +187,12 @@ class MujocoEngine:
         mo = mech.motion(angle, speed)
         gam = mech.ground_angle
         d = self.data
-        d.qpos[:] = [angle, _wrap(float(mo.coupler.angle - mo.crank.angle)), _wrap(float(mo.rocker.angle) - gam)]
-        d.qvel[:] = [speed, float(mo.coupler.omega - mo.crank.omega), float(mo.rocker.omega)]
+        if self.slider:
+            third, third_rate = float(mo.slider_position), float(mo.slider_velocity)
+        else:
+            third, third_rate = _wrap(float(mo.rocker.angle) - gam), float(mo.rocker.omega)
+        d.qpos[:] = [angle, _wrap(float(mo.coupler.angle - mo.crank.angle)), third]
+        d.qvel[:] = [speed, float(mo.coupler.omega - mo.crank.omega), third_rate]
         d.time = t0
         self._set_drive(prescribed=True)
         self.state = np.empty(mujoco.mj_stateSize(self.model, mujoco.mjtState.mjSTATE_FULLPHYSICS))
@@ -228,18 +249,24 @@ class MujocoEngine:
     def _outputs(self, t, sens) -> EngineOutput:
         S = lambda name: sens[:, self.slices[name]]          # noqa: E731
         mech, gam = self.mech, self.mech.ground_angle
-        q = {l: S(f"q_{l}")[:, 0] for l in LINKS}
-        alpha = {l: S(f"alpha_{l}")[:, 2] for l in LINKS}      # absolute angular accelerations about z
+        q = {l: S(f"q_{l}")[:, 0] for l in self.link_names}
+        alpha = {l: S(f"alpha_{l}")[:, 2] for l in self.link_names}   # absolute angular accelerations about z
         torque = S("f_servo")[:, 0] + S("f_motor")[:, 0] - self.model.dof_armature[0] * alpha["crank"]
         nodes, acc = {}, {}
         for link in mech.links():
             idx = range(link.n_nodes)
             nodes[link.name] = np.stack([S(f"p_{link.name}_n{i}")[:, :2] for i in idx], 1)
             acc[link.name] = np.stack([S(f"a_{link.name}_n{i}")[:, :2] for i in idx], 1)
-        c_coupler, c_rocker = nodes["coupler"][:, -1], nodes["rocker"][:, -1]
-        extras = {"coupler_angle_rad": ("rad", gam + q["crank"] + q["coupler"]),
-                  "rocker_angle_rad": ("rad", gam + q["rocker"]),
-                  "loop_closure_m": ("m", np.linalg.norm(c_coupler - c_rocker, axis=-1))}
+        c_coupler = nodes["coupler"][:, -1]
+        extras = {"coupler_angle_rad": ("rad", gam + q["crank"] + q["coupler"])}
+        if self.slider:
+            extras["slider_position_m"] = ("m", S("q_slider")[:, 0])
+            c_other = S("p_slider_pin")[:, :2]
+        else:
+            extras["rocker_angle_rad"] = ("rad", gam + q["rocker"])
+            c_other = nodes["rocker"][:, -1]
+        extras["loop_closure_m"] = ("m", np.linalg.norm(c_coupler - c_other, axis=-1))
+        self._closure_point = c_other
         gauges = self._rigid_strains(nodes, acc, alpha)
         return EngineOutput(t, q["crank"], S("w_crank")[:, 0], torque, gauges, nodes, extras)
 
@@ -260,11 +287,21 @@ class MujocoEngine:
             F[..., 2] = -J * alpha[link.name][:, None]
             loads[link.name] = F
         # The instantaneous structure needs lengths exact to 1e-9: close the loop at C by
-        # intersecting the circles about B and D (a shift of the size of loop_closure_m).
-        A, B, D = nodes["crank"][:, 0], nodes["coupler"][:, 0], nodes["rocker"][:, 0]
-        C = _circle_point(B, mech.coupler.length_m, D, mech.rocker.length_m,
-                          0.5 * (nodes["coupler"][:, -1] + nodes["rocker"][:, -1]))
-        sol = solve_static(self.structure, LoadCase({"A": A, "B": B, "C": C, "D": D}, loads))
+        # intersecting the circle about B with the rocker's circle about D or with the slide line
+        # (a shift of the size of loop_closure_m).
+        A, B = nodes["crank"][:, 0], nodes["coupler"][:, 0]
+        near = 0.5 * (nodes["coupler"][:, -1] + self._closure_point)
+        if self.slider:
+            gam = mech.ground_angle
+            e = np.array([math.cos(gam), math.sin(gam)])
+            foot = np.asarray(mech.pivot, float) + mech.offset_m * np.array([-math.sin(gam), math.cos(gam)])
+            C = _line_point(B, mech.coupler.length_m, foot, e, near)
+            joints = {"A": A, "B": B, "C": C}
+        else:
+            D = nodes["rocker"][:, 0]
+            C = _circle_point(B, mech.coupler.length_m, D, mech.rocker.length_m, near)
+            joints = {"A": A, "B": B, "C": C, "D": D}
+        sol = solve_static(self.structure, LoadCase(joints, loads))
         return {g.name: gauge_strains(sol.members[g.link], g) for g in self.scenario.gauges}
 
 
@@ -278,3 +315,14 @@ def _circle_point(P, r, Q, s, near) -> np.ndarray:
     n = np.stack([-u[:, 1], u[:, 0]], -1)
     side = np.sign(np.sum((near - P) * n, -1, keepdims=True))
     return P + x * u + side * y * n
+
+
+def _line_point(P, r, foot, e, near) -> np.ndarray:
+    """The point of the line foot + s e at distance r from P nearest to ``near`` (k, 2) [m]."""
+    rel = P - foot
+    s0 = rel @ e
+    h2 = np.sum(rel * rel, -1) - s0**2
+    half = np.sqrt(np.maximum(r**2 - h2, 0.0))
+    s_near = (near - foot) @ e
+    s = np.where(np.abs(s0 + half - s_near) <= np.abs(s0 - half - s_near), s0 + half, s0 - half)
+    return foot + s[:, None] * e
