@@ -131,3 +131,90 @@ def test_cosim_run_does_the_static_analysis(tmp_path):
     summary = json.loads((tmp_path / "ml" / "summary.json").read_text())
     assert summary["status"] == "completed" and summary["kind"] == "structure"
     assert (tmp_path / "ml" / "nodes.csv").exists()
+
+
+# -- Shin's four one-degree-of-freedom sub-loop (branch) types, each against a closed form ---------
+from tmm_core import Joint, LoadCase, Material, Member, Section, Structure, solve_static   # noqa: E402
+from tmm_core.structure import SliderJoint   # noqa: E402
+
+E_ST = 200e9
+SEC = Section.rectangle(0.02, 0.02)
+MAT = Material("s", E_ST, 7850.0)
+EI, EA = E_ST * SEC.inertia_m4, E_ST * SEC.area_m2
+
+
+def _solve(joints, members, positions, loads, **kw):
+    s = Structure(tuple(joints), tuple(members), **kw)
+    return solve_static(s, LoadCase({k: np.asarray(v, float) for k, v in positions.items()}, loads)).linear
+
+
+def test_branch_case_1_free_end_on_a_welded_branch_point():
+    """A cantilever branch E-F welded to the top of a clamped post A-E, tip load P at F:
+    delta_F = P a^3/(3EI) + P a^2 L/(EI) + P L/(EA) (branch bending, post rotation, post shortening)."""
+    L, a, P = 1.0, 0.6, 100.0
+    post = Member.uniform("post", "A", "E", L, 8, SEC, MAT, start_connection="rigid", end_connection="rigid")
+    arm = Member.uniform("arm", "E", "F", a, 8, SEC, MAT, start_connection="rigid", end_connection="rigid")
+    loads = {"arm": np.zeros((9, 3))}
+    loads["arm"][-1] = (0.0, -P, 0.0)
+    sol = _solve([Joint("A", "clamped"), Joint("E"), Joint("F")], [post, arm],
+                 {"A": (0, 0), "E": (0, L), "F": (a, L)}, loads)
+    dF = -sol.joint_displacement["F"][1]
+    assert dF == pytest.approx(P * a**3 / (3 * EI) + P * a**2 * L / EI + P * L / EA, rel=1e-9)
+
+
+def test_branch_case_2_slider_end_on_a_revolute_branch_point():
+    """A link E-F hinged at E to a clamped post and ending on a horizontal slider F: a pinned
+    block on a frictionless guide takes no horizontal force, so a horizontal load at E bends the
+    post alone (tip deflection P L^3/(3EI)) and the link carries no axial force."""
+    L, a, P = 1.0, 0.8, 50.0
+    post = Member.uniform("post", "A", "E", L, 8, SEC, MAT, start_connection="rigid")
+    link = Member.uniform("link", "E", "F", a, 8, SEC, MAT)
+    loads = {"post": np.zeros((9, 3))}
+    loads["post"][-1] = (P, 0.0, 0.0)
+    sol = _solve([Joint("A", "clamped"), Joint("E"), Joint("F", "slider", 0.0)], [post, link],
+                 {"A": (0, 0), "E": (0, L), "F": (a, L)}, loads)
+    assert sol.joint_displacement["E"][0] == pytest.approx(P * L**3 / (3 * EI), rel=1e-9)
+    assert np.max(np.abs(sol.members["link"].N)) < 1e-9 * P
+    assert abs(sol.reactions["F"][0]) < 1e-9 * P
+
+
+def test_branch_case_3_pinned_end_on_a_revolute_branch_point():
+    """A two-force strut E-F pinned to the ground at F and hinged to the tip E of a clamped
+    cantilever A-E, which carries a vertical tip load P. Compatibility: the cantilever's tip
+    force from the strut S satisfies (P - S sin) L^3/(3EI) sin = S c / (EA) ... solved in closed
+    form for a vertical strut: S = P k_s/(k_s + k_b), k_b = 3EI/L^3, k_s = EA/h."""
+    L, h, P = 1.0, 0.5, 80.0
+    beam = Member.uniform("beam", "A", "E", L, 8, SEC, MAT, start_connection="rigid")
+    strut = Member.uniform("strut", "F", "E", h, 4, SEC, MAT)
+    loads = {"beam": np.zeros((9, 3))}
+    loads["beam"][-1] = (0.0, -P, 0.0)
+    sol = _solve([Joint("A", "clamped"), Joint("E"), Joint("F", "pinned")], [beam, strut],
+                 {"A": (0, 0), "E": (L, 0), "F": (L, -h)}, loads)
+    kb, ks = 3 * EI / L**3, EA / h
+    S = P * ks / (ks + kb)
+    assert -float(sol.members["strut"].N[0, 1]) == pytest.approx(S, rel=1e-6)
+    assert -sol.joint_displacement["E"][1] == pytest.approx(P / (ks + kb), rel=1e-6)
+
+
+def test_branch_case_4_pinned_end_on_a_slider_branch_point():
+    """An inclined strut pinned to the ground at F whose block E rides on a simply supported beam
+    A-B at mid-span. A frictionless block passes only the force normal to the beam, and the
+    strut, being inclined, can only push along itself: so the strut carries nothing and the
+    block slides instead. The beam then deflects as if alone, P L^3 / (48 EI), and the block
+    follows the beam's mid-span point normal to the beam."""
+    L, h, c, P = 2.0, 0.5, 0.3, 120.0
+    left = Member.uniform("left", "A", "M", L / 2, 8, SEC, MAT, end_connection="rigid")
+    right = Member.uniform("right", "M", "B", L / 2, 8, SEC, MAT, start_connection="rigid")
+    strut = Member.uniform("strut", "F", "E", float(np.hypot(c, h)), 4, SEC, MAT)
+    loads = {"left": np.zeros((9, 3))}
+    loads["left"][-1] = (0.0, -P, 0.0)
+    sol = _solve([Joint("A", "pinned"), Joint("M"), Joint("B", "slider", 0.0), Joint("E"), Joint("F", "pinned")],
+                 [left, right, strut], {"A": (0, 0), "M": (L / 2, 0), "B": (L, 0), "E": (L / 2, 0),
+                                        "F": (L / 2 - c, -h)},
+                 loads, sliders=(SliderJoint("block", "E", "M", "left"),))
+    assert -sol.joint_displacement["M"][1] == pytest.approx(P * L**3 / (48 * EI), rel=1e-9)
+    assert np.max(np.abs(sol.members["strut"].N)) < 1e-9 * P
+    assert sol.joint_displacement["E"][1] == pytest.approx(sol.joint_displacement["M"][1], rel=1e-12)
+    # The block slid along the beam so that the strut keeps its length: (E - F) . dE = 0.
+    dE = sol.joint_displacement["E"]
+    assert abs(c * dE[0] + h * dE[1]) < 1e-12
