@@ -90,6 +90,9 @@ def _parser() -> argparse.ArgumentParser:
     s.add_argument("--rpm", required=True, help="start:stop:step (e.g. 100:400:25) or a list 95,241,373")
     s.add_argument("--engines", default="tmm", help="comma-separated engines (default: tmm)")
     s.add_argument("--revolutions", type=float, help="revolutions per point (default: the scenario's)")
+    s.add_argument("--method", choices=("periodic", "march"), default="periodic",
+                   help="TMM: periodic steady state in one solve with Floquet multipliers (default), or time marching; "
+                        "exudyn and MuJoCo always march")
     s.add_argument("--workers", type=int, help="local worker processes (default: the number of cores)")
     s.add_argument("--scheduler", help="Dask scheduler address (e.g. tcp://10.0.0.5:8786): run the points there")
     s.add_argument("--out", type=Path, help="output folder (default: logs/<scenario>-sweep-<timestamp>)")
@@ -140,7 +143,7 @@ def _dispatch(parser, args) -> int:
         from .sweep import parse_rpm, run_sweep
         rpm = parse_rpm(args.rpm)
         folder, summary = run_sweep(args.scenario, rpm, _engines(args.engines), args.revolutions, args.workers,
-                                    args.scheduler, args.out, progress=not args.quiet)
+                                    args.scheduler, args.out, progress=not args.quiet, method=args.method)
         print(f"sweep {summary['status']}: {len(summary['points'])} points in {summary['wall_time_s']:.1f} s; "
               f"written to {folder}")
         return 0 if summary["status"] == "completed" else 1

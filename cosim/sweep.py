@@ -50,8 +50,11 @@ def parse_rpm(text: str) -> np.ndarray:
     return values
 
 
-def sweep_point(raw: dict, path: str, rpm: float, engines: tuple, revolutions: float) -> dict:
-    """One speed: prescribed run, last-revolution peaks per engine and gauge (runs in a worker)."""
+def sweep_point(raw: dict, path: str, rpm: float, engines: tuple, revolutions: float,
+                method: str = "periodic") -> dict:
+    """One speed: last-revolution peaks per engine and gauge (runs in a worker). The transfer-
+    matrix engine uses the periodic steady-state solve (``method = "periodic"``, with its Floquet
+    multipliers) or time marching like the others (``"march"``)."""
     from .master import CoSimulation
     from .run import last_revolution_stats
 
@@ -59,13 +62,41 @@ def sweep_point(raw: dict, path: str, rpm: float, engines: tuple, revolutions: f
     data.setdefault("drive", {})["speed"] = f"{rpm} rpm"
     data["drive"]["mode"] = "prescribed"
     sc = from_dict(data, path)
+    out = {"rpm": rpm, "engines": {}}
     tic = time.perf_counter()
-    res = CoSimulation(sc, engines, mode="prescribed").run(revolutions=revolutions)
-    out = {"rpm": rpm, "wall_time_s": time.perf_counter() - tic, "engines": {}}
-    for name, ch in res.channels.items():
-        out["engines"][name] = {"status": ch.status, "error": ch.error,
-                                **last_revolution_stats(ch.run, sc.revolution_period_s)}
+    marched = tuple(e for e in engines if not (e == "tmm" and method == "periodic"))
+    if "tmm" in engines and method == "periodic":
+        out["engines"]["tmm"] = periodic_point(sc)
+    if marched:
+        res = CoSimulation(sc, marched, mode="prescribed").run(revolutions=revolutions)
+        for name, ch in res.channels.items():
+            out["engines"][name] = {"status": ch.status, "error": ch.error,
+                                    **last_revolution_stats(ch.run, sc.revolution_period_s)}
+    out["wall_time_s"] = time.perf_counter() - tic
     return out
+
+
+def periodic_point(sc) -> dict:
+    """Periodic steady state of the scenario's TMM model at its drive speed: peaks, drive
+    torque range and the largest Floquet multiplier (|mu| > 1: parametric resonance)."""
+    from tmm_core import TimeDomain, TMMError
+    from tmm_core.periodic import periodic_steady_state
+    s = sc.tmm
+    try:
+        td = TimeDomain(sc.mechanism, integrator=s.integrator, coupling=s.coupling, beam_column=s.beam_column,
+                        gravity=sc.gravity, gauges=sc.gauges, axial_force=s.axial_force)
+        p = periodic_steady_state(td, sc.drive.speed_rad_s, step_s=sc.engine_step_s("tmm"),
+                                  start_angle=sc.drive.start_angle_rad)
+    except TMMError as exc:
+        return {"status": "failed", "error": f"{type(exc).__name__}: {exc}"}
+    d = {"status": "completed", "error": None, "method": "periodic", "floquet_max": float(np.abs(p.multipliers[0])),
+         "parametric_resonance": bool(np.abs(p.multipliers[0]) > 1.0), "residual": p.residual,
+         "drive_torque_max_Nm": float(p.drive_torque.max()), "drive_torque_min_Nm": float(p.drive_torque.min()),
+         "gauges": {}}
+    for g, (b, a) in p.gauges.items():
+        d["gauges"][g] = {"bending_max_ue": float(b.max() * 1e6), "bending_min_ue": float(b.min() * 1e6),
+                          "axial_max_ue": float(a.max() * 1e6), "axial_min_ue": float(a.min() * 1e6)}
+    return d
 
 
 def _rows(point: dict) -> list:
@@ -76,13 +107,14 @@ def _rows(point: dict) -> list:
             rows.append({"rpm": point["rpm"], "engine": engine, "gauge": g, "status": e["status"],
                          **{k: stats.get(k) for k in ("bending_max_ue", "bending_min_ue", "axial_max_ue", "axial_min_ue")},
                          "drive_torque_max_Nm": e.get("drive_torque_max_Nm"),
-                         "drive_torque_min_Nm": e.get("drive_torque_min_Nm"), "error": e.get("error") or ""})
+                         "drive_torque_min_Nm": e.get("drive_torque_min_Nm"), "floquet_max": e.get("floquet_max"),
+                         "error": e.get("error") or ""})
     return rows
 
 
 def run_sweep(scenario: str, rpm, engines=("tmm",), revolutions: float | None = None, workers: int | None = None,
               scheduler: str | None = None, out: Path | None = None, progress: bool = True,
-              record: bool = True) -> tuple:
+              record: bool = True, method: str = "periodic") -> tuple:
     """Run the sweep; returns ``(folder, summary)``."""
     sc = load(scenario)
     rpms = parse_rpm(rpm) if isinstance(rpm, str) else np.asarray(rpm, dtype=float)
@@ -93,7 +125,7 @@ def run_sweep(scenario: str, rpm, engines=("tmm",), revolutions: float | None = 
             raise ScenarioError(f"unknown engine {e!r}; choose from {', '.join(ENGINES)}")
     folder = run_folder(f"{sc.name}-sweep", out)
     summary = {"scenario": sc.name, "status": "incomplete", "rpm": rpms.tolist(), "engines": list(engines),
-               "revolutions": revs, "executor": f"dask {scheduler}" if scheduler else "local processes",
+               "revolutions": revs, "method": method, "executor": f"dask {scheduler}" if scheduler else "local processes",
                "points": []}
     write_json(folder / "summary.json", summary)
     client = None
@@ -110,8 +142,8 @@ def run_sweep(scenario: str, rpm, engines=("tmm",), revolutions: float | None = 
     rows, points = [], []
     tic = time.perf_counter()
     try:
-        futures = [executor.submit(sweep_point, sc.raw, str(sc.path or sc.name), float(r), tuple(engines), revs)
-                   for r in rpms]
+        futures = [executor.submit(sweep_point, sc.raw, str(sc.path or sc.name), float(r), tuple(engines), revs,
+                                   method) for r in rpms]
         for fut in as_completed(futures):
             try:
                 point = fut.result()

@@ -1,0 +1,143 @@
+"""Periodic steady state of the kineto-elastodynamic equations in one solve, and their Floquet
+multipliers.
+
+At constant crank speed the time-discrete equations of :class:`tmm_core.TimeDomain` are linear
+with coefficients periodic in the crank angle: one revolution of N steps maps the integrator state
+x (displacements, velocities, accelerations, ...) affinely, ``x_N = Phi x_0 + c``. Shooting: the
+revolution is marched once for the affine part and for every unit state at the same time (one
+batched march of n_state + 1 columns), and the periodic state solves ``(I - Phi) x_0 = c``. It is
+the exact limit of time marching with the same integrator and step (the discrete map's fixed
+point), so no transient has to die out; near a resonance and with light damping this replaces
+many revolutions by one.
+
+The eigenvalues of ``Phi`` are the Floquet multipliers of the discrete system over a revolution:
+a multiplier outside the unit circle means a growing (parametrically resonant) response. They
+carry the integrator's numerical damping (generalized-alpha damps the highest modes).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.integrate import solve_ivp
+
+from .errors import InputError
+from .ked import CrankMotion, TimeDomain
+
+STATE_KEYS = {"newmark": ("d", "v", "a"), "generalized_alpha": ("d", "v", "a", "acc"), "houbolt": ("d", "d1", "d2")}
+
+
+@dataclass
+class PeriodicResult:
+    """One steady revolution: ``angle`` [rad] and outputs at the N steps (the first sample is the
+    state after one step), drive torque [N m], gauges ``{name: (bending, axial)}``, the Floquet
+    ``multipliers`` (descending modulus) and ``residual`` (relative change of the state over a
+    revolution marched from the periodic state: the solve's own check)."""
+
+    t: np.ndarray
+    angle: np.ndarray
+    drive_torque: np.ndarray
+    gauges: dict
+    multipliers: np.ndarray
+    residual: float
+    info: dict
+
+
+def _batched_step(td: TimeDomain, cfg, idx, state, dt, beta, has_kv):
+    """One time step for a batch of states: every array in ``state`` is (M, n_dof)."""
+    m = td.m_vec
+    h_a, h_v = td.integrator.history(state, dt)
+    loads = cfg["rigid"][idx][None, :] - m * (h_a + td.aM_vec * h_v)
+    if td.coupling.coriolis:
+        w = td._node_omega(cfg, idx)
+        is_u = np.tile([True, False, False], td.n_dof // 3)
+        is_w = np.tile([False, True, False], td.n_dof // 3)
+        loads = loads + np.where(is_u, 2.0 * m * w * np.roll(h_v, -1, axis=-1), 0.0) \
+            - np.where(is_w, 2.0 * m * w * np.roll(h_v, 1, axis=-1), 0.0)
+    if has_kv:
+        loads = loads - beta * (td.K_local @ h_v.T).T
+    maps = cfg["maps"]
+    z = loads @ maps["Z"][idx].T + maps["z0"][idx]
+    out = loads @ maps["O"][idx].T + maps["o0"][idx]
+    return td.integrator.advance(state, z, dt), z, out
+
+
+def periodic_steady_state(td: TimeDomain, speed_rad_s: float, *, step_s: float | None = None,
+                          step_deg: float | None = None, start_angle: float = 0.0) -> PeriodicResult:
+    """Periodic response of ``td`` at constant crank ``speed_rad_s``; the step must divide a
+    revolution (as for a constant-speed :class:`CrankMotion`)."""
+    if any(link.viscoelastic is not None for link in td.links):
+        raise InputError("the periodic solver does not carry the viscoelastic (SLS) history states; use time marching")
+    if td.axial_force == "iterated":
+        raise InputError("the periodic solver needs axial_force 'quasi_static' or 'none' (a linear map per step)")
+    keys = STATE_KEYS.get(td.integrator.name)
+    if keys is None:
+        raise InputError(f"periodic solver: unsupported integrator {td.integrator.name!r}")
+    crank = CrankMotion.constant_speed(speed_rad_s, step_s=step_s, step_deg=step_deg, revolutions=1.0,
+                                       start_angle=start_angle)
+    N = crank.steps_per_revolution()
+    if N is None:
+        raise InputError("the step must divide a revolution into a whole number of steps")
+    dt = crank.dt
+    cfg = td._configurations(crank.angle[:N], crank.speed[:N], crank.acceleration[:N], dt)
+    if cfg["maps"] is None:
+        raise InputError("periodic solver: the load-to-response maps exceed the memory budget (max_map_bytes)")
+    n = td.n_dof
+    ns = len(keys) * n
+    beta = np.concatenate([np.full(3 * l.n_nodes, l.damping.stiffness_s) for l in td.links])
+    has_kv = bool(np.any(beta > 0))
+    # Column 0: zero initial state (the forced, affine part); columns 1..ns: unit states.
+    X0 = np.zeros((ns + 1, ns))
+    X0[1:] = np.eye(ns)
+    state = {k: X0[:, j * n:(j + 1) * n].copy() for j, k in enumerate(keys)}
+    full = td.integrator.initial(state["d"], state.get("v", state["d"] * 0), state.get("a", state["d"] * 0),
+                                 (state.get("d1", state["d"] * 0), state.get("d2", state["d"] * 0)))
+    full.update(state)
+    state = full
+    for k in range(1, N + 1):
+        state, _, _ = _batched_step(td, cfg, k % N, state, dt, beta, has_kv)
+    XN = np.concatenate([state[k] for k in keys], axis=1)           # (ns + 1, ns)
+    c = XN[0]
+    Phi = (XN[1:] - c).T                                             # x_N = Phi x_0 + c
+    x0 = np.linalg.solve(np.eye(ns) - Phi, c)
+    multipliers = np.linalg.eigvals(Phi)
+    multipliers = multipliers[np.argsort(-np.abs(multipliers))]
+    # One revolution from the periodic state, for the outputs and as a check.
+    st = {k: x0[None, j * n:(j + 1) * n].copy() for j, k in enumerate(keys)}
+    full = td.integrator.initial(st["d"], st.get("v", st["d"] * 0), st.get("a", st["d"] * 0),
+                                 (st.get("d1", st["d"] * 0), st.get("d2", st["d"] * 0)))
+    full.update(st)
+    st = full
+    outs = []
+    for k in range(1, N + 1):
+        st, _, out = _batched_step(td, cfg, k % N, st, dt, beta, has_kv)
+        outs.append(out[0])
+    xN = np.concatenate([st[k][0] for k in keys])
+    residual = float(np.max(np.abs(xN - x0)) / max(np.max(np.abs(x0)), 1e-300))
+    outs = np.array(outs)
+    gauges = {g.name: (outs[:, 1 + 2 * i], outs[:, 2 + 2 * i]) for i, g in enumerate(td.gauges)}
+    return PeriodicResult(crank.t[1:N + 1], crank.angle[1:N + 1], outs[:, 0], gauges, multipliers, residual,
+                          {"dt_s": dt, "steps_per_revolution": N, "state_size": ns})
+
+
+def floquet_multipliers(A, period: float, n: int, rtol: float = 1e-10) -> np.ndarray:
+    """Floquet multipliers of the continuous linear periodic system x' = A(t) x over one
+    ``period``: eigenvalues of the monodromy matrix (the fundamental solution at the period)."""
+    def rhs(t, y):
+        return (A(t) @ y.reshape(n, n)).ravel()
+    sol = solve_ivp(rhs, (0.0, period), np.eye(n).ravel(), method="DOP853", rtol=rtol, atol=rtol)
+    if not sol.success:
+        raise InputError(f"Floquet integration failed: {sol.message}")
+    M = sol.y[:, -1].reshape(n, n)
+    mu = np.linalg.eigvals(M)
+    return mu[np.argsort(-np.abs(mu))]
+
+
+def mathieu_multipliers(delta: float, epsilon: float, damping: float = 0.0) -> np.ndarray:
+    """Multipliers of the Mathieu equation x'' + 2 zeta x' + (delta + epsilon cos t) x = 0 over
+    its period 2 pi (the single-mode reduction of a linkage whose stiffness varies with the crank
+    angle)."""
+    def A(t):
+        return np.array([[0.0, 1.0], [-(delta + epsilon * math.cos(t)), -2.0 * damping]])
+    return floquet_multipliers(A, 2 * math.pi, 2)
