@@ -3,6 +3,7 @@
     cosim list                                   scenarios and their one-line descriptions
     cosim run <name|path> [options]              run a scenario through the engines, write logs/
     cosim sweep <name|path> --rpm 100:400:25     peak strain against speed, points in parallel
+    cosim uncertainty <name|path>                band of predicted strains over uncertain parameters
     cosim compare <run-dir>                      the comparison table of a finished run
 
 Bad input (unknown scenario or engine, malformed range, bad scenario file) ends with a one-line
@@ -51,7 +52,7 @@ def _parser() -> argparse.ArgumentParser:
                "--revolutions 2 --spawn; cosim sweep crank_rocker_373rpm --rpm 100:400:25; cosim compare "
                "logs/crank_rocker_373rpm-<timestamp>")
     p.add_argument("--version", action="version", version=f"cosim {__version__}")
-    sub = p.add_subparsers(dest="command", metavar="{list,run,sweep,compare}")
+    sub = p.add_subparsers(dest="command", metavar="{list,run,sweep,uncertainty,compare}")
 
     sub.add_parser("list", help="show the scenarios and their one-line descriptions",
                    description="Show the scenario files under scenarios/ with their one-line descriptions.")
@@ -97,6 +98,17 @@ def _parser() -> argparse.ArgumentParser:
     s.add_argument("--scheduler", help="Dask scheduler address (e.g. tcp://10.0.0.5:8786): run the points there")
     s.add_argument("--out", type=Path, help="output folder (default: logs/<scenario>-sweep-<timestamp>)")
     s.add_argument("--quiet", action="store_true", help="no progress bar")
+
+    u = sub.add_parser("uncertainty", help="band of predicted strains over the scenario's uncertain parameters",
+                       description="Monte Carlo over the parameters in the scenario's [uncertainty] table (periodic "
+                                   "TMM solves), a one-at-a-time sensitivity ranking, and whether the records' peaks "
+                                   "fall inside the band. Samples run in parallel, or on a Dask cluster.")
+    u.add_argument("scenario", help="scenario name or path (with an [uncertainty] table)")
+    u.add_argument("--samples", type=int, help="Monte Carlo samples (default: the scenario's)")
+    u.add_argument("--seed", type=int, help="random seed (default: the scenario's)")
+    u.add_argument("--workers", type=int, help="local worker processes (default: the number of cores)")
+    u.add_argument("--scheduler", help="Dask scheduler address")
+    u.add_argument("--out", type=Path, help="output folder (default: logs/<scenario>-uncertainty-<timestamp>)")
 
     c = sub.add_parser("compare", help="print the comparison table of a finished run",
                        description="Print the last-revolution strain extremes per engine and gauge, records and "
@@ -147,6 +159,19 @@ def _dispatch(parser, args) -> int:
         print(f"sweep {summary['status']}: {len(summary['points'])} points in {summary['wall_time_s']:.1f} s; "
               f"written to {folder}")
         return 0 if summary["status"] == "completed" else 1
+    if args.command == "uncertainty":
+        from .uncertainty import run_uncertainty
+        folder, summary = run_uncertainty(args.scenario, args.samples, args.seed, args.workers, args.scheduler, args.out)
+        print(f"uncertainty {summary['status']}: {summary['samples']} samples in {summary.get('wall_time_s', 0):.1f} s")
+        for g, b in (summary.get("band") or {}).items():
+            print(f"  {g}: +peak {b['peak_max_range_ue'][0]:.1f}..{b['peak_max_range_ue'][1]:.1f} ue, -peak "
+                  f"{b['peak_min_range_ue'][0]:.1f}..{b['peak_min_range_ue'][1]:.1f} ue; most influential: "
+                  f"{summary.get('most_influential', {}).get(g)}")
+        for r in summary.get("records") or []:
+            print(f"  record {r['record']} {r['gauge']} {r['peak']}peak {r['recorded_ue']:.1f} ue: "
+                  f"{'inside' if r['inside'] else 'outside'} the band")
+        print(f"written to {folder}")
+        return 0 if summary["status"].startswith("completed") else 1
     if args.command == "compare":
         from .report import comparison_table, load_summary
         print(comparison_table(load_summary(args.run_dir)))

@@ -44,6 +44,7 @@ File layout (all tables except ``[scenario]``, ``[linkage]``, ``[links.*]`` are 
                     "constant" | "linear", interface_jacobian, tolerance, max_iterations,
                     start = "steady" | "rest"
     [output]        revolutions, sample_step, engines (the default engines of `cosim run`)
+    [uncertainty]   samples, seed, parameters.<name> = {keys, distribution, ...}: see cosim.uncertainty
 
 A file may start with ``extends = "base/<rig>"``: it is merged over that base file.
 
@@ -453,7 +454,7 @@ def from_dict(data: dict, path: str = "<dict>", default_name: str = "scenario") 
     r = _Reader(path)
     top = r.table(data, "", {"scenario", "linkage", "materials", "sections", "links", "drive", "gravity", "gauges",
                              "solver", "output", "motor", "coupling", "joints", "plates", "springs", "sliders",
-                             "loads"}, {"linkage", "links"})
+                             "loads", "uncertainty"}, {"linkage", "links"})
     meta = r.table(top.get("scenario", {}), "scenario", {"name", "description", "sources", "rig"})
     solver = r.table(top.get("solver", {}), "solver", {"tmm", "exudyn", "mujoco"})
     tmm = _tmm_settings(r, solver.get("tmm", {}))

@@ -61,6 +61,7 @@ def sweep_point(raw: dict, path: str, rpm: float, engines: tuple, revolutions: f
     data = copy.deepcopy(raw)
     data.setdefault("drive", {})["speed"] = f"{rpm} rpm"
     data["drive"]["mode"] = "prescribed"
+    data.pop("motor", None)         # prescribed speed: the drive's limits do not apply
     sc = from_dict(data, path)
     out = {"rpm": rpm, "engines": {}}
     tic = time.perf_counter()
@@ -76,17 +77,40 @@ def sweep_point(raw: dict, path: str, rpm: float, engines: tuple, revolutions: f
     return out
 
 
+def _periodic(sc):
+    from tmm_core import TimeDomain
+    from tmm_core.periodic import periodic_steady_state
+    s = sc.tmm
+    td = TimeDomain(sc.mechanism, integrator=s.integrator, coupling=s.coupling, beam_column=s.beam_column,
+                    gravity=sc.gravity, gauges=sc.gauges, axial_force=s.axial_force)
+    return periodic_steady_state(td, sc.drive.speed_rad_s, step_s=sc.engine_step_s("tmm"),
+                                 start_angle=sc.drive.start_angle_rad)
+
+
+def periodic_point_histories(sc, n_grid: int = 360) -> dict:
+    """Periodic TMM response on a uniform crank-angle grid (degrees from 0 to 360 - step, wrapped):
+    {"status", "angle_deg", "gauges": {g: {"bending_ue", "axial_ue"}}} (lists, picklable)."""
+    from tmm_core import TMMError
+    try:
+        p = _periodic(sc)
+    except TMMError as exc:
+        return {"status": "failed", "error": f"{type(exc).__name__}: {exc}"}
+    grid = np.arange(n_grid) * 360.0 / n_grid
+    a = np.mod(np.degrees(p.angle), 360.0)
+    order = np.argsort(a)
+    out = {"status": "completed", "angle_deg": grid.tolist(), "gauges": {}}
+    for g, (b, ax) in p.gauges.items():
+        out["gauges"][g] = {"bending_ue": (np.interp(grid, a[order], b[order] * 1e6, period=360.0)).tolist(),
+                            "axial_ue": (np.interp(grid, a[order], ax[order] * 1e6, period=360.0)).tolist()}
+    return out
+
+
 def periodic_point(sc) -> dict:
     """Periodic steady state of the scenario's TMM model at its drive speed: peaks, drive
     torque range and the largest Floquet multiplier (|mu| > 1: parametric resonance)."""
-    from tmm_core import TimeDomain, TMMError
-    from tmm_core.periodic import periodic_steady_state
-    s = sc.tmm
+    from tmm_core import TMMError
     try:
-        td = TimeDomain(sc.mechanism, integrator=s.integrator, coupling=s.coupling, beam_column=s.beam_column,
-                        gravity=sc.gravity, gauges=sc.gauges, axial_force=s.axial_force)
-        p = periodic_steady_state(td, sc.drive.speed_rad_s, step_s=sc.engine_step_s("tmm"),
-                                  start_angle=sc.drive.start_angle_rad)
+        p = _periodic(sc)
     except TMMError as exc:
         return {"status": "failed", "error": f"{type(exc).__name__}: {exc}"}
     d = {"status": "completed", "error": None, "method": "periodic", "floquet_max": float(np.abs(p.multipliers[0])),
@@ -114,7 +138,7 @@ def _rows(point: dict) -> list:
 
 def run_sweep(scenario: str, rpm, engines=("tmm",), revolutions: float | None = None, workers: int | None = None,
               scheduler: str | None = None, out: Path | None = None, progress: bool = True,
-              record: bool = True, method: str = "periodic") -> tuple:
+              record: bool = True, method: str = "periodic", resonance: bool = True) -> tuple:
     """Run the sweep; returns ``(folder, summary)``."""
     sc = load(scenario)
     rpms = parse_rpm(rpm) if isinstance(rpm, str) else np.asarray(rpm, dtype=float)
@@ -142,24 +166,28 @@ def run_sweep(scenario: str, rpm, engines=("tmm",), revolutions: float | None = 
     rows, points = [], []
     tic = time.perf_counter()
     try:
-        futures = [executor.submit(sweep_point, sc.raw, str(sc.path or sc.name), float(r), tuple(engines), revs,
-                                   method) for r in rpms]
+        futures = {executor.submit(sweep_point, sc.raw, str(sc.path or sc.name), float(r), tuple(engines), revs,
+                                   method): float(r) for r in rpms}
         for fut in as_completed(futures):
             try:
                 point = fut.result()
             except Exception as exc:       # a worker that died or raised: keep the others
-                point = {"rpm": None, "error": f"{type(exc).__name__}: {exc}", "engines": {}}
+                point = {"rpm": futures[fut], "error": f"{type(exc).__name__}: {exc}", "engines": {},
+                         "did_not_run": True}
             points.append(point)
             rows += _rows(point)
-            summary["points"] = sorted(points, key=lambda p: (p["rpm"] is None, p["rpm"] or 0))
+            summary["points"] = sorted(points, key=lambda p: p["rpm"])
             write_json(folder / "summary.json", summary)
             if rows:
                 write_csv(folder / "sweep.csv", sorted(rows, key=lambda r: (r["rpm"], r["engine"], r["gauge"])))
             if bar is not None:
                 bar.update(1)
-        summary["status"] = "completed" if all(
-            e.get("status") == "completed" for p in points for e in p["engines"].values()) and \
-            all(p["rpm"] is not None for p in points) else "failed"
+        # A point whose engine found no solution (e.g. a link past its buckling load) is a result;
+        # only a point that did not run at all fails the sweep.
+        summary["points_without_solution"] = sorted(
+            p["rpm"] for p in points if p["rpm"] is not None and any(e.get("status") != "completed"
+                                                                     for e in p["engines"].values()))
+        summary["status"] = "failed" if any(p.get("did_not_run") for p in points) else "completed"
     except KeyboardInterrupt:
         summary["status"] = "interrupted"
     finally:
@@ -170,13 +198,26 @@ def run_sweep(scenario: str, rpm, engines=("tmm",), revolutions: float | None = 
         else:
             executor.shutdown(cancel_futures=True)
     summary["wall_time_s"] = time.perf_counter() - tic
+    fmap = None
+    if resonance and type(sc.mechanism).__name__ == "FourBarMechanism" and points:
+        from .resonance import campbell, frequency_map
+        fmap = frequency_map(sc)
+        summary["natural_frequencies_Hz"] = {"angle_deg": np.degrees(fmap["angle_rad"]).tolist(),
+                                             "modes": np.where(np.isfinite(fmap["f_Hz"]), fmap["f_Hz"], -1).tolist()}
+        summary["resonance_candidates"] = campbell(fmap, float(rpms.min()), float(rpms.max()))
+    summary["parametric_resonance_rpm"] = sorted(p["rpm"] for p in points if p["rpm"] is not None and
+                                                 (p["engines"].get("tmm") or {}).get("parametric_resonance"))
+    if points:
+        from .resonance import plot_sweep
+        summary["figures"] = [str(x.name) for x in plot_sweep(folder, sc.name, summary["points"], fmap,
+                                                                marks_rpm=[abs(sc.drive.speed_rad_s) * 30 / math.pi])]
     write_json(folder / "summary.json", summary)
     if record and points:
-        _record(folder / "sweep.rrd", sc.name, summary["points"])
+        _record(folder / "sweep.rrd", sc.name, summary["points"], fmap, (float(rpms.min()), float(rpms.max())))
     return folder, summary
 
 
-def _record(path: Path, name: str, points: list) -> None:
+def _record(path: Path, name: str, points: list, fmap=None, rpm_range=None) -> None:
     """Peaks against speed in rerun (one multi-series entity per engine and gauge)."""
     import rerun as rr
     import rerun.blueprint as rrb
@@ -184,7 +225,6 @@ def _record(path: Path, name: str, points: list) -> None:
     rec = rr.RecordingStream("flexlink-bench-sweep", recording_id=f"{name}-sweep")
     rec.save(str(path))
     points = [p for p in points if p.get("rpm") is not None]
-    rpm = np.array([p["rpm"] for p in points])
     views = []
     series = {}
     for p in points:
@@ -198,10 +238,26 @@ def _record(path: Path, name: str, points: list) -> None:
                 static=True)
         rec.send_columns(entity, indexes=[rr.TimeColumn("crank_speed_rpm", sequence=np.rint(values[:, 0]).astype(int))],
                          columns=rr.Scalars.columns(scalars=values[:, 1:]))
+    floq = [(p["rpm"], p["engines"]["tmm"]["floquet_max"]) for p in points
+            if (p["engines"].get("tmm") or {}).get("floquet_max") is not None]
+    if floq:
+        floq = np.array(sorted(floq))
+        rec.log("/tmm/floquet", rr.SeriesLines(names=["tmm largest |Floquet multiplier| (>1: parametric resonance)"]),
+                static=True)
+        rec.send_columns("/tmm/floquet", indexes=[rr.TimeColumn("crank_speed_rpm", sequence=np.rint(floq[:, 0]).astype(int))],
+                         columns=rr.Scalars.columns(scalars=floq[:, 1]))
     for g in sorted({g for _, g in series}):
         views.append(rrb.TimeSeriesView(name=f"{g}: peak bending vs speed [rpm]",
                                         contents=[f"/{e}/peaks/{g}" for e, gg in series if gg == g]))
+    if floq is not None and len(floq):
+        views.append(rrb.TimeSeriesView(name="largest Floquet multiplier vs speed [rpm]", contents=["/tmm/floquet"]))
+    if fmap is not None:
+        from .resonance import record_map
+        record_map(rec, fmap, rpm_range)
+        views.append(rrb.TimeSeriesView(name="Campbell: harmonics and mode bands [Hz] vs speed [rpm]",
+                                        contents=["/tmm/campbell/**"]))
+        views.append(rrb.TimeSeriesView(name="natural frequencies [Hz] vs crank angle [mdeg]",
+                                        contents=["/tmm/frequencies"]))
     if views:
         rec.send_blueprint(rrb.Blueprint(rrb.Vertical(*views), collapse_panels=True))
     rec.flush()
-    del rpm

@@ -1,0 +1,138 @@
+"""Resonance maps of a linkage: natural frequencies of the instantaneous structure against crank
+angle, and a Campbell-type diagram of the crank-speed harmonics against the frequency bands.
+
+A linkage's stiffness changes with the crank angle, so each mode has a *band* of frequencies over
+a revolution. The crank excites the harmonics k f_rev (f_rev = rpm / 60) of its speed; a
+harmonic that enters a band is a resonance candidate. :func:`campbell` lists, per mode and
+harmonic, the speed range over which that happens; :func:`plot_sweep` draws the peaks of a
+sweep, the Campbell diagram and the frequencies over the crank angle into PNG and SVG files.
+"""
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+
+
+def frequency_map(scenario, n_angles: int = 36, n_modes: int = 4, f_max_Hz: float = 1000.0) -> dict:
+    """Natural frequencies [Hz] at ``n_angles`` crank angles: {"angle_rad", "f_Hz" (angles, modes)}."""
+    from tmm_core.frequencies import fourbar_frequencies
+    angles = scenario.drive.start_angle_rad + np.linspace(0, 2 * math.pi, n_angles, endpoint=False)
+    return {"angle_rad": angles, "f_Hz": fourbar_frequencies(scenario.mechanism, angles, n_modes, f_max_Hz)}
+
+
+def campbell(fmap: dict, rpm_min: float, rpm_max: float, max_harmonic: int = 20) -> list:
+    """Resonance candidates: for every mode band [f_min, f_max] and harmonic k, the crank-speed
+    range [rpm] over which k rpm / 60 lies in the band (clipped to the swept range)."""
+    out = []
+    f = fmap["f_Hz"]
+    for mode in range(f.shape[1]):
+        col = f[:, mode][np.isfinite(f[:, mode])]
+        if not len(col):
+            continue
+        lo, hi = float(col.min()), float(col.max())
+        for k in range(1, max_harmonic + 1):
+            a, b = 60 * lo / k, 60 * hi / k
+            if b >= rpm_min and a <= rpm_max:
+                out.append({"mode": mode + 1, "harmonic": k, "band_Hz": [lo, hi],
+                            "rpm": [max(a, rpm_min), min(b, rpm_max)]})
+    return out
+
+
+def plot_sweep(folder, name: str, points: list, fmap: dict | None, marks_rpm=(), max_harmonic: int = 20) -> list:
+    """Write ``sweep_peaks`` and ``campbell`` figures (PNG and SVG) to ``folder``; returns the paths."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    folder = Path(folder)
+    paths = []
+    done = [p for p in points if p.get("rpm") is not None]
+    fig, ax = plt.subplots(figsize=(8, 4.5))
+    series = {}
+    for p in sorted(done, key=lambda q: q["rpm"]):
+        for engine, e in p["engines"].items():
+            for g, s in (e.get("gauges") or {}).items():
+                series.setdefault((engine, g), []).append((p["rpm"], s["bending_max_ue"], s["bending_min_ue"]))
+    for (engine, g), v in sorted(series.items()):
+        v = np.array(v)
+        line, = ax.plot(v[:, 0], v[:, 1], label=f"{engine} {g} +peak")
+        ax.plot(v[:, 0], v[:, 2], "--", color=line.get_color(), label=f"{engine} {g} -peak")
+    failed = [p["rpm"] for p in done if any(e.get("status") != "completed" for e in p["engines"].values())]
+    for r in failed:
+        ax.axvline(r, color="0.85", lw=3, zorder=0)
+    for r in marks_rpm:
+        ax.axvline(r, color="k", lw=0.8, ls=":")
+    ax.set_xlabel("crank speed [rpm]")
+    ax.set_ylabel("peak bending strain [µε]")
+    ax.set_title(f"{name}: steady-state peak strain vs speed" + (" (grey: no solution, e.g. buckling)" if failed else ""))
+    ax.legend(fontsize=7, ncol=2)
+    ax.grid(alpha=0.3)
+    for ext in ("png", "svg"):
+        path = folder / f"sweep_peaks.{ext}"
+        fig.savefig(path, dpi=130, bbox_inches="tight")
+        paths.append(path)
+    plt.close(fig)
+    if fmap is None:
+        return paths
+    rpms = np.array([p["rpm"] for p in done]) if done else np.array([1.0])
+    r_lo, r_hi = float(rpms.min()), float(rpms.max())
+    fig, (a1, a2) = plt.subplots(1, 2, figsize=(11, 4.5))
+    f = fmap["f_Hz"]
+    deg = np.degrees(fmap["angle_rad"])
+    for m in range(f.shape[1]):
+        a1.plot(deg, f[:, m], label=f"mode {m + 1}")
+        col = f[:, m][np.isfinite(f[:, m])]
+        if len(col):
+            a2.axhspan(col.min(), col.max(), alpha=0.25, color=f"C{m}", label=f"mode {m + 1} band")
+    a1.set_xlabel("crank angle [deg]")
+    a1.set_ylabel("natural frequency [Hz]")
+    a1.set_title("instantaneous structure (crank clamped)")
+    a1.legend(fontsize=7)
+    a1.grid(alpha=0.3)
+    rr = np.linspace(r_lo, r_hi, 200)
+    fmax = np.nanmax(f) * 1.1 if np.isfinite(np.nanmax(f)) else 100.0
+    for k in range(1, max_harmonic + 1):
+        y = k * rr / 60
+        if y[0] > fmax:
+            break
+        a2.plot(rr, y, color="0.4", lw=0.7)
+        a2.text(rr[-1], min(y[-1], fmax), f"{k}x", fontsize=6, va="bottom")
+    for r in marks_rpm:
+        a2.axvline(r, color="k", lw=0.8, ls=":")
+    a2.set_ylim(0, fmax)
+    a2.set_xlabel("crank speed [rpm]")
+    a2.set_ylabel("frequency [Hz]")
+    a2.set_title("Campbell: crank-speed harmonics vs mode bands")
+    a2.legend(fontsize=7, loc="upper left")
+    for ext in ("png", "svg"):
+        path = folder / f"campbell.{ext}"
+        fig.savefig(path, dpi=130, bbox_inches="tight")
+        paths.append(path)
+    plt.close(fig)
+    return paths
+
+
+def record_map(rec, fmap: dict, rpm_range, max_harmonic: int = 20) -> None:
+    """Frequencies over the crank angle and the harmonic lines into a rerun recording."""
+    import rerun as rr
+    f = fmap["f_Hz"]
+    mdeg = np.rint(np.degrees(fmap["angle_rad"]) * 1000).astype(np.int64)
+    rec.log("/tmm/frequencies", rr.SeriesLines(names=[f"mode {m + 1} [Hz]" for m in range(f.shape[1])]), static=True)
+    rec.send_columns("/tmm/frequencies", indexes=[rr.TimeColumn("crank_angle_mdeg", sequence=mdeg)],
+                     columns=rr.Scalars.columns(scalars=np.nan_to_num(f, nan=0.0)))
+    rpm = np.arange(int(rpm_range[0]), int(rpm_range[1]) + 1)
+    lines = np.stack([k * rpm / 60 for k in range(1, max_harmonic + 1)], -1)
+    rec.log("/tmm/campbell/harmonics", rr.SeriesLines(names=[f"{k} x crank [Hz]" for k in range(1, max_harmonic + 1)]),
+            static=True)
+    rec.send_columns("/tmm/campbell/harmonics", indexes=[rr.TimeColumn("crank_speed_rpm", sequence=rpm)],
+                     columns=rr.Scalars.columns(scalars=lines))
+    bands = []
+    for m in range(f.shape[1]):
+        col = f[:, m][np.isfinite(f[:, m])]
+        bands += [col.min(), col.max()] if len(col) else [0.0, 0.0]
+    rec.log("/tmm/campbell/bands", rr.SeriesLines(names=[f"mode {m // 2 + 1} {'min' if m % 2 == 0 else 'max'} [Hz]"
+                                                         for m in range(len(bands))]), static=True)
+    rec.send_columns("/tmm/campbell/bands", indexes=[rr.TimeColumn("crank_speed_rpm", sequence=rpm)],
+                     columns=rr.Scalars.columns(scalars=np.tile(bands, (len(rpm), 1))))

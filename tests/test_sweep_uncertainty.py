@@ -1,0 +1,111 @@
+"""Speed sweeps with the periodic solver, resonance maps and uncertainty bands (issue 9)."""
+import json
+import math
+
+import numpy as np
+import pytest
+
+from cosim.scenario import SCENARIO_DIR, load
+from cosim.sweep import run_sweep
+from cosim.uncertainty import run_uncertainty
+from tmm_core import CrankMotion, TimeDomain
+
+
+def _light(tmp_path, name="crank_rocker_373rpm", extra=""):
+    """The rig with 4 segments per link (a test setting: the comparisons below are between two
+    solution methods of the same model, and 4 segments halve the cost)."""
+    path = tmp_path / f"{name}_light.toml"
+    path.write_text(f'extends = "{SCENARIO_DIR / name}.toml"\n\n[solver.tmm]\nsegments = 4\n{extra}',
+                    encoding="utf-8")
+    return path
+
+
+@pytest.fixture(scope="module")
+def sweep(tmp_path_factory):
+    tmp = tmp_path_factory.mktemp("sweep")
+    folder, summary = run_sweep(str(_light(tmp)), "100:500:5", ("tmm",), workers=2, out=tmp / "out", progress=False)
+    return folder, summary, load(_light(tmp))
+
+
+def test_eighty_one_point_sweep_finishes_with_figures_and_floquet(sweep):
+    folder, summary, sc = sweep
+    assert summary["status"] == "completed" and len(summary["points"]) == 81
+    assert summary["method"] == "periodic"
+    solved = [p for p in summary["points"] if p["engines"]["tmm"]["status"] == "completed"]
+    assert len(solved) >= 60
+    # Above ~460 rpm the rocker's quasi-static compression passes its Euler load: no solution,
+    # reported per point with the reason.
+    for p in summary["points"]:
+        if p["engines"]["tmm"]["status"] != "completed":
+            assert "buckling" in p["engines"]["tmm"]["error"] and p["rpm"] > 400
+    assert all(p["engines"]["tmm"]["floquet_max"] < 1.0 for p in solved)      # damped: stable
+    for f in ("sweep_peaks.png", "sweep_peaks.svg", "campbell.png", "campbell.svg", "sweep.csv", "sweep.rrd"):
+        assert (folder / f).exists(), f
+    assert summary["resonance_candidates"] and summary["natural_frequencies_Hz"]["modes"]
+
+
+def test_sweep_peaks_match_time_marching_at_five_speeds(sweep):
+    """The periodic solution at each speed against time marching to the steady state (same
+    integrator and step), within 1 % of the peak."""
+    folder, summary, sc = sweep
+    points = {p["rpm"]: p for p in summary["points"]}
+    s = sc.tmm
+    for rpm in (120.0, 200.0, 280.0, 360.0, 440.0):
+        w = rpm * math.pi / 30
+        td = TimeDomain(sc.mechanism, integrator=s.integrator, beam_column=s.beam_column, gauges=sc.gauges)
+        r = td.run(CrankMotion.constant_speed(w, step_deg=1.0, revolutions=80), start="quasi_static",
+                   steady_tol=1e-6, record_displacements=False)
+        assert r.steady, rpm
+        N = 360
+        for g, stats in points[rpm]["engines"]["tmm"]["gauges"].items():
+            b = r.gauges[g][0][-N:] * 1e6
+            assert stats["bending_max_ue"] == pytest.approx(b.max(), rel=0.01, abs=1e-3)
+            assert stats["bending_min_ue"] == pytest.approx(b.min(), rel=0.01, abs=1e-3)
+
+
+def test_uncertainty_with_zero_spread_reproduces_the_deterministic_run(tmp_path):
+    extra = '''
+[uncertainty]
+samples = 3
+[uncertainty.parameters.damping]
+keys = ["links.coupler.damping.ratio", "links.rocker.damping.ratio"]
+distribution = "uniform"
+low = "2 %"
+high = "2 %"
+unit = "%"
+[uncertainty.parameters.bearing_weight]
+keys = ["links.coupler.point_masses[0].weight", "links.coupler.point_masses[1].weight"]
+distribution = "choice"
+values = ["0.13128 lbf"]
+[uncertainty.parameters.modulus]
+keys = ["materials.aluminium.E"]
+distribution = "uniform"
+low = "10.3e6 psi"
+high = "10.3e6 psi"
+unit = "psi"
+'''
+    folder, summary = run_uncertainty(str(_light(tmp_path, "crank_rocker_241rpm", extra)), workers=2,
+                                      out=tmp_path / "u0", record=False, sensitivity=False)
+    assert summary["status"] == "completed"
+    import csv
+    rows = list(csv.DictReader(open(folder / "band.csv")))
+    for r in rows:
+        nominal = float(r["nominal_ue"])
+        assert float(r["low_ue"]) == pytest.approx(nominal, abs=1e-9)
+        assert float(r["high_ue"]) == pytest.approx(nominal, abs=1e-9)
+
+
+def test_uncertainty_band_contains_the_deterministic_history(tmp_path):
+    """The FE rig at 241 rpm with its declared uncertain parameters (damping 1-5 %, bearing weight
+    per end or total, modulus +/- 4 %): the envelope of 12 samples (the nominal run excluded)
+    contains the nominal history."""
+    folder, summary = run_uncertainty(str(_light(tmp_path, "crank_rocker_241rpm")), samples=12, workers=2,
+                                      out=tmp_path / "u1")
+    assert summary["status"] == "completed"
+    for g, b in summary["band"].items():
+        assert b["nominal_inside_envelope"] >= 0.99, (g, b)
+        assert b["peak_max_range_ue"][1] > b["peak_max_range_ue"][0]           # a real spread
+    assert set(summary["most_influential"]) == {"coupler_mid", "rocker_mid"}
+    assert summary["records"] and all("inside" in r for r in summary["records"])
+    for f in ("band.csv", "band.png", "band.svg", "uncertainty.rrd"):
+        assert (folder / f).exists()
