@@ -1,0 +1,281 @@
+"""Side-by-side benchmark (issue 10): TMM vs exudyn vs MuJoCo at matched accuracy, the cost of the
+co-simulation bench itself, and the TMM's scaling. A script, not a test (timings are not asserted).
+
+For each rig (Alexander-Lawrence four-bar at 400 rpm, FE crank-rocker at 373 rpm) and engine, under
+a prescribed crank:
+
+* the engine's *converged answer*: the steady-state peak-to-peak of every gauge's bending strain at
+  its finest setting;
+* the *cheapest setting* whose peak-to-peak is within 1 % of that answer (every setting of the grid
+  is run; the cheapest passing one by measured wall time);
+* at that setting: wall time per simulated second (median of >= 5 runs after a warm-up), the cost to
+  reach the steady state, and the peak memory (each measurement in a fresh process: ru_maxrss).
+
+Then the bench's own cost (master, traces and rerun streaming as a fraction of engine time, macro
+steps of 1, 4 and 16 engine steps) and the TMM's scaling with segments per link and revolutions
+(fitted log-log exponents). Results go to ``logs/benchmarks/bench-<timestamp>.json``.
+
+    python -m tests.benchmarks.bench [--rigs alexander_lawrence_400rpm,crank_rocker_373rpm]
+                                     [--engines tmm,exudyn,mujoco] [--repeats 5] [--tiny]
+"""
+from __future__ import annotations
+
+import argparse
+import copy
+import json
+import math
+import multiprocessing as mp
+import os
+import platform
+import resource
+import time
+from pathlib import Path
+
+import numpy as np
+
+GRIDS = {
+    "tmm": [{"segments": n, "step": f"{d} deg"} for n in (2, 4, 8, 16) for d in (4, 2, 1, 0.5)],
+    "exudyn": [{"elements": n, "step": f"{h} s"} for n in (4, 8, 16) for h in (2e-4, 1e-4, 5e-5)],
+    "mujoco": [{"step": f"{h} s"} for h in (8e-4, 4e-4, 2e-4, 1e-4, 5e-5)],
+}
+REFERENCE = {"tmm": {"segments": 32, "step": "0.25 deg"}, "exudyn": {"elements": 16, "step": "2.5e-5 s"},
+             "mujoco": {"step": "1e-5 s"}}
+TINY = {"tmm": [{"segments": 2, "step": "4 deg"}], "exudyn": [{"elements": 2, "step": "2e-4 s"}],
+        "mujoco": [{"step": "4e-4 s"}]}
+TINY_REFERENCE = {"tmm": {"segments": 4, "step": "2 deg"}, "exudyn": {"elements": 4, "step": "1e-4 s"},
+                  "mujoco": {"step": "2e-4 s"}}
+
+
+# -- matched accuracy ---------------------------------------------------------------------------
+def cheapest_setting(results: list, reference: dict, tol: float = 0.01):
+    """The cheapest result whose every metric lies within ``tol`` (relative) of the reference's.
+
+    ``results``: [{"setting", "metrics": {name: value}, "cost": seconds}, ...]; ``reference``: one
+    such entry (the converged answer). Returns (result or None, [relative errors per result])."""
+    errors = []
+    for r in results:
+        e = max(abs(r["metrics"][k] / reference["metrics"][k] - 1.0) for k in reference["metrics"])
+        errors.append(e)
+    passing = [(r["cost"], i) for i, (r, e) in enumerate(zip(results, errors)) if e <= tol]
+    if not passing:
+        return None, errors
+    return results[min(passing)[1]], errors
+
+
+# -- one measured run in a fresh process -----------------------------------------------------------
+def _scenario(rig: str, engine: str, setting: dict):
+    from cosim.scenario import from_dict, load
+    raw = copy.deepcopy(load(rig).raw)
+    raw.pop("motor", None)
+    solver = raw.setdefault("solver", {}).setdefault(engine, {})
+    solver.update({k: v for k, v in setting.items()})
+    return from_dict(raw, f"{rig} ({engine} {setting})")
+
+
+def _measure(rig, engine, setting, revolutions):
+    """(steady p-p per gauge [ue], wall time [s], simulated time [s], ru_maxrss [kB]) of one run."""
+    from cosim.engines import make_engine, run_prescribed
+    sc = _scenario(rig, engine, setting)
+    run = run_prescribed(make_engine(engine), sc, revolutions=revolutions)
+    last = run.last_revolution(sc.revolution_period_s)
+    ptp = {g: float(np.ptp(b[last]) * 1e6) for g, (b, _) in run.gauges.items()}
+    return ptp, run.wall_time_s, float(run.t[-1]), resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+
+
+FRESH = True       # measure in fresh processes (the --tiny run of the test suite stays in-process)
+
+
+def _fresh(fn, *args):
+    """Run ``fn`` in a fresh process (spawn): isolated peak memory, no state carried over."""
+    if not FRESH:
+        return fn(*args)
+    ctx = mp.get_context("spawn")
+    with ctx.Pool(1) as pool:
+        return pool.apply(fn, args)
+
+
+def _steady_cost(rig, engine, setting, max_revolutions, tol=0.01):
+    """Wall time until the revolution-to-revolution change of every gauge's p-p falls below tol."""
+    from cosim.engines import make_engine, run_prescribed
+    sc = _scenario(rig, engine, setting)
+    if engine == "tmm":
+        from cosim.sweep import _periodic
+        tic = time.perf_counter()
+        _periodic(sc)
+        periodic = time.perf_counter() - tic
+    else:
+        periodic = None
+    run = run_prescribed(make_engine(engine), sc, revolutions=max_revolutions)
+    T = sc.revolution_period_s
+    revs, prev = None, None
+    for k in range(1, int(max_revolutions) + 1):
+        sel = (run.t > (k - 1) * T) & (run.t <= k * T)
+        cur = np.array([np.ptp(b[sel]) for b, _ in run.gauges.values()])
+        if prev is not None and np.all(np.abs(cur - prev) <= tol * np.abs(cur)):
+            revs = k
+            break
+        prev = cur
+    wall_per_rev = run.wall_time_s / max_revolutions
+    return {"revolutions_to_steady": revs, "time_to_steady_s": None if revs is None else revs * wall_per_rev,
+            "periodic_solve_s": periodic}
+
+
+def engine_block(rig, engine, revolutions, repeats, tiny, tol=0.01):
+    grid = TINY[engine] if tiny else GRIDS[engine]
+    ref_setting = TINY_REFERENCE[engine] if tiny else REFERENCE[engine]
+    ptp, wall, sim, mem = _fresh(_measure, rig, engine, ref_setting, revolutions)
+    reference = {"setting": ref_setting, "metrics": ptp, "cost": wall}
+    results = []
+    for setting in grid:
+        try:
+            ptp, wall, sim, mem = _fresh(_measure, rig, engine, setting, revolutions)
+            results.append({"setting": setting, "metrics": ptp, "cost": wall, "sim_s": sim, "maxrss_kB": mem})
+        except Exception as exc:          # a setting that fails (unstable step) is simply not a candidate
+            results.append({"setting": setting, "metrics": {k: float("nan") for k in reference["metrics"]},
+                            "cost": float("inf"), "error": f"{type(exc).__name__}: {exc}"})
+    best, errors = cheapest_setting(results, reference, tol)
+    out = {"reference": reference, "grid": [dict(r, error_vs_reference=e) for r, e in zip(results, errors)],
+           "chosen": None}
+    if best is None:
+        return out
+    times, mems = [], []
+    if not tiny:
+        _fresh(_measure, rig, engine, best["setting"], min(revolutions, 0.5))      # warm-up
+    for _ in range(repeats):
+        ptp, wall, sim, mem = _fresh(_measure, rig, engine, best["setting"], revolutions)
+        times.append(wall / sim)
+        mems.append(mem)
+    out["chosen"] = {"setting": best["setting"], "wall_per_sim_s": float(np.median(times)),
+                     "runs": times, "peak_memory_MB": float(np.median(mems)) / 1024.0,
+                     **_fresh(_steady_cost, rig, engine, best["setting"], 3 if tiny else 20)}
+    return out
+
+
+# -- the bench's own cost -------------------------------------------------------------------------
+def _bench_overhead(rig, macro_multiples, revolutions):
+    from cosim.master import CoSimulation
+    from cosim.run import RunOptions, run_scenario
+    from cosim.scenario import load
+    import tempfile
+    sc = load(rig)
+    out = {}
+    for m in macro_multiples:
+        raw = copy.deepcopy(sc.raw)
+        raw.pop("motor", None)
+        raw.setdefault("coupling", {})["macro_step"] = f"{m} deg"      # TMM step 1 deg
+        from cosim.scenario import from_dict
+        s = from_dict(raw, f"{rig} macro {m}")
+        from cosim.engines import make_engine
+        eng = make_engine("tmm")
+        inner = [0.0]
+        advance = eng.advance
+
+        def timed(t_next, drive, _adv=advance):
+            tic = time.perf_counter()
+            res = _adv(t_next, drive)
+            inner[0] += time.perf_counter() - tic
+            return res
+        eng.advance = timed
+        tic = time.perf_counter()
+        CoSimulation(s, {"tmm": eng}, mode="prescribed").run(revolutions=revolutions)
+        total = time.perf_counter() - tic
+        row = {"macro_engine_steps": m, "engine_s": inner[0], "master_s": total - inner[0],
+               "master_fraction": (total - inner[0]) / inner[0]}
+        for viewer in ("none", "save"):
+            with tempfile.TemporaryDirectory() as tmp:
+                tic = time.perf_counter()
+                res = run_scenario(s, RunOptions(engines=("tmm",), revolutions=revolutions, out=Path(tmp) / "r",
+                                                 viewer=viewer, progress=False))
+                wall = time.perf_counter() - tic
+                eng_s = res.summary["engines"]["tmm"]["wall_time_s"]
+                row[f"run_{'stream' if viewer == 'save' else 'traces_only'}_s"] = wall
+                row[f"overhead_{'stream' if viewer == 'save' else 'traces_only'}_fraction"] = (wall - eng_s) / eng_s
+        out[str(m)] = row
+    return out
+
+
+# -- TMM scaling ------------------------------------------------------------------------------------
+def _tmm_scaling(rig, segments, revolutions_list, tiny):
+    from cosim.scenario import load
+    from tmm_core import CrankMotion, TimeDomain, quasi_static
+    sc = load(rig)
+    rows = []
+    for n in segments:
+        mech = _scenario(rig, "tmm", {"segments": n}).mechanism
+        q = np.radians(np.arange(360.0))
+        tic = time.perf_counter()
+        quasi_static(mech, q, sc.drive.speed_rad_s, beam_column=True)
+        qs = time.perf_counter() - tic
+        row = {"segments": n, "quasi_static_revolution_s": qs}
+        if n <= (16 if tiny else 64):
+            td = TimeDomain(mech, integrator="generalized_alpha", gauges=sc.gauges)
+            tic = time.perf_counter()
+            td.run(CrankMotion.constant_speed(sc.drive.speed_rad_s, step_deg=1.0, revolutions=1), start="quasi_static",
+                   record_displacements=False)
+            row["time_domain_revolution_s"] = time.perf_counter() - tic
+        rows.append(row)
+    revs = []
+    td = TimeDomain(sc.mechanism, integrator="generalized_alpha", gauges=sc.gauges)
+    for r in revolutions_list:
+        tic = time.perf_counter()
+        td.run(CrankMotion.constant_speed(sc.drive.speed_rad_s, step_deg=1.0, revolutions=r), start="quasi_static",
+               record_displacements=False)
+        revs.append({"revolutions": r, "wall_s": time.perf_counter() - tic})
+
+    def exponent(x, y):
+        x, y = np.log(np.asarray(x, float)), np.log(np.asarray(y, float))
+        return float(np.polyfit(x, y, 1)[0]) if len(x) >= 2 else float("nan")
+    qs_n = [r["segments"] for r in rows]
+    return {"by_segments": rows,
+            "quasi_static_exponent": exponent(qs_n, [r["quasi_static_revolution_s"] for r in rows]),
+            "time_domain_exponent": exponent([r["segments"] for r in rows if "time_domain_revolution_s" in r],
+                                             [r["time_domain_revolution_s"] for r in rows
+                                              if "time_domain_revolution_s" in r]),
+            "by_revolutions": revs,
+            "revolutions_exponent": exponent([r["revolutions"] for r in revs], [r["wall_s"] for r in revs])}
+
+
+def main(argv=None) -> dict:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--rigs", default="alexander_lawrence_400rpm,crank_rocker_373rpm")
+    ap.add_argument("--engines", default="tmm,exudyn,mujoco")
+    ap.add_argument("--repeats", type=int, default=5)
+    ap.add_argument("--revolutions", type=float, default=6.0, help="revolutions per measured run (the last is steady)")
+    ap.add_argument("--tiny", action="store_true", help="one cheap setting per engine (the test suite's run)")
+    ap.add_argument("--tol", type=float, help="matched accuracy: relative p-p tolerance (default 0.01; --tiny: 1.0, "
+                                               "only exercising the pipeline)")
+    ap.add_argument("--out", type=Path, help="output file (default logs/benchmarks/bench-<timestamp>.json)")
+    args = ap.parse_args(argv)
+    global FRESH
+    FRESH = not args.tiny
+    rigs = [r for r in args.rigs.split(",") if r]
+    engines = [e for e in args.engines.split(",") if e]
+    revolutions = 0.3 if args.tiny else args.revolutions
+    repeats = 1 if args.tiny else max(args.repeats, 5)
+    result = {"machine": {"python": platform.python_version(), "cpus": os.cpu_count(), "platform": platform.platform()},
+              "tiny": args.tiny, "revolutions": revolutions, "repeats": repeats, "rigs": {}}
+    for rig in rigs:
+        block = {}
+        for engine in engines:
+            block[engine] = engine_block(rig, engine, revolutions, repeats, args.tiny,
+                                         args.tol if args.tol is not None else (1.0 if args.tiny else 0.01))
+        chosen = {e: b["chosen"] for e, b in block.items() if b.get("chosen")}
+        if "tmm" in chosen:
+            block["ratios_vs_tmm"] = {e: c["wall_per_sim_s"] / chosen["tmm"]["wall_per_sim_s"]
+                                      for e, c in chosen.items() if e != "tmm"}
+        result["rigs"][rig] = block
+    result["bench_overhead"] = _fresh(_bench_overhead, rigs[-1], (1,) if args.tiny else (1, 4, 16),
+                                      0.2 if args.tiny else 3.0)
+    result["tmm_scaling"] = _fresh(_tmm_scaling, rigs[-1], (4, 8) if args.tiny else (4, 8, 16, 32, 64, 128, 256, 512),
+                                   (1, 2) if args.tiny else (1, 2, 4, 8, 16), args.tiny)
+    from cosim.runlog import LOG_ROOT
+    target = args.out or (LOG_ROOT / "benchmarks" / f"bench-{time.strftime('%Y%m%d-%H%M%S')}.json")
+    target.parent.mkdir(parents=True, exist_ok=True)
+    target.write_text(json.dumps(result, indent=2, default=lambda o: None if isinstance(o, float) and
+                                 not math.isfinite(o) else str(o)))
+    print(f"written to {target}")
+    return result
+
+
+if __name__ == "__main__":
+    main()

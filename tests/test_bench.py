@@ -1,0 +1,31 @@
+"""The side-by-side benchmark (issue 10): it runs (tiny settings, timings not checked), and its
+matched-accuracy search picks the known cheapest setting of a fake engine."""
+import json
+
+import pytest
+
+from tests.benchmarks.bench import cheapest_setting, main
+
+
+def test_matched_accuracy_search_picks_the_known_cheapest_setting():
+    """A fake engine with error 2 h (first order) and cost 1/h: within 1.2 % of the converged
+    answer the cheapest admissible step is the largest h with 2 h <= 0.012, i.e. 0.005."""
+    steps = [0.04, 0.02, 0.01, 0.005, 0.0025, 0.00125]
+    results = [{"setting": {"h": h}, "metrics": {"g": 1.0 + 2 * h, "f": 5.0 * (1 - h)}, "cost": 1.0 / h} for h in steps]
+    reference = {"setting": {"h": 0.0}, "metrics": {"g": 1.0, "f": 5.0}, "cost": 0.0}
+    best, errors = cheapest_setting(results, reference, tol=0.012)
+    assert best["setting"] == {"h": 0.005}
+    assert errors == pytest.approx([2 * h for h in steps])
+    none, _ = cheapest_setting(results[:2], reference, tol=0.012)
+    assert none is None
+
+
+def test_benchmark_runs_on_a_tiny_setting(tmp_path):
+    out = tmp_path / "bench.json"
+    main(["--tiny", "--rigs", "alexander_lawrence_400rpm", "--out", str(out)])
+    data = json.loads(out.read_text())
+    block = data["rigs"]["alexander_lawrence_400rpm"]
+    for engine in ("tmm", "exudyn", "mujoco"):
+        assert block[engine]["reference"]["metrics"]
+    assert "ratios_vs_tmm" in block
+    assert data["bench_overhead"] and data["tmm_scaling"]["by_segments"]
