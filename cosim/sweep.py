@@ -15,14 +15,14 @@ from __future__ import annotations
 
 import copy
 import math
-import os
 import re
 import time
-from concurrent.futures import ProcessPoolExecutor, as_completed
+from concurrent.futures import as_completed
 from pathlib import Path
 
 import numpy as np
 
+from .parallel import describe, executor
 from .runlog import run_folder, write_csv, write_json
 from .scenario import ScenarioError, from_dict, load
 
@@ -149,16 +149,9 @@ def run_sweep(scenario: str, rpm, engines=("tmm",), revolutions: float | None = 
             raise ScenarioError(f"unknown engine {e!r}; choose from {', '.join(ENGINES)}")
     folder = run_folder(f"{sc.name}-sweep", out)
     summary = {"scenario": sc.name, "status": "incomplete", "rpm": rpms.tolist(), "engines": list(engines),
-               "revolutions": revs, "method": method, "executor": f"dask {scheduler}" if scheduler else "local processes",
+               "revolutions": revs, "method": method, "executor": describe(scheduler),
                "points": []}
     write_json(folder / "summary.json", summary)
-    client = None
-    if scheduler:
-        from distributed import Client
-        client = Client(scheduler)
-        executor = client.get_executor()
-    else:
-        executor = ProcessPoolExecutor(max_workers=workers or os.cpu_count() or 1)
     bar = None
     if progress:
         from tqdm import tqdm
@@ -166,37 +159,33 @@ def run_sweep(scenario: str, rpm, engines=("tmm",), revolutions: float | None = 
     rows, points = [], []
     tic = time.perf_counter()
     try:
-        futures = {executor.submit(sweep_point, sc.raw, str(sc.path or sc.name), float(r), tuple(engines), revs,
-                                   method): float(r) for r in rpms}
-        for fut in as_completed(futures):
-            try:
-                point = fut.result()
-            except Exception as exc:       # a worker that died or raised: keep the others
-                point = {"rpm": futures[fut], "error": f"{type(exc).__name__}: {exc}", "engines": {},
-                         "did_not_run": True}
-            points.append(point)
-            rows += _rows(point)
-            summary["points"] = sorted(points, key=lambda p: p["rpm"])
-            write_json(folder / "summary.json", summary)
-            if rows:
-                write_csv(folder / "sweep.csv", sorted(rows, key=lambda r: (r["rpm"], r["engine"], r["gauge"])))
-            if bar is not None:
-                bar.update(1)
+        with executor(workers, scheduler) as ex:
+            futures = {ex.submit(sweep_point, sc.raw, str(sc.path or sc.name), float(r), tuple(engines), revs,
+                                 method): float(r) for r in rpms}
+            for fut in as_completed(futures):
+                try:
+                    point = fut.result()
+                except Exception as exc:       # a worker that died or raised: keep the others
+                    point = {"rpm": futures[fut], "error": f"{type(exc).__name__}: {exc}", "engines": {},
+                             "did_not_run": True}
+                points.append(point)
+                rows += _rows(point)
+                summary["points"] = sorted(points, key=lambda p: p["rpm"])
+                write_json(folder / "summary.json", summary)
+                if rows:
+                    write_csv(folder / "sweep.csv", sorted(rows, key=lambda r: (r["rpm"], r["engine"], r["gauge"])))
+                if bar is not None:
+                    bar.update(1)
         # A point whose engine found no solution (e.g. a link past its buckling load) is a result;
         # only a point that did not run at all fails the sweep.
         summary["points_without_solution"] = sorted(
-            p["rpm"] for p in points if p["rpm"] is not None and any(e.get("status") != "completed"
-                                                                     for e in p["engines"].values()))
+            p["rpm"] for p in points if any(e.get("status") != "completed" for e in p["engines"].values()))
         summary["status"] = "failed" if any(p.get("did_not_run") for p in points) else "completed"
     except KeyboardInterrupt:
         summary["status"] = "interrupted"
     finally:
         if bar is not None:
             bar.close()
-        if client is not None:
-            client.close()
-        else:
-            executor.shutdown(cancel_futures=True)
     summary["wall_time_s"] = time.perf_counter() - tic
     fmap = None
     if resonance and type(sc.mechanism).__name__ == "FourBarMechanism" and points:

@@ -26,14 +26,13 @@ from __future__ import annotations
 
 import copy
 import math
-import os
 import re
 import time
-from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import numpy as np
 
+from .parallel import executor
 from .runlog import run_folder, write_csv, write_json
 from .scenario import ScenarioError, from_dict, load
 
@@ -243,13 +242,8 @@ def _record_check(sc, bands) -> list:
 
 
 def _map(fn, argsets, workers, scheduler):
-    if scheduler:
-        from distributed import Client
-        with Client(scheduler) as client:
-            ex = client.get_executor()
-            return [f.result() for f in [ex.submit(fn, *a) for a in argsets]]
-    with ProcessPoolExecutor(max_workers=workers or os.cpu_count() or 1) as ex:
-        return list(ex.map(fn, *zip(*argsets)))
+    with executor(workers, scheduler) as ex:
+        return [f.result() for f in [ex.submit(fn, *a) for a in argsets]]
 
 
 def _plot(folder, name, rows, records):
