@@ -18,6 +18,10 @@ def test_matched_accuracy_search_picks_the_known_cheapest_setting():
     assert errors == pytest.approx([2 * h for h in steps])
     none, _ = cheapest_setting(results[:2], reference, tol=0.012)
     assert none is None
+    # The cheapest accurate setting marked unsteady (infinite cost) gives way to the next one.
+    results[3]["cost"] = float("inf")
+    best, _ = cheapest_setting(results, reference, tol=0.012)
+    assert best["setting"] == {"h": 0.0025}
 
 
 def test_benchmark_runs_on_a_tiny_setting(tmp_path):

@@ -80,7 +80,7 @@ def periodic_steady_state(td: TimeDomain, speed_rad_s: float, *, step_s: float |
     if N is None:
         raise InputError("the step must divide a revolution into a whole number of steps")
     dt = crank.dt
-    cfg = td._configurations(crank.angle[:N], crank.speed[:N], crank.acceleration[:N], dt)
+    cfg = td._configurations(crank.angle[:N], crank.speed[:N], crank.acceleration[:N], dt, maps=True)
     if cfg["maps"] is None:
         raise InputError("periodic solver: the load-to-response maps exceed the memory budget (max_map_bytes)")
     n = td.n_dof
