@@ -237,11 +237,15 @@ def quasi_static(mech: FourBarMechanism, crank_angle, crank_speed, crank_acceler
     return QuasiStaticResult(motion, sol, torque, out)
 
 
-# The dense load-to-response maps cost O(n_dof^2) per step to build and apply, the Riccati sweep
-# O(n_dof) with more Python per step. Measured (FE crank-rocker, one revolution at 1 deg, maps vs
-# sweeps): 0.91 / 1.53 s at 81 dof (8 segments per link), 3.43 / 2.42 s at 153 dof, 13.2 / 5.1 s at
-# 297 dof; the maps also held 8 n_dof^2 bytes per step (1.4 GB at 16 segments and 0.5 deg).
-MAP_MAX_DOF = 120
+# The dense load-to-response maps cost O(n_dof^2) per configuration to build (once per revolution
+# of a periodic run) and a mat-vec per step to apply; without them every step runs the Riccati load
+# sweep, O(n_dof) but ~5 ms of Python per step. Measured (FE crank-rocker, one revolution at 1 deg,
+# maps built in chunks vs sweeps): 0.92 / 1.53 s at 81 dof (8 segments per link), 1.42 / 2.42 s at
+# 153 dof, 4.9 / 5.1 s at 297 dof (peak 509 MB; 13.2 s and 1.1 GB when built in one batch); each
+# further revolution costs the maps almost nothing. So the maps are used up to 32 segments per
+# link (and within max_map_bytes); beyond, the sweeps keep the cost linear in the segment count.
+MAP_MAX_DOF = 320
+MAP_CHUNK_BYTES = 64e6       # working memory of one chunk of the map solve
 
 
 class TimeDomain:
@@ -377,14 +381,25 @@ class TimeDomain:
             unit[link.name] = U
         # Unit loads plus one zero-load column (the response to gravity and other base loads).
         unit = {k: np.concatenate([v, np.zeros((1,) + v.shape[1:])])[None] for k, v in unit.items()}
-        sol = solve_factored(factor, unit, frame="local")
-        z = np.concatenate([sol.members[l.name].state[..., 0, :3].reshape(B, self.n_dof + 1, -1) for l in self.links],
-                           axis=-1)                                    # (B, loads+1, n_dof)
-        torque = sol.reactions[mech.drive_joint][..., 2]               # (B, loads+1)
-        g_out = [np.stack(gauge_strains(sol.members[g.link], g), -1) for g in self.gauges]
-        outs = np.concatenate([torque[..., None]] + g_out, axis=-1) if g_out else torque[..., None]
-        maps = {"Z": np.ascontiguousarray(np.swapaxes(z[:, :-1] - z[:, -1:], 1, 2)), "z0": z[:, -1],
-                "O": np.ascontiguousarray(np.swapaxes(outs[:, :-1] - outs[:, -1:], 1, 2)), "o0": outs[:, -1]}
+        # Solved in chunks of configurations: the station states of every unit load take about
+        # 32 n_dof^2 bytes per configuration (0.5 GB for a revolution at 16 segments per link).
+        chunk = max(1, int(MAP_CHUNK_BYTES // (32.0 * self.n_dof ** 2)))
+        n_out = 1 + 2 * len(self.gauges)
+        maps = {"Z": np.empty((B, self.n_dof, self.n_dof)), "z0": np.empty((B, self.n_dof)),
+                "O": np.empty((B, n_out, self.n_dof)), "o0": np.empty((B, n_out))}
+        for c0 in range(0, B, chunk):
+            sl = slice(c0, min(B, c0 + chunk))
+            sol = solve_factored(factor if (sl.start, sl.stop) == (0, B) else _select(factor, sl), unit, frame="local")
+            z = np.concatenate([sol.members[l.name].state[..., 0, :3].reshape(sl.stop - sl.start, self.n_dof + 1, -1)
+                                for l in self.links], axis=-1)                 # (b, loads+1, n_dof)
+            torque = sol.reactions[mech.drive_joint][..., 2]                   # (b, loads+1)
+            g_out = [np.stack(gauge_strains(sol.members[g.link], g), -1) for g in self.gauges]
+            outs = np.concatenate([torque[..., None]] + g_out, axis=-1) if g_out else torque[..., None]
+            del sol
+            maps["Z"][sl] = np.swapaxes(z[:, :-1] - z[:, -1:], 1, 2)
+            maps["z0"][sl] = z[:, -1]
+            maps["O"][sl] = np.swapaxes(outs[:, :-1] - outs[:, -1:], 1, 2)
+            maps["o0"][sl] = outs[:, -1]
         return {"factor": factor, "rigid": self._stack(loads_local), "motion": motion, "maps": maps}
 
     def stack(self, per_link):
@@ -701,12 +716,14 @@ class March:
 
 
 def _select(factor, k):
-    """One configuration of a factor with batch (B, 1), for the sweep fallback."""
+    """Configuration ``k`` (an index or a slice) of a factor with batch (B, 1): views, no copies."""
     import dataclasses
+    sl = k if isinstance(k, slice) else slice(k, k + 1)
+    n = len(range(*sl.indices(factor.batch[0])))
 
     def take(x):
         if isinstance(x, np.ndarray) and x.ndim >= 2 and x.shape[0] == factor.batch[0] and x.shape[1] == 1:
-            return x[k:k + 1]
+            return x[sl]
         if isinstance(x, tuple):
             return tuple(take(v) for v in x)
         if isinstance(x, list):
@@ -719,7 +736,7 @@ def _select(factor, k):
         return x
 
     out = take(factor)
-    return dataclasses.replace(out, batch=(1, 1))
+    return dataclasses.replace(out, batch=(n, 1))
 
 
 def time_domain(mech: FourBarMechanism, crank: CrankMotion, **kw) -> KEDResult:

@@ -233,12 +233,18 @@ def _tmm_scaling(rig, segments, revolutions_list, tiny):
             continue
         qs = time.perf_counter() - tic
         row = {"segments": n, "quasi_static_revolution_s": qs}
-        if n <= (16 if tiny else 64):
+        # The default path (dense load maps up to MAP_MAX_DOF, then sweeps) and the sweeps alone.
+        for key, limit, budget in (("time_domain_revolution_s", 16 if tiny else 64, None),
+                                   ("time_domain_sweeps_revolution_s", 8 if tiny else 128, 0.0)):
+            if n > limit:
+                continue
             td = TimeDomain(mech, integrator="generalized_alpha", gauges=sc.gauges)
+            if budget is not None:
+                td.max_map_bytes = budget
             tic = time.perf_counter()
             td.run(CrankMotion.constant_speed(sc.drive.speed_rad_s, step_deg=1.0, revolutions=1), start="quasi_static",
                    record_displacements=False)
-            row["time_domain_revolution_s"] = time.perf_counter() - tic
+            row[key] = time.perf_counter() - tic
         rows.append(row)
     revs = []
     for r in revolutions_list:
@@ -257,6 +263,9 @@ def _tmm_scaling(rig, segments, revolutions_list, tiny):
             "time_domain_exponent": exponent([r["segments"] for r in rows if "time_domain_revolution_s" in r],
                                              [r["time_domain_revolution_s"] for r in rows
                                               if "time_domain_revolution_s" in r]),
+            "time_domain_sweeps_exponent": exponent(
+                [r["segments"] for r in rows if "time_domain_sweeps_revolution_s" in r],
+                [r["time_domain_sweeps_revolution_s"] for r in rows if "time_domain_sweeps_revolution_s" in r]),
             "by_revolutions": revs, **_affine(revs)}
 
 
