@@ -205,6 +205,7 @@ class Recorder:
         self.save_path = Path(save_path) if save_path is not None else None
         self._buffers: dict[str, _ScalarBuffer] = {}
         self._linkage: dict[str, list] = {}          # entity -> [(t, angle, strips, labels | None)]
+        self._pending_linkage: dict[str, list] = {}  # engine -> [(t, angle, {link: nodes (n, 2)})]
         self._declared: set = set()
         self._started: set = set()                   # engines whose statics are logged
         self._references: list[_Reference] = []
@@ -389,37 +390,53 @@ class Recorder:
 
     # -- linkage ------------------------------------------------------------------------------------
     def _buffer_linkage(self, engine, out):
-        """Rigid and deformed strips at the last sample of the step (skipped, with one warning,
-        where the kinematics cannot assemble or the nodes do not match the stations)."""
+        """Keep the last sample of the step (time, crank angle, node positions) for drawing; the
+        strips are built at send time, with the kinematics of all buffered steps in one call."""
+        nodes = {name: np.asarray(v, dtype=float)[-1] for name, v in out.nodes.items()}
+        self._pending_linkage.setdefault(engine, []).append((float(out.t[-1]), float(out.crank_angle[-1]), nodes))
+
+    def _draw_linkage(self, engine, rows):
+        """Rigid and deformed strips of the buffered steps (skipped, with one warning, where the
+        kinematics cannot assemble or the nodes do not match the stations)."""
         e = _part(engine)
-        t, angle = float(out.t[-1]), float(out.crank_angle[-1])
+        mech = self.scenario.mechanism
+        angles = np.array([r[1] for r in rows])
         try:
-            motion = self.scenario.mechanism.motion(np.array([angle]))
-        except Exception as exc:        # toggle/assembly errors must not stop the run
-            self._warn(f"kin:{engine}", f"recording: no linkage drawing for {engine} at {angle:.4g} rad: {exc}")
-            return
-        rigid, deformed, labels = [], [], []
-        ground = [getattr(motion, p, None) for p in ("A", "D")]
-        if all(g is not None for g in ground):
-            rigid.append(np.array([np.asarray(g)[0] for g in ground]))
-        for link in self.scenario.mechanism.links():
-            nodes = out.nodes.get(link.name)
-            stations = self._stations(engine, link, None if nodes is None else np.shape(nodes)[1])
-            base = np.asarray(motion.link(link.name).point(stations)[0])[0]       # (n, 2)
-            rigid.append(base)
-            if nodes is None:
-                continue
-            now = np.asarray(nodes, dtype=float)[-1]
-            if now.shape != base.shape:
-                self._warn(f"nodes:{engine}:{link.name}",
-                           f"recording: {engine} reports {now.shape[0]} nodes on {link.name} but has "
-                           f"{base.shape[0]} stations; its deformed shape is not drawn")
-                continue
-            deformed.append(base + self.exaggeration * (now - base))
-            labels.append(f"{engine} {link.name} (elastic ×{self.exaggeration:g})")
-        self._linkage.setdefault(f"/{e}/linkage/rigid", []).append((t, angle, rigid, None))
-        if deformed:
-            self._linkage.setdefault(f"/{e}/linkage/deformed", []).append((t, angle, deformed, labels))
+            motions = [(mech.motion(angles), np.arange(len(rows)))]
+        except Exception:               # one angle that cannot assemble must not drop the others
+            motions = []
+            for i, angle in enumerate(angles):
+                try:
+                    motions.append((mech.motion(angles[i:i + 1]), np.array([i])))
+                except Exception as exc:    # toggle/assembly errors must not stop the run
+                    self._warn(f"kin:{engine}", f"recording: no linkage drawing for {engine} at {angle:.4g} rad: {exc}")
+        for motion, index in motions:
+            ground = [getattr(motion, p, None) for p in ("A", "D")]
+            base = {}
+            for link in mech.links():
+                n_nodes = next((np.shape(rows[i][2][link.name])[0] for i in index if link.name in rows[i][2]), None)
+                stations = self._stations(engine, link, n_nodes)
+                base[link.name] = np.asarray(motion.link(link.name).point(stations)[0])       # (b, n, 2)
+            for j, i in enumerate(index):
+                t, angle, nodes = rows[i]
+                rigid = [np.array([np.asarray(g)[j] for g in ground])] if all(g is not None for g in ground) else []
+                deformed, labels = [], []
+                for link in mech.links():
+                    b = base[link.name][j]
+                    rigid.append(b)
+                    now = nodes.get(link.name)
+                    if now is None:
+                        continue
+                    if now.shape != b.shape:
+                        self._warn(f"nodes:{engine}:{link.name}",
+                                   f"recording: {engine} reports {now.shape[0]} nodes on {link.name} but has "
+                                   f"{b.shape[0]} stations; its deformed shape is not drawn")
+                        continue
+                    deformed.append(b + self.exaggeration * (now - b))
+                    labels.append(f"{engine} {link.name} (elastic ×{self.exaggeration:g})")
+                self._linkage.setdefault(f"/{e}/linkage/rigid", []).append((t, angle, rigid, None))
+                if deformed:
+                    self._linkage.setdefault(f"/{e}/linkage/deformed", []).append((t, angle, deformed, labels))
 
     def _stations(self, engine, link, n_nodes):
         """The engine's stations of ``link``; else the scenario's if they match the node count;
@@ -437,6 +454,10 @@ class Recorder:
         self._buffers.setdefault(entity, _ScalarBuffer()).add(t, angle, values)
 
     def _send_buffers(self):
+        for engine, rows in self._pending_linkage.items():
+            if rows:
+                self._draw_linkage(engine, rows)
+                rows.clear()
         for entity, buf in self._buffers.items():
             if len(buf):
                 t, mdeg, values = buf.take()
