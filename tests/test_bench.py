@@ -24,6 +24,21 @@ def test_matched_accuracy_search_picks_the_known_cheapest_setting():
     assert best["setting"] == {"h": 0.0025}
 
 
+def test_a_coarse_setting_that_lands_close_by_chance_is_not_chosen():
+    """Two parameters (segments n, step h), error 1/n^2 + 2 h, except that the coarsest step happens
+    to land on the answer at n = 4. Within 1 %: n = 16 (error 0.4 %) needs h <= 0.003, so the
+    cheapest converged setting is (16, 0.0025); (4, 0.04) is exact but its finer neighbours are not."""
+    results = []
+    for n in (4, 8, 16):
+        for h in (0.04, 0.01, 0.0025):
+            err = 0.0 if (n, h) == (4, 0.04) else 1.0 / n ** 2 + 2 * h
+            results.append({"setting": {"segments": n, "step": f"{h} s"}, "metrics": {"g": 1.0 + err},
+                            "cost": n / h})
+    reference = {"setting": {"segments": 64, "step": "0.0001 s"}, "metrics": {"g": 1.0}, "cost": 0.0}
+    best, _ = cheapest_setting(results, reference, tol=0.01)
+    assert best["setting"] == {"segments": 16, "step": "0.0025 s"}
+
+
 def test_benchmark_runs_on_a_tiny_setting(tmp_path):
     out = tmp_path / "bench.json"
     main(["--tiny", "--rigs", "alexander_lawrence_400rpm", "--out", str(out)])

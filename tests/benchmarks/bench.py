@@ -37,11 +37,11 @@ import numpy as np
 # 7200 microstrain over revolutions 4-12), so a steady-state peak-to-peak is not defined there.
 RIGS = ("alexander_lawrence_400rpm", "crank_rocker_241rpm")
 GRIDS = {
-    "tmm": [{"segments": n, "step": f"{d} deg"} for n in (2, 4, 8, 16) for d in (4, 2, 1, 0.5)],
+    "tmm": [{"segments": n, "step": f"{d} deg"} for n in (2, 4, 8, 16) for d in (4, 2, 1, 0.5, 0.25)],
     "exudyn": [{"elements": n, "step": f"{h} s"} for n in (4, 8, 16) for h in (2e-4, 1e-4, 5e-5)],
     "mujoco": [{"step": f"{h} s"} for h in (8e-4, 4e-4, 2e-4, 1e-4, 5e-5)],
 }
-REFERENCE = {"tmm": {"segments": 32, "step": "0.25 deg"}, "exudyn": {"elements": 16, "step": "2.5e-5 s"},
+REFERENCE = {"tmm": {"segments": 32, "step": "0.125 deg"}, "exudyn": {"elements": 16, "step": "2.5e-5 s"},
              "mujoco": {"step": "1e-5 s"}}
 TINY = {"tmm": [{"segments": 2, "step": "4 deg"}], "exudyn": [{"elements": 2, "step": "2e-4 s"}],
         "mujoco": [{"step": "4e-4 s"}]}
@@ -50,17 +50,33 @@ TINY_REFERENCE = {"tmm": {"segments": 4, "step": "2 deg"}, "exudyn": {"elements"
 
 
 # -- matched accuracy ---------------------------------------------------------------------------
+def _fineness(value):
+    """Sort key of one setting value: a count (segments, elements) is finer when larger, a step
+    ("1 deg", "2e-4 s", or a number) finer when smaller."""
+    if isinstance(value, (int, np.integer)):
+        return float(value)
+    return -float(str(value).split()[0])
+
+
+def at_least_as_fine(a: dict, b: dict) -> bool:
+    """Is setting ``a`` at least as fine as ``b`` in every parameter?"""
+    return a.keys() == b.keys() and all(_fineness(a[k]) >= _fineness(b[k]) for k in b)
+
+
 def cheapest_setting(results: list, reference: dict, tol: float = 0.01):
-    """The cheapest result whose every metric lies within ``tol`` (relative) of the reference's.
+    """The cheapest result within ``tol`` (relative, every metric) of the reference whose finer
+    settings in the grid are all within ``tol`` as well: a coarse setting that lands close by
+    chance (a near-resonant response is not monotone in the step) does not count as converged.
 
     ``results``: [{"setting", "metrics": {name: value}, "cost": seconds}, ...]; ``reference``: one
-    such entry (the converged answer); a result with a non-finite cost is never chosen. Returns (result or None, [relative errors per result])."""
-    errors = []
-    for r in results:
-        e = max(abs(r["metrics"][k] / reference["metrics"][k] - 1.0) for k in reference["metrics"])
-        errors.append(e)
-    # A non-finite cost marks a setting that failed or never reached a steady state.
-    passing = [(r["cost"], i) for i, (r, e) in enumerate(zip(results, errors)) if e <= tol and np.isfinite(r["cost"])]
+    such entry (the converged answer); a result with a non-finite cost (failed, or never steady)
+    is never chosen, and as a finer setting it disqualifies the coarser ones. Returns (result or
+    None, [relative errors per result])."""
+    errors = [max(abs(r["metrics"][k] / reference["metrics"][k] - 1.0) for k in reference["metrics"])
+              for r in results]
+    ok = [bool(e <= tol) and bool(np.isfinite(r["cost"])) for r, e in zip(results, errors)]
+    passing = [(r["cost"], i) for i, r in enumerate(results)
+               if ok[i] and all(ok[j] for j, f in enumerate(results) if at_least_as_fine(f["setting"], r["setting"]))]
     if not passing:
         return None, errors
     return results[min(passing)[1]], errors
