@@ -114,5 +114,5 @@ def test_unconstrained_structure_is_singular():
 def test_structure_topology_errors():
     with pytest.raises(InputError, match="unknown joint 'Q'"):
         Structure((Joint("A"), Joint("B")), (Member.uniform("bar", "A", "Q", 1.0, 2, SEC, STEEL),))
-    with pytest.raises(InputError, match="joint 'C': nothing \(member, spring, plate\) is attached"):
+    with pytest.raises(InputError, match=r"joint 'C': nothing \(member, spring, plate\) is attached"):
         Structure((Joint("A"), Joint("B"), Joint("C")), (Member.uniform("bar", "A", "B", 1.0, 2, SEC, STEEL),))
