@@ -382,7 +382,7 @@ class TimeDomain:
         # Unit loads plus one zero-load column (the response to gravity and other base loads).
         unit = {k: np.concatenate([v, np.zeros((1,) + v.shape[1:])])[None] for k, v in unit.items()}
         # Solved in chunks of configurations: the station states of every unit load take about
-        # 32 n_dof^2 bytes per configuration (0.5 GB for a revolution at 16 segments per link).
+        # 32 n_dof^2 bytes per configuration (0.5 GB for a revolution at 0.5 deg, 16 segments per link).
         chunk = max(1, int(MAP_CHUNK_BYTES // (32.0 * self.n_dof ** 2)))
         n_out = 1 + 2 * len(self.gauges)
         maps = {"Z": np.empty((B, self.n_dof, self.n_dof)), "z0": np.empty((B, self.n_dof)),

@@ -318,6 +318,7 @@ class ExudynEngine:
         nodes = {name: np.stack([rows(s)[:, :2] for s in ss], axis=1) for name, ss in self._node_sensors.items()}
         return EngineOutput(np.asarray(t, float), angle, speed, torque, gauges, nodes)
 
+
 def natural_frequencies(scenario: Scenario, angle: float, n_modes: int = 4) -> np.ndarray:
     """First ``n_modes`` natural frequencies [Hz] of the linkage with the crank held at ``angle``
     (undamped, at rest), from exudyn's constrained eigenvalue analysis of the same model."""
