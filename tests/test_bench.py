@@ -48,3 +48,11 @@ def test_benchmark_runs_on_a_tiny_setting(tmp_path):
         assert block[engine]["reference"]["metrics"]
     assert "ratios_vs_tmm" in block
     assert data["bench_overhead"] and data["tmm_scaling"]["by_segments"]
+
+
+@pytest.mark.parametrize("argv, field", [(["--rigs", "nope"], "--rigs"), (["--engines", "ansys"], "--engines"),
+                                         (["--tol", "0"], "--tol")])
+def test_bad_arguments_are_refused_naming_the_field(argv, field, capsys):
+    with pytest.raises(SystemExit):
+        main(argv)
+    assert field in capsys.readouterr().err

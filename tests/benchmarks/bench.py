@@ -314,6 +314,18 @@ def main(argv=None) -> dict:
     FRESH = not args.tiny
     rigs = [r for r in args.rigs.split(",") if r]
     engines = [e for e in args.engines.split(",") if e]
+    from cosim.scenario import scenario_names
+    known = set(scenario_names())
+    for rig in rigs:
+        if rig not in known:
+            ap.error(f"--rigs: unknown scenario {rig!r} (known: {', '.join(sorted(known))})")
+    for engine in engines:
+        if engine not in GRIDS:
+            ap.error(f"--engines: unknown engine {engine!r} (known: {', '.join(GRIDS)})")
+    if not rigs or not engines:
+        ap.error(f"--rigs and --engines need at least one name each, got {args.rigs!r} and {args.engines!r}")
+    if args.tol is not None and not (np.isfinite(args.tol) and args.tol > 0):
+        ap.error(f"--tol must be a positive number, got {args.tol!r}")
     revolutions = 0.3 if args.tiny else args.revolutions
     repeats = 1 if args.tiny else max(args.repeats, 5)
     result = {"machine": {"python": platform.python_version(), "cpus": os.cpu_count(), "platform": platform.platform()},
