@@ -34,7 +34,9 @@ def engine_rows(data: dict) -> list[str]:
             ratio = f"{c['wall_per_sim_s'] / tmm['wall_per_sim_s']:.3g}" if tmm else "n/a"
             steady, periodic = c.get("time_to_steady_s"), c.get("periodic_solve_s")
             cost = "" if steady is None else f"{steady:.3g}"
-            if periodic is not None:
+            if isinstance(periodic, str):
+                cost += " (periodic solve failed)"
+            elif periodic is not None:
                 cost += f" (periodic solve {periodic:.3g})"
             rows.append(f"| {rig} | {engine} | {_setting(c['setting'])} | {c['wall_per_sim_s']:.3g} | {ratio} | "
                         f"{c.get('revolutions_to_steady')} | {cost} | {c['peak_memory_MB']:.0f} | {ptp} |")
