@@ -43,6 +43,12 @@ def _engines(text: str) -> tuple:
     return names
 
 
+def _executor_arguments(parser, jobs: str) -> None:
+    """The options of :func:`cosim.parallel.executor`: local processes or a Dask cluster."""
+    parser.add_argument("--workers", type=int, help="local worker processes (default: the number of cores)")
+    parser.add_argument("--scheduler", help=f"Dask scheduler address (e.g. tcp://10.0.0.5:8786): run the {jobs} there")
+
+
 def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog="cosim",
@@ -94,8 +100,7 @@ def _parser() -> argparse.ArgumentParser:
     s.add_argument("--method", choices=("periodic", "march"), default="periodic",
                    help="TMM: periodic steady state in one solve with Floquet multipliers (default), or time marching; "
                         "exudyn and MuJoCo always march")
-    s.add_argument("--workers", type=int, help="local worker processes (default: the number of cores)")
-    s.add_argument("--scheduler", help="Dask scheduler address (e.g. tcp://10.0.0.5:8786): run the points there")
+    _executor_arguments(s, "points")
     s.add_argument("--out", type=Path, help="output folder (default: logs/<scenario>-sweep-<timestamp>)")
     s.add_argument("--quiet", action="store_true", help="no progress bar")
 
@@ -106,8 +111,7 @@ def _parser() -> argparse.ArgumentParser:
     u.add_argument("scenario", help="scenario name or path (with an [uncertainty] table)")
     u.add_argument("--samples", type=int, help="Monte Carlo samples (default: the scenario's)")
     u.add_argument("--seed", type=int, help="random seed (default: the scenario's)")
-    u.add_argument("--workers", type=int, help="local worker processes (default: the number of cores)")
-    u.add_argument("--scheduler", help="Dask scheduler address")
+    _executor_arguments(u, "samples")
     u.add_argument("--out", type=Path, help="output folder (default: logs/<scenario>-uncertainty-<timestamp>)")
 
     c = sub.add_parser("compare", help="print the comparison table of a finished run",

@@ -101,14 +101,21 @@ def _measure(rig, engine, setting, revolutions):
     from cosim.engines import make_engine, run_prescribed
     sc = _scenario(rig, engine, setting)
     run = run_prescribed(make_engine(engine), sc, revolutions=revolutions)
-    T = sc.revolution_period_s
+    T = sc.revolution_period_s * (1 + 1e-9)
     t_end = float(run.t[-1])
-    last = run.t > t_end - T * (1 + 1e-9)
-    before = (run.t > t_end - 2 * T * (1 + 1e-9)) & ~last
-    ptp = {g: float(np.ptp(b[last]) * 1e6) for g, (b, _) in run.gauges.items()}
-    change = (max(abs(np.ptp(b[before]) * 1e6 / ptp[g] - 1.0) for g, (b, _) in run.gauges.items())
-              if t_end >= 2 * T * (1 - 1e-9) else float("nan"))
+    ptp = _window_ptp(run, t_end - T, t_end)
+    if t_end >= 2 * sc.revolution_period_s * (1 - 1e-9):
+        before = _window_ptp(run, t_end - 2 * T, t_end - T)
+        change = max(abs(before[g] / ptp[g] - 1.0) for g in ptp)
+    else:
+        change = float("nan")
     return ptp, run.wall_time_s, t_end, resource.getrusage(resource.RUSAGE_SELF).ru_maxrss, float(change)
+
+
+def _window_ptp(run, t0: float, t1: float) -> dict:
+    """Peak-to-peak bending strain [microstrain] of every gauge over the samples in (t0, t1]."""
+    sel = (run.t > t0) & (run.t <= t1)
+    return {g: float(np.ptp(b[sel]) * 1e6) for g, (b, _) in run.gauges.items()}
 
 
 FRESH = True       # measure in fresh processes (the --tiny run of the test suite stays in-process)
@@ -140,8 +147,7 @@ def _steady_cost(rig, engine, setting, max_revolutions, tol=0.01):
     T = sc.revolution_period_s
     revs, prev = None, None
     for k in range(1, int(max_revolutions) + 1):
-        sel = (run.t > (k - 1) * T) & (run.t <= k * T)
-        cur = np.array([np.ptp(b[sel]) for b, _ in run.gauges.values()])
+        cur = np.array(list(_window_ptp(run, (k - 1) * T, k * T).values()))
         if prev is not None and np.all(np.abs(cur - prev) <= tol * np.abs(cur)):
             revs = k
             break
