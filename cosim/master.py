@@ -55,6 +55,7 @@ from tmm_core import InputError, TMMError
 
 from .engines import make_engine
 from .engines.base import DriveInput, EngineError, EngineOutput, EngineRun, concatenate, constant_speed_profile
+from .metrics import SteadyWatch
 from .motor import Motor, MotorState, MotorTrace
 from .scenario import CouplingSettings, Scenario
 
@@ -100,6 +101,7 @@ class CoSimResult:
     t_end_s: float
     channels: dict
     status: str                         # completed | stopped | interrupted | failed
+    stop: str = "end"                   # why it ended: "end" (its length), "steady", or the status
 
     def __getitem__(self, engine: str) -> ChannelResult:
         return self.channels[engine]
@@ -386,12 +388,19 @@ class CoSimulation:
         return revolutions * 2 * math.pi / abs(self.scenario.drive.speed_rad_s)
 
     def run(self, duration_s: float | None = None, *, revolutions: float | None = None, callback=None,
-            t0: float = 0.0) -> CoSimResult:
+            t0: float = 0.0, until_steady: bool | None = None) -> CoSimResult:
         """Advance every engine to ``duration_s`` (or ``revolutions`` at the set-point speed;
-        default: the scenario's output revolutions), rounded up to whole macro steps."""
+        default: the scenario's output revolutions), rounded up to whole macro steps.
+        ``until_steady`` (default: when neither a length nor the scenario's output.revolutions is
+        given): end as soon as every running engine is steady (:class:`cosim.metrics.SteadyWatch`,
+        the scenario's ``output.steady_tolerance``), at the latest after ``output.max_revolutions``."""
         sc, H = self.scenario, self.macro_step_s
+        if until_steady is None:
+            until_steady = duration_s is None and revolutions is None and sc.output.revolutions is None
         if duration_s is None:
-            duration_s = self.duration_for(sc.output.revolutions if revolutions is None else revolutions)
+            if revolutions is None:
+                revolutions = sc.output.max_revolutions if sc.output.revolutions is None else sc.output.revolutions
+            duration_s = self.duration_for(revolutions)
         if not duration_s > 0:
             raise InputError(f"duration must be positive, got {duration_s!r} s")
         n_steps = int(math.ceil(duration_s / H - 1e-9))
@@ -410,7 +419,8 @@ class CoSimulation:
             except (EngineError, TMMError) as exc:
                 status[name], errors[name] = "failed", str(exc)
             clocks[name] = time.perf_counter() - tic      # wall time includes the set-up
-        stopped = None
+        stopped, reason = None, "end"
+        watch = SteadyWatch(sc.output.steady_tolerance) if until_steady else None
         try:
             for k in range(n_steps):
                 t_a, t_b = t0 + k * H, t0 + (k + 1) * H
@@ -426,13 +436,20 @@ class CoSimulation:
                         failed[name] = str(exc)
                     clocks[name] += time.perf_counter() - tic
                 if callback is not None and callback(MacroStep(k + 1, n_steps, t_b, outputs, failed)):
-                    stopped = "stopped"
+                    stopped = reason = "stopped"
                     break
-                if not any(s == "running" for s in status.values()):
+                running = [n for n, s in status.items() if s == "running"]
+                if not running:
                     break
+                if watch is not None:
+                    for name, (out, _) in outputs.items():
+                        watch.add(name, out)
+                    if all(watch.steady(n) for n in running):
+                        reason = "steady"
+                        break
         except KeyboardInterrupt:
             # Ctrl-C (or SIGTERM turned into it by the caller): keep every completed macro step.
-            stopped = "interrupted"
+            stopped = reason = "interrupted"
         results = {}
         for name, ch in channels.items():
             st = status[name]
@@ -442,7 +459,7 @@ class CoSimulation:
         sts = {r.status for r in results.values()}
         overall = next((s for s in ("failed", "interrupted", "stopped") if s in sts), "completed")
         t_end = max((float(r.run.t[-1]) for r in results.values() if len(r.run.t)), default=t0)
-        return CoSimResult(sc, self.mode, self.coupling, H, t_end, results, overall)
+        return CoSimResult(sc, self.mode, self.coupling, H, t_end, results, overall, reason)
 
 
 # -- derived outputs -----------------------------------------------------------------------------

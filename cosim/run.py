@@ -29,6 +29,7 @@ import numpy as np
 from . import __version__
 from .engines import ENGINES, EngineUnavailable, make_engine
 from .master import CoSimulation, InputError
+from .metrics import last_revolution, revolutions_completed, run_change
 from .runlog import run_folder, write_json
 from .scenario import Scenario, load, resolved
 from .traces import TraceWriter
@@ -40,7 +41,7 @@ SUMMARY_EVERY_S = 2.0
 class RunOptions:
     engines: tuple = ENGINES
     mode: str | None = None              # 'prescribed' | 'motor'; default: the scenario's drive.mode
-    revolutions: float | None = None     # default: the scenario's output.revolutions
+    revolutions: float | None = None     # default: the scenario's output.revolutions, else until steady
     out: Path | None = None              # default: logs/<scenario>-<timestamp>
     viewer: str = "save"                 # 'save' (headless, default) | 'spawn' | 'connect' | 'none'
     connect_url: str | None = None
@@ -61,25 +62,20 @@ def _on_sigterm(signum, frame):
     raise KeyboardInterrupt(f"signal {signum}")
 
 
-def last_revolution_stats(run, period: float, t0: float = 0.0) -> dict:
-    """Gauge and torque extremes over the engine's last revolution [microstrain, N m]."""
+def last_revolution_stats(run, period: float | None = None, t0: float = 0.0) -> dict:
+    """Gauge and torque extremes over the engine's last crank revolution [microstrain, N m]
+    (by crank angle, :func:`cosim.metrics.last_revolution`)."""
     if len(run.t) == 0:
         return {}
-    mask = run.t > run.t[-1] - period * (1 - 1e-9)
-    complete = run.t[-1] - t0 >= period * (1 - 1e-9)
+    mask = last_revolution(run.crank_angle)
+    complete = revolutions_completed(run.crank_angle) >= 1 - 1e-9
     out = {"window_s": [float(run.t[mask][0]), float(run.t[-1])], "complete_revolution": bool(complete),
            "drive_torque_max_Nm": float(np.max(run.drive_torque[mask])),
            "drive_torque_min_Nm": float(np.min(run.drive_torque[mask])), "gauges": {}}
     for g, (bending, axial) in run.gauges.items():
         b, a = np.asarray(bending)[mask] * 1e6, np.asarray(axial)[mask] * 1e6
-        entry = {"bending_max_ue": float(b.max()), "bending_min_ue": float(b.min()),
-                 "axial_max_ue": float(a.max()), "axial_min_ue": float(a.min())}
-        prev = (run.t > run.t[-1] - 2 * period * (1 - 1e-9)) & ~mask
-        if np.any(prev) and complete:
-            pb = np.asarray(bending)[prev] * 1e6
-            # Revolution-to-revolution change of the bending range: how steady the last one is.
-            entry["bending_range_change"] = float(abs(np.ptp(b) - np.ptp(pb)) / max(np.ptp(b), 1e-30))
-        out["gauges"][g] = entry
+        out["gauges"][g] = {"bending_max_ue": float(b.max()), "bending_min_ue": float(b.min()),
+                            "axial_max_ue": float(a.max()), "axial_min_ue": float(a.min())}
     return out
 
 
@@ -88,7 +84,13 @@ def _engine_summary(ch, scenario: Scenario, sim_t0: float) -> dict:
     d = {"status": ch.status, "error": ch.error, "wall_time_s": float(run.wall_time_s),
          "sim_time_s": float(run.t[-1] - sim_t0) if len(run.t) else 0.0, "samples": int(len(run.t)),
          "coupling_passes_mean": float(np.mean(ch.passes)) if len(ch.passes) else 0.0}
-    d.update(last_revolution_stats(run, scenario.revolution_period_s, sim_t0))
+    d.update(last_revolution_stats(run, t0=sim_t0))
+    change = run_change(run)
+    tol = scenario.output.steady_tolerance
+    # Steady: the last two revolutions agree (cosim.metrics); never assumed.
+    d["steady"] = bool(change < tol)
+    d["revolution_change"] = None if change != change else float(change)
+    d["steady_tolerance"] = tol
     if ch.motor is not None and len(run.t):
         f = ch.speed_fluctuation()
         if len(f["mean"]):
@@ -126,8 +128,11 @@ def run_scenario(scenario, options: RunOptions = RunOptions(), callback=None) ->
         raise InputError("no engine could be started: " + "; ".join(unavailable.values()))
     cosim = CoSimulation(sc, engines, mode=mode)         # checks mode, motor table and macro step
     revolutions = sc.output.revolutions if options.revolutions is None else options.revolutions
-    if not revolutions > 0:
-        raise InputError(f"revolutions must be positive, got {revolutions!r}")
+    until_steady = revolutions is None
+    if until_steady:
+        revolutions = sc.output.max_revolutions
+    if not (isinstance(revolutions, (int, float)) and math.isfinite(revolutions) and revolutions > 0):
+        raise InputError(f"revolutions must be a positive finite number, got {revolutions!r}")
     duration = cosim.duration_for(revolutions)
 
     folder = run_folder(sc.name, options.out)
@@ -135,6 +140,7 @@ def run_scenario(scenario, options: RunOptions = RunOptions(), callback=None) ->
     (folder / "scenario.resolved.toml").write_text(tomli_w.dumps(resolved(sc)), encoding="utf-8")
     summary = {"scenario": sc.name, "status": "incomplete", "bench_version": __version__, "mode": mode,
                "engines_requested": list(options.engines), "revolutions": revolutions,
+               "until_steady": until_steady, "steady_tolerance": sc.output.steady_tolerance,
                "duration_s": duration, "macro_step_s": cosim.macro_step_s,
                "coupling": {"scheme": cosim.coupling.scheme, "extrapolation": cosim.coupling.extrapolation}
                if mode == "motor" else None,
@@ -165,7 +171,6 @@ def run_scenario(scenario, options: RunOptions = RunOptions(), callback=None) ->
                    bar_format="{desc}: {percentage:3.0f}%|{bar}| {elapsed}<{remaining}")
     last_write = [time.monotonic()]
     failures = {}
-
     def on_step(step):
         writer.write_step(step.outputs)
         if options.viewer != "none":
@@ -186,7 +191,7 @@ def run_scenario(scenario, options: RunOptions = RunOptions(), callback=None) ->
     previous = signal.signal(signal.SIGTERM, _on_sigterm)
     status, result = None, None
     try:
-        result = cosim.run(duration, callback=on_step)
+        result = cosim.run(duration, callback=on_step, until_steady=until_steady)
         status = result.status
         if status == "interrupted":
             notes.append("interrupted by the user or a signal; the files hold every completed macro step")
@@ -203,16 +208,32 @@ def run_scenario(scenario, options: RunOptions = RunOptions(), callback=None) ->
         if bar is not None:
             bar.close()
     summary["status"] = status
+    if result is not None:
+        summary["stop"] = {"steady": "every engine steady", "end": "revolution limit" if until_steady else
+                           "fixed length"}.get(result.stop, result.stop)
     summary["finished"] = time.strftime("%Y-%m-%dT%H:%M:%S")
     if result is not None:
         summary["progress"] = 1.0 if status == "completed" else summary.get("progress", 0.0)
         for name, ch in result.channels.items():
             summary["engines"][name] = _engine_summary(ch, sc, 0.0)
+            if len(ch.run.t):
+                summary["engines"][name]["revolutions_run"] = revolutions_completed(ch.run.crank_angle)
+        unsteady = [n for n, e in summary["engines"].items() if e.get("status") == "completed" and not e.get("steady")]
+        if unsteady:
+            notes.append(f"not steady: {', '.join(unsteady)} (the last two revolutions differ by more than "
+                         f"{100 * sc.output.steady_tolerance:.2g} %); its peaks are a transient, not a steady state")
         try:
             score_records(sc, result, summary, recorder[0])
         except Exception as exc:          # scoring must never lose the run's own results
             notes.append(f"scoring against records failed: {type(exc).__name__}: {exc}")
     if recorder[0] is not None:
+        for name, e in summary["engines"].items():
+            if "steady" in e:
+                change = e.get("revolution_change")
+                recorder[0].log_text(f"{name}/steady_state", (
+                    "steady" if e["steady"] else "NOT STEADY: the last revolution is a transient") +
+                    ("" if change is None else f" (last two revolutions differ by {100 * change:.2f} % of the "
+                                               f"peak-to-peak; tolerance {100 * e['steady_tolerance']:.2g} %)"))
         recorder[0].close()
     else:
         for name in engines:
@@ -270,7 +291,7 @@ def score_records(sc: Scenario, result, summary: dict, recorder=None) -> None:
                     run = ch.run
                     if not len(run.t) or g not in run.gauges:
                         continue
-                    last = run.t > run.t[-1] - sc.revolution_period_s * (1 - 1e-9)
+                    last = last_revolution(run.crank_angle)
                     sc_ = score_history(run.crank_angle[last], run.gauges[g][0][last] * 1e6, hist["angle_rad"], rb)
                     hint = sign_check(sc_)
                     if hint:
@@ -281,11 +302,16 @@ def score_records(sc: Scenario, result, summary: dict, recorder=None) -> None:
                 {"label": rec.label, "values": [{k: v for k, v in r.items() if k in ("quantity", "link", "value",
                                                                                       "unit", "note")}
                                                 for r in rec.rows]})
+    for sc_ in scores:
+        # A transient scored against a measured steady state is flagged, never hidden.
+        sc_["steady"] = bool(summary["engines"].get(sc_["engine"], {}).get("steady", False))
+        if not sc_["steady"]:
+            warnings.append(f"{sc_['engine']} is not steady: its scores compare a transient with the record")
     summary["scores"] = scores
     summary["record_warnings"] = sorted(set(warnings))
     if recorder is not None and scores:
         lines = [f"{s['engine']:8s} {s['gauge']:12s} {s['record']:18s} +peak {_pct(s.get('plus_peak_error'))} "
-                 f"-peak {_pct(s.get('minus_peak_error'))}" for s in scores]
+                 f"-peak {_pct(s.get('minus_peak_error'))}{'' if s['steady'] else '  NOT STEADY'}" for s in scores]
         recorder.log_text("records/scores", "\n".join(lines + [""] + summary["record_warnings"]))
 
 

@@ -63,17 +63,21 @@ def alexander_lawrence(n: int = 8, damping: float = 0.0, damping_Hz: float = 47.
 
 
 def fe_crank_rocker(n: int = 8, bearing_lbf: float = 0.13128, damping: float = 0.0, damping_Hz: float = 79.0,
-                    crank_stiffness_factor: float = 100.0) -> FourBarMechanism:
+                    crank_stiffness_factor: float | None = None) -> FourBarMechanism:
     """FE crank-rocker thesis rig (scenarios/base/fe_crank_rocker.toml) with ``n`` segments per
-    link, ``bearing_lbf`` at each coupler end, modal ``damping`` on every link (none by default)
-    and the crank's modulus ``crank_stiffness_factor`` times the strip's (100 in the file)."""
+    link, ``bearing_lbf`` at each coupler end, modal ``damping`` on the coupler and rocker (none
+    by default) and a rigid crank (the file's assumption), or an elastic crank with
+    ``crank_stiffness_factor`` times the strip's modulus."""
     def edit(raw):
         _segments(raw, n)
-        _damping(raw, damping, damping_Hz)
+        _damping(raw, damping, damping_Hz, ("coupler", "rocker"))
         for pm in raw["links"]["coupler"]["point_masses"]:
             pm["weight"] = f"{bearing_lbf} lbf"
-        if crank_stiffness_factor != 100.0:
-            _scale_modulus(raw, "crank_stiffened", crank_stiffness_factor / 100.0)
+        if crank_stiffness_factor is not None:
+            raw["materials"]["crank_stiffened"] = {"E": f"{10.3e6 * crank_stiffness_factor} psi",
+                                                   "density": "5.292 slug/ft^3"}
+            raw["links"]["crank"]["material"] = "crank_stiffened"
+            raw["links"]["crank"]["rigid"] = False
     return _build("crank_rocker_373rpm", edit)
 
 

@@ -202,6 +202,12 @@ def test_scenario_motor_declares_its_derived_constants():
     for k in ("motor.resistance", "motor.inductance", "motor.torque_constant", "motor.rotor_inertia",
               "motor.coulomb_friction", "motor.gear_ratio", "motor.controller"):
         assert k in keys
-    # Two 6 x 0.75 in aluminium disks: 2 * m r^2 / 2 with m = rho pi r^2 t.
-    r, t, rho = 3 * 0.0254, 0.75 * 0.0254, 5.292 * 515.378818
-    assert s.motor.flywheel_inertia_kg_m2 == pytest.approx(2 * 0.5 * rho * math.pi * r**2 * t * r**2, rel=1e-6)
+    assert "motor.flywheels[1]" in keys          # the added steel flywheel is an assumption
+    # Two 6 x 0.75 in aluminium disks and a 12 x 2 in steel disk: m r^2 / 2 with m = rho pi r^2 t.
+    def disk(d_in, t_in, rho):
+        r, t = 0.5 * d_in * 0.0254, t_in * 0.0254
+        return 0.5 * rho * math.pi * r**2 * t * r**2
+    expected = 2 * disk(6, 0.75, 5.292 * 515.378818) + disk(12, 2, 0.284 * 27679.9047)
+    assert s.motor.flywheel_inertia_kg_m2 == pytest.approx(expected, rel=1e-6)
+    weak = sc.load("crank_rocker_373rpm_weak_drive")
+    assert weak.motor.flywheel_inertia_kg_m2 == pytest.approx(2 * disk(6, 0.75, 5.292 * 515.378818), rel=1e-6)

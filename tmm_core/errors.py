@@ -29,6 +29,11 @@ class BucklingError(SingularStructureError):
     """A member carries a compressive force at or beyond its buckling load."""
 
 
+class DynamicStabilityError(TMMError):
+    """The dynamic system of a time step (stiffness with axial forces plus inertia) is not
+    positive definite: the structure buckles even with its inertia."""
+
+
 class ConvergenceError(TMMError):
     """An iteration (beam-column, large deflection) did not converge."""
 

@@ -43,17 +43,23 @@ from typing import Callable, Mapping, Sequence
 import numpy as np
 import scipy.sparse as sp
 
-from .errors import InputError, SingularStructureError, require_finite, require_positive
+from .errors import (ConvergenceError, DynamicStabilityError, InputError, SingularStructureError,
+                     require_finite, require_positive)
 from .integrators import get_integrator
 from .kinematics import FourBarMotion
 from .matrices import field_matrix
-from .mechanism import FourBarMechanism, StaticMechanism
+from .mechanism import FourBarMechanism, StaticMechanism, torque_from_terms
 from .post import Gauge, gauge_strains
 from .riccati import segment_stiffness
+from .second_order import Segments, pseudo_loads, shape_products
 from .statics import solve_static
 from .structure import LoadCase, factorize, solve_factored
 
 GRAVITY = 9.80665
+AXIAL_FORCE_MODELS = ("dynamic", "quasi_static", "none")
+ANDERSON_DEPTH = 4          # iterates mixed by the second-order step iteration
+AXIAL_RESTARTS = 3          # refactorizations of a second-order step that does not converge
+DYNAMIC_TERMS = ("shortening", "axial_force")
 
 
 @dataclass(frozen=True)
@@ -157,19 +163,20 @@ class KEDResult:
 
 def _node_mass_arrays(mech: FourBarMechanism):
     out = {}
-    for link in mech.links():
+    for link in mech.elastic_links():
         m, J = link.node_masses()
         out[link.name] = (m, J)
     return out
 
 
 def rigid_body_loads(mech: FourBarMechanism, motion: FourBarMotion, gravity=None, frame: str = "global"):
-    """D'Alembert loads ``(-m a_P, -J alpha)`` (+ gravity ``m g``) at every node of every link,
-    ``{link: (..., n+1, 3)}`` in the global frame or each link's local frame."""
+    """D'Alembert loads ``(-m a_P, -J alpha)`` (+ gravity ``m g``) at every node of every elastic
+    link, ``{link: (..., n+1, 3)}`` in the global frame or each link's local frame (a rigid crank's
+    loads enter the drive torque instead, :meth:`FourBarMechanism.drive_torque_terms`)."""
     g = np.zeros(2) if gravity is None else np.asarray(gravity, dtype=float)
     out = {}
     applied = mech.external_loads(motion)
-    for link in mech.links():
+    for link in mech.elastic_links():
         m, J = link.node_masses()
         lm = motion.link(link.name)
         _, _, acc = lm.point(link.stations)
@@ -188,7 +195,7 @@ def rigid_body_loads(mech: FourBarMechanism, motion: FourBarMotion, gravity=None
 def _coupling_stiffness(mech, motion, coupling: Coupling, c_a=0.0, c_v=0.0, mass_damping=None):
     """Local node stiffness ``{link: (..., n+1, 3, 3)}`` of inertia and rotating-frame terms."""
     out = {}
-    for link in mech.links():
+    for link in mech.elastic_links():
         m, J = link.node_masses()
         lm = motion.link(link.name)
         w, al = lm.omega[..., None], lm.alpha[..., None]
@@ -232,7 +239,7 @@ def quasi_static(mech: FourBarMechanism, crank_angle, crank_speed, crank_acceler
             f"crank speed {speed:.6g} rad/s ({speed / (2 * np.pi):.6g} Hz) is at or above a natural frequency of the "
             f"instantaneous structure: with the centrifugal term its stiffness K - w^2 M is no longer positive "
             f"definite ({exc})") from None
-    torque = sol.reaction_moment(mech.drive_joint)
+    torque = mech.drive_torque(sol.reactions, motion, gravity)
     out = {g.name: gauge_strains(sol.members[g.link], g) for g in gauges}
     return QuasiStaticResult(motion, sol, torque, out)
 
@@ -258,14 +265,19 @@ class TimeDomain:
     coupling : rotating-frame terms, see :class:`Coupling`.
     beam_column : include the axial-force (beam-column) coupling of bending; False is linear
         theory (``axial_force='none'``).
-    axial_force : how the axial force enters the field matrices when ``beam_column``:
-        'quasi_static' (default): the quasi-static axial force of each crank position, so the
-        factorizations of a revolution are re-used (fast); 'iterated': the step's own dynamic axial
-        force, iterated to convergence within every step as Shin does (a new factorization per
-        iteration: several times slower). Near a resonance with links loaded to a sizeable fraction
-        of their Euler load the difference matters: on the Alexander-Lawrence four-bar at 400 rpm
-        (follower at 37 % of its Euler load in tension) 'quasi_static' is 12-17 % low on the
-        follower's positive strain peak against exudyn, 1 % at 200 rpm.
+    axial_force : how the axial force enters the bending equations when ``beam_column``:
+        'dynamic' (default): second-order beam theory (:mod:`tmm_core.second_order`): the
+        step's own axial force, including the axial shortening from bending, iterated within
+        every step on the cached factorization; it agrees with geometrically exact beams near
+        buckling (FE crank-rocker at 373 rpm, within a few per cent of exudyn where
+        'quasi_static' is 8-24 % off). A transient excursion past the static Euler load is
+        integrated as long as the dynamic system stays positive definite.
+        'quasi_static': the quasi-static (rigid-body) axial force of each crank position, fixed
+        in the field matrices; linear per step and cheaper; good far from buckling.
+    axial_tolerance, axial_iterations : relative tolerance and iteration limit of the 'dynamic'
+        step iteration.
+    dynamic_terms : the second-order terms of the 'dynamic' step: 'shortening' (axial shortening
+        from bending) and 'axial_force' (the step's own axial force in the bending equations).
     gravity : gravity vector [m/s^2] in the mechanism plane, or None.
     gauges : gauges whose strains are recorded.
     max_map_bytes : memory budget for the stored load-to-response maps; above it each step
@@ -274,25 +286,33 @@ class TimeDomain:
 
     def __init__(self, mech: FourBarMechanism, *, integrator: str = "newmark", coupling: Coupling = Coupling(),
                  beam_column: bool = True, gravity=None, gauges: Sequence[Gauge] = (),
-                 max_map_bytes: float = 400e6, axial_force: str = "quasi_static", axial_tolerance: float = 1e-6,
-                 axial_iterations: int = 20):
+                 max_map_bytes: float = 400e6, axial_force: str = "dynamic", axial_tolerance: float = 1e-8,
+                 axial_iterations: int = 60, dynamic_terms: tuple = DYNAMIC_TERMS):
         self.mech = mech
+        if not set(dynamic_terms) <= set(DYNAMIC_TERMS):
+            raise InputError(f"dynamic_terms must be a subset of {DYNAMIC_TERMS}, got {dynamic_terms!r}")
+        #: The second-order terms the 'dynamic' step carries (both by default; one alone is for
+        #: the experiment that separates them, scenarios/engines_agree_experiment.py).
+        self.dynamic_terms = tuple(dynamic_terms)
         self.integrator = get_integrator(integrator)
         self.coupling = coupling
         self.beam_column = beam_column
-        if axial_force not in ("quasi_static", "iterated", "none"):
-            raise InputError(f"axial_force must be 'quasi_static', 'iterated' or 'none', got {axial_force!r}")
+        if axial_force == "iterated":
+            raise InputError("axial_force 'iterated' was replaced by 'dynamic' (the step's own axial force together "
+                             "with the axial shortening from bending; the axial force alone was measured to be worse)")
+        if axial_force not in AXIAL_FORCE_MODELS:
+            raise InputError(f"axial_force must be one of {AXIAL_FORCE_MODELS}, got {axial_force!r}")
         self.axial_force = "none" if not beam_column else axial_force
         self.axial_tolerance = float(require_positive("axial_tolerance", axial_tolerance))
         self.axial_iterations = int(axial_iterations)
         self.gravity = None if gravity is None else np.asarray(gravity, dtype=float)
         self.gauges = tuple(gauges)
         for g in self.gauges:
-            if g.link not in {l.name for l in mech.links()}:
-                raise InputError(f"gauge '{g.name}': unknown link '{g.link}'")
+            if g.link not in {l.name for l in mech.elastic_links()}:
+                raise InputError(f"gauge '{g.name}': unknown or rigid link '{g.link}' (a rigid link has no strain)")
         self.max_map_bytes = max_map_bytes
         self.structure = mech.structure()
-        self.links = mech.links()
+        self.links = mech.elastic_links()
         # Node layout: every link's nodes, local (u, w, theta), concatenated.
         self.offsets, off = {}, 0
         for link in self.links:
@@ -305,6 +325,24 @@ class TimeDomain:
                                      for l in self.links])
         self.aM_vec = np.concatenate([np.full(3 * l.n_nodes, l.damping.mass_per_s) for l in self.links])
         self._build_segment_operators()
+        if self.axial_force == "dynamic" and any(l.viscoelastic is not None for l in self.links):
+            raise InputError("axial_force 'dynamic' is not available with viscoelastic (standard-linear-solid) links; "
+                             "use 'quasi_static'")
+        starts, lengths, EA, beta = [], [], [], []
+        for link in self.links:
+            m = link.member("s", "e")
+            starts.append(self.offsets[link.name] + 3 * np.arange(link.total_segments))
+            lengths.append(np.asarray(m.segment_lengths))
+            EA.append(m.EA)
+            beta.append(np.full(link.total_segments, link.damping.stiffness_s))
+        starts = np.concatenate(starts)
+        #: Segment data of the node vector (second-order terms, axial forces).
+        self.segments = Segments(starts, starts + 3, np.concatenate(lengths), np.concatenate(EA), np.concatenate(beta))
+        seg_offset = np.cumsum([0] + [l.total_segments for l in self.links])
+        self._gauge_segment = np.array([
+            seg_offset[[l.name for l in self.links].index(g.link)] + int(np.clip(
+                np.searchsorted(l.stations, g.position_m, side="right") - 1, 0, l.total_segments - 1))
+            for g in self.gauges for l in self.links if l.name == g.link], dtype=int)
 
     # -- material history operators -------------------------------------------------------
     def _build_segment_operators(self):
@@ -349,29 +387,54 @@ class TimeDomain:
     def _configurations(self, angle, speed, accel, dt, maps: bool | str = "auto", axial_force=None):
         """Factorize the instantaneous structures of a batch of crank states and return the
         affine maps from nodal loads (local, stacked) to nodal displacements, drive torque and
-        gauge strains. ``maps``: True, False, or "auto" (only for models up to MAP_MAX_DOF)."""
+        gauge strains (and, for the 'dynamic' axial force, segment axial forces). ``maps``: True,
+        False, or "auto" (only for models up to MAP_MAX_DOF). ``axial_force``: stacked segment
+        forces ``(B, n_seg)`` [N] for the field matrices instead of the quasi-static estimate."""
         mech = self.mech
         motion = mech.motion(angle, speed, accel)
         c_a, c_v = self.integrator.coefficients(dt)
         Kn = _coupling_stiffness(mech, motion, self.coupling, c_a, c_v)
         factors, _ = self._link_factor(c_v, dt)
-        P = axial_force
-        if self.axial_force != "none" and P is None:
-            # The axial forces only enter the field matrices: 1e-8 relative is ample.
-            qs = quasi_static(mech, angle, speed, accel, beam_column=True, coupling=Coupling(), gravity=self.gravity,
-                              tol=1e-8)
-            P = {k: r.axial_force for k, r in qs.solution.members.items()}
+        P = None
+        if axial_force is not None:
+            cuts = np.cumsum([l.total_segments for l in self.links])[:-1]
+            P = dict(zip([l.name for l in self.links], np.split(np.asarray(axial_force, dtype=float), cuts, axis=-1)))
+        elif self.axial_force != "none":
+            # The axial forces only enter the field matrices: 1e-8 relative is ample. The dynamic
+            # step iterates from the linear (rigid-body) estimate, which exists beyond the static
+            # Euler load too; the quasi-static model uses the beam-column one.
+            qs = quasi_static(mech, angle, speed, accel, beam_column=self.axial_force == "quasi_static",
+                              coupling=Coupling(), gravity=self.gravity, tol=1e-8)
+            # The segment forces of the solution (for the beam-column solve they equal the ones in
+            # its field matrices; a linear solve has none there).
+            P = {k: _segment_forces(r) for k, r in qs.solution.members.items()}
         # Batch (B, 1): the second axis carries the unit loads. Gravity acts through the lumped
         # node masses (rigid_body_loads), like every other inertial load.
         joints = {k: v[:, None, :] for k, v in mech.joint_positions(motion).items()}
         case = LoadCase(joints, {}, {}, {k: v[:, None] for k, v in Kn.items()}, frame="local")
         factor = factorize(self.structure, case, None if P is None else {k: v[:, None] for k, v in P.items()},
-                           check_buckling=False, stiffness_factor=factors)
+                           check_buckling=False, stiffness_factor=factors, count_inertia=True)
+        indefinite = np.any(np.reshape(factor.negative_eigenvalues, (len(angle), -1)) > 0, axis=-1)
+        if np.any(indefinite) and (self.axial_force != "dynamic" or axial_force is not None):
+            # The axial forces are those the step uses: the step's dynamic system is indefinite.
+            raise DynamicStabilityError(
+                f"the dynamic system of the time step (stiffness with the axial forces, plus the step's inertia) is "
+                f"not positive definite at crank angle {math.degrees(float(angle[np.argmax(indefinite)])):.6g} deg: "
+                "the links buckle even with their inertia; the transfer-matrix model cannot continue (a smaller step "
+                "adds inertia)")
         loads_local = rigid_body_loads(mech, motion, self.gravity, frame="local")
+        drive = mech.drive_torque_terms(motion, self.gravity)
+        P0 = None if P is None else np.concatenate([P[l.name] for l in self.links], axis=-1)
         B = len(angle)
-        n_bytes = 8.0 * B * self.n_dof * (self.n_dof + 1 + 2 * len(self.gauges))
+        n_rows = self.n_dof + 1 + 2 * len(self.gauges) + (len(self.segments.length) if self.axial_force == "dynamic" else 0)
+        n_bytes = 8.0 * B * self.n_dof * n_rows
+        base = {"factor": factor, "rigid": self._stack(loads_local), "motion": motion, "maps": None, "drive": drive,
+                "P0": P0, "crank": (np.asarray(angle, float), np.asarray(speed, float), np.asarray(accel, float)),
+                # Configurations whose estimated axial forces leave the step indefinite: the
+                # dynamic step refactorizes them at its own axial forces.
+                "indefinite": indefinite}
         if not maps or n_bytes > self.max_map_bytes or (maps == "auto" and self.n_dof > MAP_MAX_DOF):
-            return {"factor": factor, "rigid": self._stack(loads_local), "motion": motion, "maps": None}
+            return base
         unit = {}
         for link in self.links:
             n1 = link.n_nodes
@@ -387,20 +450,28 @@ class TimeDomain:
         n_out = 1 + 2 * len(self.gauges)
         maps = {"Z": np.empty((B, self.n_dof, self.n_dof)), "z0": np.empty((B, self.n_dof)),
                 "O": np.empty((B, n_out, self.n_dof)), "o0": np.empty((B, n_out))}
+        axial = self.axial_force == "dynamic"
+        if axial:
+            n_seg = len(self.segments.length)
+            maps["A"], maps["a0"] = np.empty((B, n_seg, self.n_dof)), np.empty((B, n_seg))
         for c0 in range(0, B, chunk):
             sl = slice(c0, min(B, c0 + chunk))
             sol = solve_factored(factor if (sl.start, sl.stop) == (0, B) else _select(factor, sl), unit, frame="local")
             z = np.concatenate([sol.members[l.name].state[..., 0, :3].reshape(sl.stop - sl.start, self.n_dof + 1, -1)
                                 for l in self.links], axis=-1)                 # (b, loads+1, n_dof)
-            torque = sol.reactions[mech.drive_joint][..., 2]                   # (b, loads+1)
+            torque = torque_from_terms(sol.reactions, *_terms_at(drive, sl))   # (b, loads+1)
             g_out = [np.stack(gauge_strains(sol.members[g.link], g), -1) for g in self.gauges]
             outs = np.concatenate([torque[..., None]] + g_out, axis=-1) if g_out else torque[..., None]
-            del sol
             maps["Z"][sl] = np.swapaxes(z[:, :-1] - z[:, -1:], 1, 2)
             maps["z0"][sl] = z[:, -1]
             maps["O"][sl] = np.swapaxes(outs[:, :-1] - outs[:, -1:], 1, 2)
             maps["o0"][sl] = outs[:, -1]
-        return {"factor": factor, "rigid": self._stack(loads_local), "motion": motion, "maps": maps}
+            if axial:
+                N = np.concatenate([_segment_forces(sol.members[l.name]) for l in self.links], axis=-1)
+                maps["A"][sl] = np.swapaxes(N[:, :-1] - N[:, -1:], 1, 2)
+                maps["a0"][sl] = N[:, -1]
+            del sol
+        return {**base, "maps": maps}
 
     def stack(self, per_link):
         """Stack per-link arrays ``{link: (..., n+1, 3)}`` into the node vector ``(..., n_dof)``."""
@@ -410,10 +481,12 @@ class TimeDomain:
         return np.concatenate([per_link[l.name].reshape(per_link[l.name].shape[:-2] + (-1,)) for l in self.links], -1)
 
     def _solve_one(self, cfg, k, loads):
-        """Response to the stacked local loads at configuration index k (map or sweep)."""
+        """Response to the stacked local loads at configuration index k (map or sweep):
+        ``(z, out, N)`` with ``N`` the solver's segment axial forces (None without them)."""
         maps = cfg["maps"]
         if maps is not None:
-            return maps["Z"][k] @ loads + maps["z0"][k], maps["O"][k] @ loads + maps["o0"][k]
+            N = maps["A"][k] @ loads + maps["a0"][k] if "A" in maps else None
+            return maps["Z"][k] @ loads + maps["z0"][k], maps["O"][k] @ loads + maps["o0"][k], N
         node_loads = self._node_loads(loads)
         if cfg["factor"].batch[0] == 1:
             factor = cfg["factor"]
@@ -424,17 +497,114 @@ class TimeDomain:
             factor = chosen.get(k)
             if factor is None:
                 factor = chosen[k] = _select(cfg["factor"], k)
-        return self._response(solve_factored(factor, node_loads, frame="local"))[:2]
+        return self._response(solve_factored(factor, node_loads, frame="local"), _terms_at(cfg["drive"], k))
 
-    def _response(self, sol):
-        """``(z, out, segment axial forces)`` of a single-configuration solution."""
+    def _response(self, sol, drive):
+        """``(z, out, N)`` of a single-configuration solution: node displacements, outputs and the
+        segment axial forces; ``drive``: the configuration's drive-torque terms
+        (:meth:`FourBarMechanism.drive_torque_terms`)."""
         z = np.concatenate([sol.members[l.name].state[..., 0, :3].reshape(-1) for l in self.links])
-        out = [sol.reactions[self.mech.drive_joint][..., 2].reshape(())]
+        out = [np.reshape(torque_from_terms(sol.reactions, *drive), ())]
         for g in self.gauges:
             b, a = gauge_strains(sol.members[g.link], g)
             out += [b.reshape(()), a.reshape(())]
-        P = {name: 0.5 * (r.N[..., :-1, 1] + r.N[..., 1:, 0]).reshape(1, -1) for name, r in sol.members.items()}
-        return z, np.array(out), P
+        N = np.concatenate([_segment_forces(sol.members[l.name]).reshape(-1) for l in self.links])
+        return z, np.array(out), N
+
+    def solve_step(self, cfg, k, loads, state, dt, axial_guess=None):
+        """Displacements ``z``, outputs and segment axial forces [N] of one time step at
+        configuration ``k`` of ``cfg`` for the stacked local ``loads`` (inertia history included)
+        and the integrator ``state`` before the step. Linear for 'quasi_static' and 'none';
+        for 'dynamic' the second-order pseudo-loads are iterated to convergence on the cached
+        factorization, starting from ``axial_guess`` (e.g. the previous step's forces). Where the
+        axial forces move far from the cached ones (a strong transient) that iteration can fail;
+        the step is then factorized afresh at the latest axial forces and iterated again."""
+        if self.axial_force != "dynamic":
+            return self._solve_one(cfg, k, loads)
+        guess = axial_guess
+        diag = (0, float("nan"), float("nan"))
+        for attempt in range(AXIAL_RESTARTS + 1):
+            if cfg["indefinite"][k]:
+                if guess is None:
+                    break
+                result, guess_new = None, guess
+            else:
+                result, guess_new, diag = self._iterate(cfg, k, loads, state, dt, guess)
+            if result is not None:
+                self.last_iterations = diag[0]
+                return result
+            # Refactorize this step at the best axial forces known: the previous step's, then
+            # the failed iteration's last finite estimate.
+            guess = guess if attempt == 0 and guess is not None else guess_new
+            if guess is None or not np.all(np.isfinite(guess)):
+                break
+            angle, speed, accel = (x[k:k + 1] for x in cfg["crank"])
+            cfg, k = self._configurations(angle, speed, accel, dt, maps=False, axial_force=guess[None]), 0
+        crank = math.degrees(float(cfg["crank"][0][k]))
+        raise ConvergenceError(
+            f"the second-order (axial_force 'dynamic') step did not converge at crank angle {crank:.6g} deg "
+            f"(after {AXIAL_RESTARTS} refactorizations; last relative changes: displacement {diag[1]:.3g}, axial "
+            f"force {diag[2]:.3g}); the links are near a dynamic instability or the step is too large (reduce "
+            "solver.tmm.step)")
+
+    def _iterate(self, cfg, k, loads, state, dt, axial_guess):
+        """The fixed-point iteration of :meth:`solve_step` on one factorization: ``((z, out, P),
+        None, (iterations, 0, 0))`` when converged, else ``(None, last finite P, (iterations,
+        displacement change, axial-force change))``."""
+        seg = self.segments
+        c_a, c_v = self.integrator.coefficients(dt)
+        _, h_v = self.integrator.history(state, dt)
+        # Kelvin-Voigt: the physical axial force adds beta EA/L times the history part of the
+        # relative axial velocity (the solver's own force carries EA (1 + beta c_v) (u1 - u0)/L).
+        damping = seg.beta * seg.stiffness * (h_v[seg.end] - h_v[seg.start])
+        P0 = cfg["P0"][k]
+        P = P0 if axial_guess is None else axial_guess
+        z = state["d"] + dt * state["v"] + 0.5 * dt**2 * state["a"]
+        # Anderson acceleration of the fixed point on x = (z, P L/EA): the axial force scaled to
+        # the axial displacement it causes, so that both parts weigh alike in the mixing.
+        n, to_len = len(z), seg.length / seg.EA
+        x = np.concatenate([z, P * to_len])
+        history, previous, last_finite = [], None, None
+        scale_P = 1e-9 * float(np.max(seg.EA))
+        dz = dP = float("nan")
+        shorten, own_force = "shortening" in self.dynamic_terms, "axial_force" in self.dynamic_terms
+        for it in range(self.axial_iterations):
+            z, P = x[:n], x[n:] / to_len
+            f, F, delta = pseudo_loads(seg, z, c_v * z + h_v, P if own_force else P0, P0, shorten)
+            z_new, out, N = self._solve_one(cfg, k, loads + f)
+            P_new = N + damping + F
+            if not (np.all(np.isfinite(z_new)) and np.all(np.isfinite(P_new))):
+                break
+            last_finite = P_new
+            dz = float(np.max(np.abs(z_new - z))) / (float(np.max(np.abs(z_new))) + 1e-300)
+            dP = float(np.max(np.abs(P_new - P))) / (float(np.max(np.abs(P_new))) + scale_P)
+            # The axial force only feeds the geometric stiffness: 1e-6 is ample (and its round-off
+            # floor, a difference of large nodal forces, sits near 1e-8).
+            if dz < self.axial_tolerance and dP < 1e-6:
+                if len(self._gauge_segment) and shorten:
+                    # Gauge axial strain = the full axial strain, with the shortening from bending.
+                    delta = shape_products(seg, z_new)[0]
+                    out = out.copy()
+                    out[2::2] += delta[self._gauge_segment] / seg.length[self._gauge_segment]
+                return (z_new, out, P_new), None, (it + 1, dz, dP)
+            if dz > 1e3 or dP > 1e3:       # diverging: refactorize rather than iterate on
+                break
+            gx = np.concatenate([z_new, P_new * to_len])
+            r = gx - x
+            if previous is not None:
+                history.append((r - previous[0], gx - previous[1]))
+                history = history[-ANDERSON_DEPTH:]
+            previous = (r, gx)
+            x = gx
+            if history:
+                dR = np.stack([h[0] for h in history], axis=1)
+                dG = np.stack([h[1] for h in history], axis=1)
+                try:
+                    gamma = np.linalg.lstsq(dR, r, rcond=None)[0]
+                    x = gx - dG @ gamma
+                except np.linalg.LinAlgError:
+                    history = []
+        return None, last_finite, (self.axial_iterations, dz, dP)
 
     def _node_loads(self, loads):
         return {l.name: loads[self.offsets[l.name]:self.offsets[l.name] + 3 * l.n_nodes]
@@ -480,10 +650,8 @@ class TimeDomain:
         steady, change, done = False, float("nan"), n_steps
         for k in range(1, n_steps):
             # Configurations are factorized in batches: one revolution when the history is periodic,
-            # chunks of consecutive steps otherwise; the iterated axial force needs fresh ones.
-            if self.axial_force == "iterated":
-                z, out = march.advance(crank.angle[k], crank.speed[k], crank.acceleration[k])
-            elif N is not None:
+            # chunks of consecutive steps otherwise.
+            if N is not None:
                 idx = k % N
                 if cfg is None:
                     cfg = self._configurations(crank.angle[:N], crank.speed[:N], crank.acceleration[:N], dt)
@@ -493,8 +661,7 @@ class TimeDomain:
                     sl = slice(k, k + cfg_len)
                     cfg = self._configurations(crank.angle[sl], crank.speed[sl], crank.acceleration[sl], dt)
                 idx = k - cfg_start
-            if self.axial_force != "iterated":
-                z, out = march.step_with(cfg, idx)
+            z, out = march.step_with(cfg, idx)
             outputs[k] = out
             if disp is not None:
                 disp[k] = z
@@ -655,6 +822,8 @@ class March:
         if self.has_visco and (start == "quasi_static" or initial is not None):
             # Instantaneous elastic state: the Maxwell arms carry (E_0 - E_inf)/E * K d_0.
             self.q_sls = td.seg_E1 * (td.seg_K @ (td.gather @ d0))
+        #: Segment axial forces of the last step [N] (the next step's starting guess).
+        self.axial = None
         # Coriolis cross terms: u rows take the w-velocity history of the same node and back.
         self.is_u = np.tile([True, False, False], td.n_dof // 3)
         self.is_w = np.tile([False, True, False], td.n_dof // 3)
@@ -662,48 +831,17 @@ class March:
     def advance(self, angle: float, speed: float, acceleration: float = 0.0):
         """One step to the crank state (angle [rad], speed [rad/s], acceleration [rad/s^2]) at
         the end of the step. Returns ``(z, out)``."""
-        td = self.td
         args = (np.array([angle], dtype=float), np.array([speed], dtype=float), np.array([acceleration], dtype=float),
                 self.dt)
-        if td.axial_force != "iterated":
-            return self.step_with(td._configurations(*args, maps=False), 0)
-        # Implicit axial force: iterate the step with the axial force of its own solution (the
-        # loads of the step do not depend on it); start from the previous step's value.
-        if self.has_visco:
-            raise InputError("the iterated axial force is not available with viscoelastic links")
-        # The transfer state carries N = EA_eff u' with the damping's effective modulus; the
-        # physical axial force adds the damping history, beta EA h_v' (h_v: velocity history).
-        _, h_v = td.integrator.history(self.state, self.dt)
-        hv = td.unstack(h_v)
-        damping_part = {}
-        for link in td.links:
-            L = np.asarray(link.member("a", "b").segment_lengths)
-            EA = link.member("a", "b").EA
-            damping_part[link.name] = (link.damping.stiffness_s * EA * np.diff(hv[link.name][:, 0]) / L)[None]
-        P = getattr(self, "_P", None)
-        for _ in range(td.axial_iterations):
-            cfg = td._configurations(*args, maps=False, axial_force=P)
-            loads = td._loads(cfg, 0, self.state, self.dt, self.beta, self.has_kv, self.q_sls, self.decay,
-                              self.gain, self.has_visco, self.is_u, self.is_w)
-            z, out, P_state = td._response(solve_factored(cfg["factor"], td._node_loads(loads), frame="local"))
-            P_new = {k: v + damping_part[k] for k, v in P_state.items()}
-            scale = max(float(np.max(np.abs(v))) for v in P_new.values()) + 1e-300
-            change = 0.0 if P is None else max(float(np.max(np.abs(P_new[k] - P[k]))) for k in P_new) / scale
-            P = P_new
-            if change < td.axial_tolerance:
-                break
-        else:
-            raise InputError(f"iterated axial force did not converge within {td.axial_iterations} iterations "
-                             f"(last relative change {change:.3g}); the step may be too large")
-        self._P = P
-        return self._commit(z, out)
+        return self.step_with(self.td._configurations(*args, maps=False), 0)
 
     def step_with(self, cfg, idx):
         """One step using configuration ``idx`` of a precomputed batch (see TimeDomain._configurations)."""
         td = self.td
         loads = td._loads(cfg, idx, self.state, self.dt, self.beta, self.has_kv, self.q_sls, self.decay, self.gain,
                           self.has_visco, self.is_u, self.is_w)
-        z, out = td._solve_one(cfg, idx, loads)
+        z, out, P = td.solve_step(cfg, idx, loads, self.state, self.dt, self.axial)
+        self.axial = P
         return self._commit(z, out)
 
     def _commit(self, z, out):
@@ -713,6 +851,20 @@ class March:
         self.state = td.integrator.advance(self.state, z, self.dt)
         self.z, self.out = z, out
         return z, out
+
+
+def _segment_forces(result) -> np.ndarray:
+    """Axial force [N] of every segment of a member result (constant within a segment: the loads
+    act at the nodes), ``(..., n)``."""
+    return 0.5 * (result.N[..., :-1, 1] + result.N[..., 1:, 0])
+
+
+def _terms_at(terms, k):
+    """Drive-torque terms of configuration ``k`` (an index or a slice) of a batch."""
+    joint, arm, offset = terms
+    if arm is None:
+        return terms
+    return joint, arm[k], np.asarray(offset)[k]
 
 
 def _select(factor, k):

@@ -23,6 +23,18 @@ from .structure import Joint, LoadCase, Member, Structure
 FOURBAR_LINKS = ("crank", "coupler", "rocker")
 
 
+def torque_from_terms(reactions, joint, arm, offset):
+    """Drive torque from support reactions and :meth:`FourBarMechanism.drive_torque_terms`; the
+    reactions may carry extra trailing batch axes beyond ``arm``'s (unit-load columns)."""
+    R = np.asarray(reactions[joint])
+    if arm is None:
+        return R[..., 2] + offset
+    extra = R.ndim - np.ndim(arm)
+    a = np.reshape(arm, np.shape(arm)[:-1] + (1,) * extra + (2,))
+    o = np.reshape(offset, np.shape(offset) + (1,) * extra)
+    return a[..., 0] * R[..., 1] - a[..., 1] * R[..., 0] + o
+
+
 @dataclass(frozen=True)
 class PointMass:
     """A lumped mass on a link (bearing, sleeve, end block) at ``position_m`` from the link's
@@ -57,7 +69,14 @@ class EndBlock:
 class Link:
     """A straight link: length [m], section and material of its span, number of TMM segments of
     the span, optional end blocks, and its mass model (distributed mass from the densities, plus
-    point masses), damping and an optional viscoelastic law (span only) for the time domain."""
+    point masses), damping and an optional viscoelastic law (span only) for the time domain.
+
+    ``rigid``: the link does not deform. Its mesh still lumps its mass (for drawing and the
+    reflected inertia), but it has no elastic degrees of freedom: a rigid crank is welded to its
+    clamped pivot, so its far joint is a fixed pin of the instantaneous structure and its own
+    inertia goes straight into the drive torque (:meth:`FourBarMechanism.drive_torque`). Only the
+    crank may be rigid in the transfer-matrix model; damping or a viscoelastic law on a rigid link
+    is refused (it would be ignored)."""
 
     name: str
     length_m: float
@@ -69,8 +88,13 @@ class Link:
     viscoelastic: StandardLinearSolid | None = None
     start_block: EndBlock | None = None
     end_block: EndBlock | None = None
+    rigid: bool = False
 
     def __post_init__(self):
+        if self.rigid and (self.damping.stiffness_s > 0 or self.damping.mass_per_s > 0):
+            raise InputError(f"link '{self.name}': a rigid link has no elastic motion to damp; remove its damping")
+        if self.rigid and self.viscoelastic is not None:
+            raise InputError(f"link '{self.name}': a rigid link cannot be viscoelastic")
         if self.viscoelastic is not None and not np.isclose(self.material.E_Pa,
                                                            self.viscoelastic.instantaneous_modulus_Pa, rtol=1e-9):
             raise InputError(f"link '{self.name}': material E_Pa ({self.material.E_Pa:.6g}) must equal the "
@@ -176,6 +200,44 @@ class _LinkageMethods:
         """Applied loads besides inertia and gravity: none on a bare linkage."""
         return {}
 
+    def elastic_links(self):
+        """The links that deform: the members of the instantaneous structure, in its order."""
+        return tuple(link for link in self.links() if not link.rigid)
+
+    def _check_rigid(self):
+        for link in self.links()[1:]:
+            if link.rigid:
+                raise InputError(f"link '{link.name}': only the crank can be rigid in the transfer-matrix model (it is "
+                                 "welded to its clamped pivot, so its far joint becomes a fixed pin)")
+
+    def rigid_link_moment(self, link, motion, gravity=None, about=None):
+        """Moment [N m] about the point ``about`` ((..., 2), default the link's start joint) of a
+        rigid link's D'Alembert loads and weight: ``-J_G alpha + m (r_G - P) x (g - a_G)``,
+        exact rigid-body mass properties (:meth:`Link.rigid_body`)."""
+        m, xc, Jc = link.rigid_body()
+        lm = motion.link(link.name)
+        rG, _, aG = lm.point(xc)
+        P = lm.origin if about is None else about
+        g = np.zeros(2) if gravity is None else np.asarray(gravity, dtype=float)
+        d, f = rG - P, m * (g - aG)
+        return -Jc * lm.alpha + d[..., 0] * f[..., 1] - d[..., 1] * f[..., 0]
+
+    def drive_torque_terms(self, motion, gravity=None):
+        """How the drive torque follows from the support reactions of the instantaneous
+        structure: ``(joint, arm, offset)``. With an elastic crank the torque is the clamp moment
+        at A (``arm`` None, ``offset`` 0). With a rigid crank it balances the crank: the moment of
+        the pin reaction at B (the force the crank applies to the coupler) about A plus the
+        crank's own D'Alembert loads and weight, ``T = arm x R_B + offset`` with ``arm = r_B - r_A``
+        ((..., 2) [m]) and ``offset = -M_A`` ((...,) [N m])."""
+        if not self.crank.rigid:
+            return "A", None, 0.0
+        return "B", motion.B - motion.A, -self.rigid_link_moment(self.crank, motion, gravity)
+
+    def drive_torque(self, reactions, motion, gravity=None):
+        """Drive torque [N m, CCW +]: the moment the drive applies to the crank at its pivot, from
+        the support reactions ``{joint: (..., 3)}`` (see :meth:`drive_torque_terms`)."""
+        return torque_from_terms(reactions, *self.drive_torque_terms(motion, gravity))
+
     def load_case(self, motion: FourBarMotion, node_loads=None, distributed_loads=None,
                   node_stiffness=None) -> LoadCase:
         """Load case at the positions of ``motion``; loads are ``{link: array}`` as in :class:`LoadCase`."""
@@ -196,7 +258,7 @@ class _LinkageMethods:
         Qg = np.zeros(q.shape)
         g = np.zeros(2) if gravity is None else np.asarray(gravity, dtype=float)
         for link in self.links():
-            if lumped:
+            if lumped and not link.rigid:
                 m, Jc = link.node_masses()
                 xc = link.stations
             else:
@@ -244,7 +306,12 @@ class FourBarMechanism(_LinkageMethods):
         return (self.crank, self.coupler, self.rocker)
 
     def structure(self) -> Structure:
-        """Instantaneous structure: A clamped (crank welded), B and C revolutes, D pinned."""
+        """Instantaneous structure: A clamped (crank welded), B and C revolutes, D pinned. With a
+        rigid crank, B is a fixed pin and the crank is no member."""
+        self._check_rigid()
+        if self.crank.rigid:
+            return Structure((Joint("B", "pinned"), Joint("C"), Joint("D", "pinned")),
+                             (self.coupler.member("B", "C"), self.rocker.member("D", "C")))
         joints = (Joint("A", "clamped"), Joint("B"), Joint("C"), Joint("D", "pinned"))
         members = (self.crank.member("A", "B", start_connection="rigid"),
                    self.coupler.member("B", "C"),
@@ -302,7 +369,11 @@ class SliderCrankMechanism(_LinkageMethods):
         return (self.crank, coupler)
 
     def structure(self) -> Structure:
+        self._check_rigid()
         crank, coupler = self.links()
+        if crank.rigid:
+            return Structure((Joint("B", "pinned"), Joint("C", "slider", self.ground_angle)),
+                             (coupler.member("B", "C"),))
         joints = (Joint("A", "clamped"), Joint("B"), Joint("C", "slider", self.ground_angle))
         return Structure(joints, (crank.member("A", "B", start_connection="rigid"), coupler.member("B", "C")))
 
@@ -334,6 +405,17 @@ class StaticMechanism:
 
     def links(self):
         return tuple(m[0] for m in self.members)
+
+    def elastic_links(self):
+        return self.links()
+
+    def drive_torque_terms(self, motion, gravity=None):
+        """The reaction moment at ``drive_joint`` (see FourBarMechanism.drive_torque_terms)."""
+        return self.drive_joint, None, 0.0
+
+    def drive_torque(self, reactions, motion, gravity=None):
+        """The reaction moment at ``drive_joint`` [N m]."""
+        return reactions[self.drive_joint][..., 2]
 
     def structure(self) -> Structure:
         return Structure(tuple(self.joints), tuple(link.member(a, b, start_connection=ca, end_connection=cb)

@@ -13,6 +13,14 @@ many revolutions by one.
 The eigenvalues of ``Phi`` are the Floquet multipliers of the discrete system over a revolution:
 a multiplier outside the unit circle means a growing (parametrically resonant) response. They
 carry the integrator's numerical damping (generalized-alpha damps the highest modes).
+
+With the second-order step (``axial_force = 'dynamic'``, :mod:`tmm_core.second_order`) the
+revolution map is nonlinear. Newton shooting then solves ``F(x_0) = x_0``: each iteration
+marches the nonlinear revolution once from the current guess (the same step as time marching)
+and the linearized revolution for the monodromy matrix (one batched march of every unit state
+through the step's exact Jacobian), starting from the periodic solution of the linear
+(quasi-static axial force) model. The multipliers are those of the linearization about the
+periodic orbit.
 """
 from __future__ import annotations
 
@@ -22,8 +30,9 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.integrate import solve_ivp
 
-from .errors import InputError
+from .errors import ConvergenceError, InputError, TMMError
 from .ked import CrankMotion, TimeDomain
+from .second_order import linearization
 
 STATE_KEYS = {"newmark": ("d", "v", "a"), "generalized_alpha": ("d", "v", "a", "acc"), "houbolt": ("d", "d1", "d2")}
 
@@ -44,11 +53,10 @@ class PeriodicResult:
     info: dict
 
 
-def _batched_step(td: TimeDomain, cfg, idx, state, dt, beta, has_kv):
-    """One time step for a batch of states: every array in ``state`` is (M, n_dof)."""
+def _homogeneous_loads(td: TimeDomain, cfg, idx, h_a, h_v, beta, has_kv):
+    """The state-dependent part of a step's loads for a batch of histories (M, n_dof)."""
     m = td.m_vec
-    h_a, h_v = td.integrator.history(state, dt)
-    loads = cfg["rigid"][idx][None, :] - m * (h_a + td.aM_vec * h_v)
+    loads = - m * (h_a + td.aM_vec * h_v)
     if td.coupling.coriolis:
         w = td._node_omega(cfg, idx)
         is_u = np.tile([True, False, False], td.n_dof // 3)
@@ -57,6 +65,13 @@ def _batched_step(td: TimeDomain, cfg, idx, state, dt, beta, has_kv):
             - np.where(is_w, 2.0 * m * w * np.roll(h_v, 1, axis=-1), 0.0)
     if has_kv:
         loads = loads - beta * (td.K_local @ h_v.T).T
+    return loads
+
+
+def _batched_step(td: TimeDomain, cfg, idx, state, dt, beta, has_kv):
+    """One linear time step for a batch of states: every array in ``state`` is (M, n_dof)."""
+    h_a, h_v = td.integrator.history(state, dt)
+    loads = cfg["rigid"][idx][None, :] + _homogeneous_loads(td, cfg, idx, h_a, h_v, beta, has_kv)
     maps = cfg["maps"]
     z = loads @ maps["Z"][idx].T + maps["z0"][idx]
     out = loads @ maps["O"][idx].T + maps["o0"][idx]
@@ -64,13 +79,13 @@ def _batched_step(td: TimeDomain, cfg, idx, state, dt, beta, has_kv):
 
 
 def periodic_steady_state(td: TimeDomain, speed_rad_s: float, *, step_s: float | None = None,
-                          step_deg: float | None = None, start_angle: float = 0.0) -> PeriodicResult:
+                          step_deg: float | None = None, start_angle: float = 0.0, newton_tolerance: float = 1e-7,
+                          newton_iterations: int = 15) -> PeriodicResult:
     """Periodic response of ``td`` at constant crank ``speed_rad_s``; the step must divide a
-    revolution (as for a constant-speed :class:`CrankMotion`)."""
+    revolution (as for a constant-speed :class:`CrankMotion`). ``newton_tolerance``: relative
+    change of the state over a revolution at which Newton shooting stops (second-order model)."""
     if any(link.viscoelastic is not None for link in td.links):
         raise InputError("the periodic solver does not carry the viscoelastic (SLS) history states; use time marching")
-    if td.axial_force == "iterated":
-        raise InputError("the periodic solver needs axial_force 'quasi_static' or 'none' (a linear map per step)")
     keys = STATE_KEYS.get(td.integrator.name)
     if keys is None:
         raise InputError(f"periodic solver: unsupported integrator {td.integrator.name!r}")
@@ -90,35 +105,100 @@ def periodic_steady_state(td: TimeDomain, speed_rad_s: float, *, step_s: float |
     # Column 0: zero initial state (the forced, affine part); columns 1..ns: unit states.
     X0 = np.zeros((ns + 1, ns))
     X0[1:] = np.eye(ns)
-    state = {k: X0[:, j * n:(j + 1) * n].copy() for j, k in enumerate(keys)}
-    full = td.integrator.initial(state["d"], state.get("v", state["d"] * 0), state.get("a", state["d"] * 0),
-                                 (state.get("d1", state["d"] * 0), state.get("d2", state["d"] * 0)))
-    full.update(state)
-    state = full
+    state = _state(td, keys, X0)
     for k in range(1, N + 1):
         state, _, _ = _batched_step(td, cfg, k % N, state, dt, beta, has_kv)
     XN = np.concatenate([state[k] for k in keys], axis=1)           # (ns + 1, ns)
     c = XN[0]
     Phi = (XN[1:] - c).T                                             # x_N = Phi x_0 + c
     x0 = np.linalg.solve(np.eye(ns) - Phi, c)
+    info = {"dt_s": dt, "steps_per_revolution": N, "state_size": ns}
+    if td.axial_force == "dynamic":
+        # Newton shooting on the nonlinear revolution map, from the linear model's solution.
+        for it in range(newton_iterations):
+            try:
+                xN, trajectory, outs = _revolution(td, cfg, keys, x0, N, dt, beta, has_kv)
+            except TMMError as exc:
+                raise ConvergenceError(f"periodic solver: Newton shooting left the range of the model at iteration "
+                                       f"{it + 1} ({exc}); the response may not be periodic at this speed (march in "
+                                       "time instead)") from None
+            residual = float(np.max(np.abs(xN - x0)) / max(np.max(np.abs(x0)), 1e-300))
+            if residual < newton_tolerance:
+                break
+            Phi = _monodromy(td, cfg, keys, trajectory, dt, beta, has_kv)
+            x0 = x0 + np.linalg.solve(np.eye(ns) - Phi, xN - x0)
+        else:
+            raise ConvergenceError(f"periodic solver: Newton shooting did not converge in {newton_iterations} "
+                                   f"iterations (last relative residual {residual:.3g})")
+        Phi = _monodromy(td, cfg, keys, trajectory, dt, beta, has_kv)
+        info["newton_iterations"] = it + 1
+    else:
+        # One revolution from the periodic state, for the outputs and as a check.
+        st = _state(td, keys, x0[None, :])
+        outs = []
+        for k in range(1, N + 1):
+            st, _, out = _batched_step(td, cfg, k % N, st, dt, beta, has_kv)
+            outs.append(out[0])
+        xN = np.concatenate([st[k][0] for k in keys])
+        residual = float(np.max(np.abs(xN - x0)) / max(np.max(np.abs(x0)), 1e-300))
     multipliers = np.linalg.eigvals(Phi)
     multipliers = multipliers[np.argsort(-np.abs(multipliers))]
-    # One revolution from the periodic state, for the outputs and as a check.
-    st = {k: x0[None, j * n:(j + 1) * n].copy() for j, k in enumerate(keys)}
-    full = td.integrator.initial(st["d"], st.get("v", st["d"] * 0), st.get("a", st["d"] * 0),
-                                 (st.get("d1", st["d"] * 0), st.get("d2", st["d"] * 0)))
-    full.update(st)
-    st = full
-    outs = []
-    for k in range(1, N + 1):
-        st, _, out = _batched_step(td, cfg, k % N, st, dt, beta, has_kv)
-        outs.append(out[0])
-    xN = np.concatenate([st[k][0] for k in keys])
-    residual = float(np.max(np.abs(xN - x0)) / max(np.max(np.abs(x0)), 1e-300))
     outs = np.array(outs)
     gauges = {g.name: (outs[:, 1 + 2 * i], outs[:, 2 + 2 * i]) for i, g in enumerate(td.gauges)}
-    return PeriodicResult(crank.t[1:N + 1], crank.angle[1:N + 1], outs[:, 0], gauges, multipliers, residual,
-                          {"dt_s": dt, "steps_per_revolution": N, "state_size": ns})
+    return PeriodicResult(crank.t[1:N + 1], crank.angle[1:N + 1], outs[:, 0], gauges, multipliers, residual, info)
+
+
+def _state(td: TimeDomain, keys, X):
+    """Integrator state from stacked state vectors ``X`` (..., len(keys) * n_dof)."""
+    n = td.n_dof
+    st = {k: X[..., j * n:(j + 1) * n].copy() for j, k in enumerate(keys)}
+    zero = st["d"] * 0
+    full = td.integrator.initial(st["d"], st.get("v", zero), st.get("a", zero), (st.get("d1", zero), st.get("d2", zero)))
+    full.update(st)
+    return full
+
+
+def _revolution(td: TimeDomain, cfg, keys, x0, N, dt, beta, has_kv):
+    """One nonlinear (second-order) revolution from the state vector ``x0``: the final state
+    vector, the trajectory ``(idx, z, v, P)`` per step for the linearization, and the outputs."""
+    state = _state(td, keys, x0)
+    _, c_v = td.integrator.coefficients(dt)
+    trajectory, outs, P = [], [], None
+    for k in range(1, N + 1):
+        idx = k % N
+        h_a, h_v = td.integrator.history(state, dt)
+        loads = cfg["rigid"][idx] + _homogeneous_loads(td, cfg, idx, h_a[None], h_v[None], beta, has_kv)[0]
+        z, out, P = td.solve_step(cfg, idx, loads, state, dt, P)
+        trajectory.append((idx, z, c_v * z + h_v, P))
+        outs.append(out)
+        state = td.integrator.advance(state, z, dt)
+    return np.concatenate([state[k] for k in keys]), trajectory, outs
+
+
+def _monodromy(td: TimeDomain, cfg, keys, trajectory, dt, beta, has_kv):
+    """Monodromy matrix of the second-order step linearized about ``trajectory``: every unit
+    state marched through one revolution in one batch, each step a dense solve of the step's
+    Jacobian in (displacements, segment axial forces)."""
+    n = td.n_dof
+    seg = td.segments
+    n_seg = len(seg.length)
+    _, c_v = td.integrator.coefficients(dt)
+    damping = np.zeros((n_seg, n))                     # d(damping part of P)/d(velocity history)
+    damping[np.arange(n_seg), seg.end] += seg.beta * seg.stiffness
+    damping[np.arange(n_seg), seg.start] -= seg.beta * seg.stiffness
+    state = _state(td, keys, np.eye(len(keys) * n))
+    maps = cfg["maps"]
+    for idx, z, v, P in trajectory:
+        h_a, h_v = td.integrator.history(state, dt)
+        dL = _homogeneous_loads(td, cfg, idx, h_a, h_v, beta, has_kv)
+        f_z, f_P, f_h, F_z, F_h = linearization(seg, n, c_v, z, v, P, cfg["P0"][idx])
+        Z, A = maps["Z"][idx], maps["A"][idx]
+        J = np.block([[np.eye(n) - Z @ f_z, -Z @ f_P], [-(A @ f_z + F_z), np.eye(n_seg) - A @ f_P]])
+        L = dL + h_v @ f_h.T
+        rhs = np.concatenate([L @ Z.T, L @ A.T + h_v @ (damping + F_h).T], axis=1)
+        y = np.linalg.solve(J, rhs.T).T
+        state = td.integrator.advance(state, y[:, :n], dt)
+    return np.concatenate([state[k] for k in keys], axis=1).T
 
 
 def floquet_multipliers(A, period: float, n: int, rtol: float = 1e-10) -> np.ndarray:

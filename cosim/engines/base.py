@@ -146,13 +146,18 @@ def concatenate(engine: str, outputs: list, wall_time_s: float) -> EngineRun:
 def run_prescribed(engine: Engine, scenario: Scenario, revolutions: float | None = None,
                    macro_steps_per_revolution: int = 72) -> EngineRun:
     """Drive an engine at the scenario's constant crank speed for ``revolutions`` (default: the
-    scenario's output setting), in macro steps of a whole number of internal steps."""
+    scenario's output setting; without one, until the engine is steady or the scenario's
+    ``output.max_revolutions``), in macro steps of a whole number of internal steps."""
+    from ..metrics import SteadyWatch
     import time
     w = scenario.drive.speed_rad_s
     if w == 0:
         raise EngineError("the scenario's drive speed is zero")
     period = 2 * math.pi / abs(w)
     revs = scenario.output.revolutions if revolutions is None else revolutions
+    until_steady = revs is None
+    revs = scenario.output.max_revolutions if until_steady else revs
+    watch = SteadyWatch(scenario.output.steady_tolerance)
     t0 = time.perf_counter()      # wall time includes the engine's set-up
     engine.reset(scenario, 0.0, scenario.drive.start_angle_rad, w)
     h = engine.internal_step_s
@@ -160,5 +165,10 @@ def run_prescribed(engine: Engine, scenario: Scenario, revolutions: float | None
     macro = per_macro * h
     n_macro = int(math.ceil(revs * period / macro - 1e-9))
     profile = constant_speed_profile(w, scenario.drive.start_angle_rad)
-    outputs = [engine.advance((k + 1) * macro, DriveInput(prescribed=profile)) for k in range(n_macro)]
+    outputs = []
+    for k in range(n_macro):
+        outputs.append(engine.advance((k + 1) * macro, DriveInput(prescribed=profile)))
+        watch.add(engine.name, outputs[-1])
+        if until_steady and watch.steady(engine.name):
+            break
     return concatenate(engine.name, outputs, time.perf_counter() - t0)

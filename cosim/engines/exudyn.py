@@ -75,8 +75,10 @@ class ExudynEngine:
         self._speed0 = speed
         settings = scenario.exudyn
         mech = scenario.mechanism
-        links = [dataclasses.replace(l, n_segments=settings.elements) for l in mech.links()]
+        links = [l if l.rigid else dataclasses.replace(l, n_segments=settings.elements) for l in mech.links()]
         for link in links:
+            if link.rigid:       # one rigid body with the exact mass properties: nothing to refuse
+                continue
             if link.damping.mass_per_s > 0:
                 raise EngineError(f"exudyn: link '{link.name}' has mass-proportional damping, which the cable "
                                   "elements cannot represent; use stiffness-proportional (modal) damping")
@@ -118,7 +120,14 @@ class ExudynEngine:
         self._torque_load = mbs.AddLoad(LoadCoordinate(markerNumber=hc[2], loadUserFunction=self._torque))
 
         self.nodes, self.elements = {}, {}
+        # Per link: position markers at its start and end joint, and a rigid marker at its start
+        # (the crank is welded to the hub there); per link the sensors of its drawn stations.
+        ends, start_rigid, station_sensors = {}, {}, {}
         for link in links:
+            if link.rigid:
+                ends[link.name], start_rigid[link.name], station_sensors[link.name] = \
+                    self._rigid_link(mbs, link, mo, gravity)
+                continue
             lm = mo.link(link.name)
             c, s = math.cos(lm.angle[0]), math.sin(lm.angle[0])
             pos, vel, _ = lm.point(link.stations)
@@ -144,14 +153,16 @@ class ExudynEngine:
                     mbs.AddLoad(LoadMassProportional(markerNumber=mbs.AddMarker(MarkerBodyMass(bodyNumber=e)),
                                                      loadVector=[gravity[0], gravity[1], 0.0]))
             self.nodes[link.name], self.elements[link.name] = nodes, elems
+            ends[link.name] = (mbs.AddMarker(MarkerNodePosition(nodeNumber=nodes[0])),
+                               mbs.AddMarker(MarkerNodePosition(nodeNumber=nodes[-1])))
+            start_rigid[link.name] = mbs.AddMarker(MarkerBodyRigid(bodyNumber=elems[0], localPosition=[0, 0, 0]))
+            station_sensors[link.name] = [mbs.AddSensor(SensorNode(nodeNumber=n, storeInternal=True, writeToFile=False,
+                                                                   outputVariableType=OVT.Position)) for n in nodes]
 
-        def pos_marker(node):
-            return mbs.AddMarker(MarkerNodePosition(nodeNumber=node))
         mbs.AddObject(GenericJoint(markerNumbers=[mbs.AddMarker(MarkerBodyRigid(bodyNumber=hub, localPosition=[0, 0, 0])),
-                                                  mbs.AddMarker(MarkerBodyRigid(bodyNumber=self.elements["crank"][0],
-                                                                                localPosition=[0, 0, 0]))],
+                                                  start_rigid["crank"]],
                                    constrainedAxes=[1, 1, 0, 0, 0, 1]))
-        mbs.AddObject(RevoluteJoint2D(markerNumbers=[pos_marker(self.nodes["crank"][-1]), pos_marker(self.nodes["coupler"][0])]))
+        mbs.AddObject(RevoluteJoint2D(markerNumbers=[ends["crank"][1], ends["coupler"][0]]))
         if isinstance(mech, SliderCrankMechanism):
             # A light block on a planar prismatic joint along the guide, pinned to the coupler's end
             # (the block's mass is the coupler end's point mass, as in the other engines).
@@ -165,16 +176,15 @@ class ExudynEngine:
                 markerNumbers=[mbs.AddMarker(MarkerBodyRigid(bodyNumber=ground, localPosition=[C[0], C[1], 0.0])),
                                mbs.AddMarker(MarkerBodyRigid(bodyNumber=body, localPosition=[0.0, 0.0, 0.0]))],
                 axisMarker0=[e[0], e[1], 0.0], normalMarker1=[0.0, 1.0, 0.0], constrainRotation=True))
-            mbs.AddObject(RevoluteJoint2D(markerNumbers=[pos_marker(self.nodes["coupler"][-1]),
+            mbs.AddObject(RevoluteJoint2D(markerNumbers=[ends["coupler"][1],
                                                          mbs.AddMarker(MarkerBodyPosition(bodyNumber=body,
                                                                                           localPosition=[0, 0, 0]))]))
         else:
-            mbs.AddObject(RevoluteJoint2D(markerNumbers=[pos_marker(self.nodes["coupler"][-1]),
-                                                         pos_marker(self.nodes["rocker"][-1])]))
+            mbs.AddObject(RevoluteJoint2D(markerNumbers=[ends["coupler"][1], ends["rocker"][1]]))
             D = mo.D[0]
             mbs.AddObject(RevoluteJoint2D(markerNumbers=[mbs.AddMarker(MarkerBodyPosition(bodyNumber=ground,
                                                                                           localPosition=[D[0], D[1], 0.0])),
-                                                         pos_marker(self.nodes["rocker"][0])]))
+                                                         ends["rocker"][0]]))
         # Gauge sensors: the element(s) around the gauge position.
         self._gauge_sensors = {}
         for g in self.gauges:
@@ -207,9 +217,29 @@ class ExudynEngine:
                              for o in (OVT.Coordinates, OVT.Coordinates_t, OVT.Coordinates_tt)]
         self._drive_sensor = mbs.AddSensor(SensorObject(objectNumber=self._drive_constraint, storeInternal=True,
                                                         writeToFile=False, outputVariableType=OVT.Force))
-        self._node_sensors = {name: [stored(nodeNumber=n, outputVariableType=OVT.Position) for n in ns]
-                              for name, ns in self.nodes.items()}
+        self._node_sensors = station_sensors
         mbs.Assemble()
+
+    def _rigid_link(self, mbs, link, mo, gravity):
+        """A rigid link as one rigid body at its centre of mass (exact mass properties of the
+        link, its end blocks and point masses). Returns its end position markers, the rigid marker
+        at its start, and position sensors at its stations (for drawing)."""
+        m, xc, Jc = link.rigid_body()
+        lm = mo.link(link.name)
+        pos, vel, _ = lm.point(np.array([xc]))
+        node = mbs.AddNode(NodeRigidBody2D(referenceCoordinates=[pos[0, 0, 0], pos[0, 0, 1], float(lm.angle[0])],
+                                           initialVelocities=[vel[0, 0, 0], vel[0, 0, 1], float(lm.omega[0])]))
+        body = mbs.AddObject(ObjectRigidBody2D(nodeNumber=node, mass=m, inertia=Jc))
+        if gravity is not None:
+            mbs.AddLoad(LoadMassProportional(markerNumber=mbs.AddMarker(MarkerBodyMass(bodyNumber=body)),
+                                             loadVector=[gravity[0], gravity[1], 0.0]))
+
+        def at(x, kind):
+            return mbs.AddMarker(kind(bodyNumber=body, localPosition=[x - xc, 0.0, 0.0]))
+        sensors = [mbs.AddSensor(SensorBody(bodyNumber=body, localPosition=[x - xc, 0.0, 0.0], storeInternal=True,
+                                            writeToFile=False, outputVariableType=OVT.Position))
+                   for x in link.stations]
+        return (at(0.0, MarkerBodyPosition), at(link.length_m, MarkerBodyPosition)), at(0.0, MarkerBodyRigid), sensors
 
     def _init_solver(self, settings):
         sims = exu.SimulationSettings()

@@ -57,7 +57,8 @@ class TMMEngine:
             angles = angle + ref_speed * self._dt * j
             self.cache = (N, ref_speed, angles, self.td._configurations(angles, np.full(N, ref_speed), np.zeros(N),
                                                                          self._dt))
-        self.links = self.td.links
+        self.links = self.td.links                          # elastic links (their DOFs)
+        self.drawn = scenario.mechanism.links()             # every link, rigid ones too
         self._frames = {}     # id(configuration batch) -> per link (rigid node positions, cos, sin)
 
     def _frame(self, cfg):
@@ -67,7 +68,7 @@ class TMMEngine:
             if len(self._frames) > 4:
                 self._frames.clear()
             out = {}
-            for link in self.links:
+            for link in self.drawn:
                 lm = cfg["motion"].link(link.name)
                 out[link.name] = (lm.point(link.stations)[0], np.cos(lm.angle), np.sin(lm.angle))
             self._frames[key] = (cfg, out)
@@ -84,7 +85,7 @@ class TMMEngine:
 
     def node_stations(self) -> dict:
         """Local x [m] of the nodes this engine reports, per link."""
-        return {link.name: link.stations for link in self.links}
+        return {link.name: link.stations for link in self.drawn}
 
     def reflected_inertia(self, angles) -> np.ndarray:
         """Rigid-body inertia of this engine's (lumped) mass model seen at the crank [kg m^2]: the
@@ -101,13 +102,11 @@ class TMMEngine:
     def save(self):
         """Snapshot for a coupling iteration (the march state is replaced, never mutated, per step)."""
         m = self.march
-        return (self.k, m.state, m.z, m.out, m.q_sls, getattr(m, "_P", None))
+        return (self.k, m.state, m.z, m.out, m.q_sls, m.axial)
 
     def restore(self, token) -> None:
         m = self.march
-        self.k, m.state, m.z, m.out, m.q_sls, P = token
-        if P is not None:
-            m._P = P
+        self.k, m.state, m.z, m.out, m.q_sls, m.axial = token
 
     def advance(self, t_next: float, drive: DriveInput) -> EngineOutput:
         if drive.prescribed is None:
@@ -118,28 +117,21 @@ class TMMEngine:
         ks = self.k + 1 + np.arange(n)
         t = self.t0 + ks * self._dt          # integer step count, never accumulated
         angle, speed, accel = (np.asarray(x, dtype=float) for x in drive.prescribed(t))
-        outs, zs, frames = [], [], {l.name: ([], [], []) for l in self.links}
+        outs, zs, frames = [], [], {l.name: ([], [], []) for l in self.drawn}
         cached = [self._cached(int(k), float(a), float(w), float(x)) for k, a, w, x in zip(ks, angle, speed, accel)]
         batch = None
         if any(c is None for c in cached):
             # Every step the cache does not cover, factorized in one vectorised batch.
             rest = [i for i, c in enumerate(cached) if c is None]
-            if self.td.axial_force == "iterated":
-                motion = self.td.mech.motion(angle[rest], speed[rest], accel[rest])
-                batch = ({"motion": motion}, {i: j for j, i in enumerate(rest)})
-            else:
-                batch = (self.td._configurations(angle[rest], speed[rest], accel[rest], self._dt, maps=False),
-                         {i: j for j, i in enumerate(rest)})
+            batch = (self.td._configurations(angle[rest], speed[rest], accel[rest], self._dt, maps=False),
+                     {i: j for j, i in enumerate(rest)})
         for i in range(n):
             if cached[i] is not None:
                 cfg, idx = self.cache[3], cached[i]
             else:
                 cfg, idx = batch[0], batch[1][i]
             self.k += 1
-            if "factor" in cfg:
-                z, out = self.march.step_with(cfg, idx)
-            else:   # iterated axial force: the march iterates each step on its own axial force
-                z, out = self.march.advance(float(angle[i]), float(speed[i]), float(accel[i]))
+            z, out = self.march.step_with(cfg, idx)
             outs.append(out)
             zs.append(z)
             for name, (rigid, c, s) in self._frame(cfg).items():
@@ -150,6 +142,9 @@ class TMMEngine:
         local = self.td.unstack(np.array(zs))
         nodes = {}
         for name, (rigid, c, s) in frames.items():
+            if name not in local:           # a rigid link: its rigid-body positions
+                nodes[name] = np.array(rigid)
+                continue
             c, s = np.array(c)[:, None], np.array(s)[:, None]
             u, w = local[name][..., 0], local[name][..., 1]
             nodes[name] = np.array(rigid) + np.stack([c * u - s * w, s * u + c * w], -1)
