@@ -8,6 +8,7 @@ from .errors import (AssemblyError, BucklingError, ConvergenceError, InputError,
 from .kinematics import (FourBarGeometry, FourBarMotion, LinkMotion, SliderCrankGeometry, SliderCrankMotion,
                          fourbar_motion, slider_crank_motion)
 from .matrices import field_matrix, frame_rotation, point_matrix, rigid_element_matrix, spring_matrix
+from . import kernels
 from .ked import Coupling, CrankMotion, KEDResult, TimeDomain, quasi_static, rigid_body_loads, time_domain
 from .materials import Damping, StandardLinearSolid
 from .mechanism import FourBarMechanism, Link, PointMass, SliderCrankMechanism

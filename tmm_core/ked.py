@@ -51,6 +51,7 @@ from .matrices import field_matrix
 from .mechanism import FourBarMechanism, StaticMechanism, torque_from_terms
 from .post import Gauge, gauge_strains
 from .riccati import segment_stiffness
+from . import kernels
 from .second_order import Segments, pseudo_loads, shape_products
 from .statics import solve_static
 from .structure import LoadCase, factorize, solve_factored
@@ -278,6 +279,8 @@ class TimeDomain:
         step iteration.
     dynamic_terms : the second-order terms of the 'dynamic' step: 'shortening' (axial shortening
         from bending) and 'axial_force' (the step's own axial force in the bending equations).
+    compiled : march configurations with cached maps in the compiled kernel
+        (:mod:`tmm_core.kernels`); the numpy path is the reference and the fallback.
     gravity : gravity vector [m/s^2] in the mechanism plane, or None.
     gauges : gauges whose strains are recorded.
     max_map_bytes : memory budget for the stored load-to-response maps; above it each step
@@ -287,8 +290,11 @@ class TimeDomain:
     def __init__(self, mech: FourBarMechanism, *, integrator: str = "newmark", coupling: Coupling = Coupling(),
                  beam_column: bool = True, gravity=None, gauges: Sequence[Gauge] = (),
                  max_map_bytes: float = 400e6, axial_force: str = "dynamic", axial_tolerance: float = 1e-8,
-                 axial_iterations: int = 60, dynamic_terms: tuple = DYNAMIC_TERMS):
+                 axial_iterations: int = 60, dynamic_terms: tuple = DYNAMIC_TERMS, compiled: bool = True):
         self.mech = mech
+        #: March cached configurations in the compiled kernel (tmm_core.kernels) when numba is
+        #: installed; False keeps the numpy reference path.
+        self.compiled = bool(compiled) and kernels.AVAILABLE
         if not set(dynamic_terms) <= set(DYNAMIC_TERMS):
             raise InputError(f"dynamic_terms must be a subset of {DYNAMIC_TERMS}, got {dynamic_terms!r}")
         #: The second-order terms the 'dynamic' step carries (both by default; one alone is for
@@ -362,6 +368,7 @@ class TimeDomain:
         cols = np.concatenate(rows)
         self.gather = sp.csr_matrix((np.ones(len(cols)), (np.arange(len(cols)), cols)), shape=(len(cols), self.n_dof))
         self.seg_K = sp.block_diag(blocks, format="csr")
+        self.seg_blocks = np.ascontiguousarray(np.array(blocks))     # (n_seg, 6, 6), for the compiled step
         # Maxwell modulus / reference modulus per segment entry (0 for elastic segments).
         self.seg_E1 = np.repeat(np.array(visco_E1), 6)
         # Material stiffness in local frames, assembled member by member (no joint coupling needed:
@@ -606,6 +613,22 @@ class TimeDomain:
                     history = []
         return None, last_finite, (self.axial_iterations, dz, dP)
 
+    def _kernel_data(self, cfg):
+        """The arrays of a configuration batch the compiled march reads (cached in the batch)."""
+        data = cfg.get("kernel")
+        if data is None:
+            maps = cfg["maps"]
+            B = len(cfg["rigid"])
+            ns = len(self.segments.length)
+            dynamic = self.axial_force == "dynamic"
+            omega = np.stack([self._node_omega(cfg, i) for i in range(B)]) if self.coupling.coriolis else \
+                np.zeros((1, self.n_dof))
+            data = cfg["kernel"] = tuple(np.ascontiguousarray(x, dtype=float) for x in (
+                maps["Z"], maps["z0"], maps["O"], maps["o0"],
+                maps["A"] if dynamic else np.zeros((1, ns, self.n_dof)), maps["a0"] if dynamic else np.zeros((1, ns)),
+                cfg["P0"] if dynamic else np.zeros((1, ns)), cfg["rigid"], omega))
+        return data
+
     def _node_loads(self, loads):
         return {l.name: loads[self.offsets[l.name]:self.offsets[l.name] + 3 * l.n_nodes]
                 .reshape(l.n_nodes, 3)[None, None] for l in self.links}
@@ -648,35 +671,44 @@ class TimeDomain:
 
         cfg, cfg_start, cfg_len = None, -1, 0
         steady, change, done = False, float("nan"), n_steps
-        for k in range(1, n_steps):
+        k = 1
+        while k < n_steps:
             # Configurations are factorized in batches: one revolution when the history is periodic,
-            # chunks of consecutive steps otherwise.
+            # chunks of consecutive steps otherwise. Steps are marched in blocks that end at a
+            # revolution (the steady-state check) or at the end of a chunk; one by one with a callback.
             if N is not None:
-                idx = k % N
                 if cfg is None:
                     cfg = self._configurations(crank.angle[:N], crank.speed[:N], crank.acceleration[:N], dt)
+                end = min(n_steps, (k // N + 1) * N)
+                indices = np.arange(k, end) % N
             else:
                 if cfg is None or k >= cfg_start + cfg_len:
                     cfg_start, cfg_len = k, min(chunk, n_steps - k)
                     sl = slice(k, k + cfg_len)
                     cfg = self._configurations(crank.angle[sl], crank.speed[sl], crank.acceleration[sl], dt)
-                idx = k - cfg_start
-            z, out = march.step_with(cfg, idx)
-            outputs[k] = out
+                end = cfg_start + cfg_len
+                indices = np.arange(k, end) - cfg_start
+            if callback is not None:
+                indices, end = indices[:1], k + 1
+            zs, outs = march.step_many(cfg, indices, record_z=disp is not None)
+            outputs[k:end] = outs
             if disp is not None:
-                disp[k] = z
-            if not np.all(np.isfinite(out)):
-                raise InputError(f"time-domain solution became non-finite at step {k} (t = {crank.t[k]:.6g} s)")
-            if N is not None and k >= N and (k + 1) % N == 0 and (k + 1) // N >= min_revolutions:
-                rev = outputs[k + 1 - N:k + 1]
-                prev = outputs[k + 1 - 2 * N:k + 1 - N]
+                disp[k:end] = zs
+            if not np.all(np.isfinite(outs)):
+                bad = k + int(np.argmax(~np.all(np.isfinite(outs), axis=1)))
+                raise InputError(f"time-domain solution became non-finite at step {bad} (t = {crank.t[bad]:.6g} s)")
+            k = end
+            last = k - 1
+            if N is not None and last >= N and k % N == 0 and k // N >= min_revolutions:
+                rev = outputs[k - N:k]
+                prev = outputs[k - 2 * N:k - N]
                 ptp = np.maximum(np.ptp(rev, axis=0), 1e-300)
                 change = float(np.max(np.max(np.abs(rev - prev), axis=0) / ptp))
                 if steady_tol is not None and change < steady_tol:
-                    steady, done = True, k + 1
+                    steady, done = True, k
                     break
-            if callback is not None and callback(k, float(crank.t[k])) is False:
-                done = k + 1
+            if callback is not None and callback(last, float(crank.t[last])) is False:
+                done = k
                 break
 
         sl = slice(0, done)
@@ -843,6 +875,69 @@ class March:
         z, out, P = td.solve_step(cfg, idx, loads, self.state, self.dt, self.axial)
         self.axial = P
         return self._commit(z, out)
+
+    def step_many(self, cfg, indices, record_z: bool = True, record_axial: bool = False):
+        """Steps through configurations ``indices`` of a batch, compiled when the batch has
+        cached maps (:mod:`tmm_core.kernels`), else one by one in numpy. Returns ``(zs, outs)``:
+        displacements ``(k, n_dof)`` (None unless ``record_z``) and outputs ``(k, n_out)``; with
+        ``record_axial`` also the segment axial forces ``(k, n_seg)`` of the 'dynamic' step."""
+        indices = np.asarray(indices, dtype=np.int64)
+        td = self.td
+        if td.compiled and cfg["maps"] is not None and not self.has_visco and td.integrator.name in kernels.INTEGRATOR_CODES:
+            return self._compiled(cfg, indices, record_z, record_axial)
+        zs = np.empty((len(indices), td.n_dof)) if record_z else None
+        outs = np.empty((len(indices), self.n_out))
+        Ps = np.empty((len(indices), len(td.segments.length))) if record_axial else None
+        for j, i in enumerate(indices):
+            z, outs[j] = self.step_with(cfg, int(i))
+            if record_z:
+                zs[j] = z
+            if record_axial:
+                Ps[j] = self.axial
+        return (zs, outs, Ps) if record_axial else (zs, outs)
+
+    def _compiled(self, cfg, indices, record_z, record_axial=False):
+        td, n, integ = self.td, self.td.n_dof, self.td.integrator
+        data = td._kernel_data(cfg)
+        code = kernels.INTEGRATOR_CODES[integ.name]
+        params = np.array(integ.parameters if code == kernels.GENERALIZED_ALPHA else (0.0, 0.0, 0.0, 0.0), float)
+        c_a, c_v = integ.coefficients(self.dt)
+        st = self.state
+        zero = np.zeros(n)
+        arrays = [np.array(st.get(key, zero), dtype=float) for key in ("d", "v", "a", "acc", "d1", "d2")]
+        seg = td.segments
+        dynamic = td.axial_force == "dynamic"
+        P = np.array(self.axial if self.axial is not None else
+                     (cfg["P0"][indices[0]] if dynamic else np.zeros(len(seg.length))), dtype=float)
+        outs = np.empty((len(indices), self.n_out))
+        zs = np.empty((len(indices), n)) if record_z else np.empty((0, n))
+        Ps = np.empty((len(indices), len(seg.length))) if record_axial else np.empty((0, len(seg.length)))
+        iterations = np.zeros(len(indices), dtype=np.int64)
+        j = 0
+        while j < len(indices):
+            done = kernels.march(
+                code, params, self.dt, c_a, c_v, indices[j:], *data, td.m_vec, td.aM_vec, self.beta, seg.start,
+                seg.end, seg.length, seg.EA, seg.beta, td.seg_blocks, td._gauge_segment, td.coupling.coriolis,
+                self.has_kv, dynamic, "shortening" in td.dynamic_terms, "axial_force" in td.dynamic_terms,
+                td.axial_tolerance, 1e-6, td.axial_iterations, ANDERSON_DEPTH, *arrays, P, outs[j:],
+                zs[j:] if record_z else zs, Ps[j:] if record_axial else Ps, iterations[j:])
+            self.state = {key: arr.copy() for key, arr in zip(("d", "v", "a", "acc", "d1", "d2"), arrays) if key in st}
+            self.axial = P.copy() if dynamic else self.axial
+            j += done
+            if j < len(indices):
+                # A step the kernel hands back: the numpy path refactorizes it at its own axial forces.
+                z, outs[j] = self.step_with(cfg, int(indices[j]))
+                if record_z:
+                    zs[j] = z
+                if record_axial:
+                    Ps[j] = self.axial
+                arrays = [np.array(self.state.get(key, zero), dtype=float) for key in ("d", "v", "a", "acc", "d1", "d2")]
+                P = np.array(self.axial, dtype=float) if dynamic else P
+                j += 1
+        self.z = self.state["d"]
+        self.out = outs[-1]
+        zs = zs if record_z else None
+        return (zs, outs, Ps) if record_axial else (zs, outs)
 
     def _commit(self, z, out):
         td = self.td

@@ -114,7 +114,10 @@ def periodic_steady_state(td: TimeDomain, speed_rad_s: float, *, step_s: float |
     x0 = np.linalg.solve(np.eye(ns) - Phi, c)
     info = {"dt_s": dt, "steps_per_revolution": N, "state_size": ns}
     if td.axial_force == "dynamic":
-        # Newton shooting on the nonlinear revolution map, from the linear model's solution.
+        # Newton shooting on the nonlinear revolution map, from the linear model's solution. The
+        # monodromy (the expensive part) is kept while it converges fast (chord iterations) and
+        # recomputed at the current orbit when the residual falls by less than a factor 4.
+        jacobian, last = None, math.inf
         for it in range(newton_iterations):
             try:
                 xN, trajectory, outs = _revolution(td, cfg, keys, x0, N, dt, beta, has_kv)
@@ -125,8 +128,10 @@ def periodic_steady_state(td: TimeDomain, speed_rad_s: float, *, step_s: float |
             residual = float(np.max(np.abs(xN - x0)) / max(np.max(np.abs(x0)), 1e-300))
             if residual < newton_tolerance:
                 break
-            Phi = _monodromy(td, cfg, keys, trajectory, dt, beta, has_kv)
-            x0 = x0 + np.linalg.solve(np.eye(ns) - Phi, xN - x0)
+            if jacobian is None or residual > 0.25 * last:
+                jacobian = np.eye(ns) - _monodromy(td, cfg, keys, trajectory, dt, beta, has_kv)
+            last = residual
+            x0 = x0 + np.linalg.solve(jacobian, xN - x0)
         else:
             raise ConvergenceError(f"periodic solver: Newton shooting did not converge in {newton_iterations} "
                                    f"iterations (last relative residual {residual:.3g})")
@@ -163,16 +168,20 @@ def _revolution(td: TimeDomain, cfg, keys, x0, N, dt, beta, has_kv):
     vector, the trajectory ``(idx, z, v, P)`` per step for the linearization, and the outputs."""
     state = _state(td, keys, x0)
     _, c_v = td.integrator.coefficients(dt)
-    trajectory, outs, P = [], [], None
-    for k in range(1, N + 1):
-        idx = k % N
-        h_a, h_v = td.integrator.history(state, dt)
-        loads = cfg["rigid"][idx] + _homogeneous_loads(td, cfg, idx, h_a[None], h_v[None], beta, has_kv)[0]
-        z, out, P = td.solve_step(cfg, idx, loads, state, dt, P)
-        trajectory.append((idx, z, c_v * z + h_v, P))
-        outs.append(out)
-        state = td.integrator.advance(state, z, dt)
-    return np.concatenate([state[k] for k in keys]), trajectory, outs
+    march = td.begin(dt, float(cfg["crank"][0][0]), float(cfg["crank"][1][0]), float(cfg["crank"][2][0]),
+                     initial={"d": state["d"], "v": state["v"], "a": state["a"],
+                              "previous": (state.get("d1", state["d"]), state.get("d2", state["d"]))})
+    march.state = state
+    indices = np.arange(1, N + 1) % N
+    zs, outs, Ps = march.step_many(cfg, indices, record_axial=True)
+    # The trajectory for the linearization: displacements, velocities (v = c_v z + h_v, the
+    # history from the state before each step) and axial forces per step.
+    trajectory, st = [], state
+    for j, idx in enumerate(indices):
+        _, h_v = td.integrator.history(st, dt)
+        st = td.integrator.advance(st, zs[j], dt)
+        trajectory.append((idx, zs[j], c_v * zs[j] + h_v, Ps[j]))
+    return np.concatenate([march.state[k] for k in keys]), trajectory, list(outs)
 
 
 def _monodromy(td: TimeDomain, cfg, keys, trajectory, dt, beta, has_kv):

@@ -125,19 +125,26 @@ class TMMEngine:
             rest = [i for i, c in enumerate(cached) if c is None]
             batch = (self.td._configurations(angle[rest], speed[rest], accel[rest], self._dt, maps=False),
                      {i: j for j, i in enumerate(rest)})
-        for i in range(n):
-            if cached[i] is not None:
-                cfg, idx = self.cache[3], cached[i]
-            else:
-                cfg, idx = batch[0], batch[1][i]
-            self.k += 1
-            z, out = self.march.step_with(cfg, idx)
-            outs.append(out)
-            zs.append(z)
+        # Runs of consecutive steps on the same configuration batch are marched together (compiled
+        # for the cached revolution, tmm_core.kernels).
+        runs, i = [], 0
+        while i < n:
+            use_cache = cached[i] is not None
+            j = i
+            while j < n and (cached[j] is not None) == use_cache:
+                j += 1
+            cfg = self.cache[3] if use_cache else batch[0]
+            runs.append((cfg, np.array([cached[q] if use_cache else batch[1][q] for q in range(i, j)], dtype=np.int64)))
+            i = j
+        for cfg, idx in runs:
+            z_run, out_run = self.march.step_many(cfg, idx)
+            self.k += len(idx)
+            outs.extend(out_run)
+            zs.extend(z_run)
             for name, (rigid, c, s) in self._frame(cfg).items():
-                frames[name][0].append(rigid[idx])
-                frames[name][1].append(c[idx])
-                frames[name][2].append(s[idx])
+                frames[name][0].extend(rigid[idx])
+                frames[name][1].extend(c[idx])
+                frames[name][2].extend(s[idx])
         outs = np.array(outs)
         local = self.td.unstack(np.array(zs))
         nodes = {}
