@@ -41,7 +41,6 @@ from dataclasses import dataclass, field
 from typing import Callable, Mapping, Sequence
 
 import numpy as np
-import scipy.sparse as sp
 
 from .errors import (ConvergenceError, DynamicStabilityError, InputError, SingularStructureError,
                      require_finite, require_positive)
@@ -354,6 +353,8 @@ class TimeDomain:
     def _build_segment_operators(self):
         """Sparse operators on the node vector: gather of segment end displacements, the block
         diagonal of segment stiffnesses (material, at the material's E), and per-segment data."""
+        import scipy.sparse as sp          # here: importing it costs 0.2 s that most users never need
+
         rows, blocks, visco_E1 = [], [], []
         for link in self.links:
             m = link.member("s", "e")
@@ -915,7 +916,7 @@ class March:
         iterations = np.zeros(len(indices), dtype=np.int64)
         j = 0
         while j < len(indices):
-            done = kernels.march(
+            done = kernels.compiled_march()(
                 code, params, self.dt, c_a, c_v, indices[j:], *data, td.m_vec, td.aM_vec, self.beta, seg.start,
                 seg.end, seg.length, seg.EA, seg.beta, td.seg_blocks, td._gauge_segment, td.coupling.coriolis,
                 self.has_kv, dynamic, "shortening" in td.dynamic_terms, "axial_force" in td.dynamic_terms,

@@ -21,24 +21,32 @@ Kernels are compiled on first use and cached on disk (numba ``cache=True``). Int
 """
 from __future__ import annotations
 
+import importlib.util
+
 import numpy as np
 
-try:
-    import numba
-    AVAILABLE = True
-except ImportError:          # the numpy path still works; the bench installs numba
-    numba = None
-    AVAILABLE = False
+# numba is imported (and the kernels compiled or loaded from its cache) on first use only: the
+# command line and the numpy path do not pay for it. Without numba the numpy path still works.
+AVAILABLE = importlib.util.find_spec("numba") is not None
 
 NEWMARK, HOUBOLT, GENERALIZED_ALPHA = 0, 1, 2
 INTEGRATOR_CODES = {"newmark": NEWMARK, "houbolt": HOUBOLT, "generalized_alpha": GENERALIZED_ALPHA}
+_COMPILED = {}
 
 
-def _jit(fn):
-    return numba.njit(cache=True, fastmath=False)(fn) if AVAILABLE else fn
+def compiled_march():
+    """The compiled :func:`march` (numba, cached on disk)."""
+    if "march" not in _COMPILED:
+        import numba
+        jit = numba.njit(cache=True)
+        # The inner functions are compiled first and put in the module's namespace, where numba
+        # looks up the names march calls.
+        for name in ("_history", "_advance", "_shape_products"):
+            globals()[name] = jit(globals()[name])
+        _COMPILED["march"] = jit(march)
+    return _COMPILED["march"]
 
 
-@_jit
 def _history(code, params, dt, d, v, a, acc, d1, d2, h_a, h_v):
     """Integrator history parts of acceleration and velocity (``a = c_a d + h_a``)."""
     n = d.shape[0]
@@ -58,7 +66,6 @@ def _history(code, params, dt, d, v, a, acc, d1, d2, h_a, h_v):
             h_a[i] = ((1 - am) * a_hist + am * a[i] - af * acc[i]) / (1 - af)
 
 
-@_jit
 def _advance(code, params, dt, c_a, c_v, z, d, v, a, acc, d1, d2, h_a, h_v):
     """Integrator update in place to the new displacements ``z`` (history computed before)."""
     n = d.shape[0]
@@ -81,7 +88,6 @@ def _advance(code, params, dt, c_a, c_v, z, d, v, a, acc, d1, d2, h_a, h_v):
             d[i] = z[i]
 
 
-@_jit
 def _shape_products(start, end, L, z, delta, G):
     """Shortening 1/2 d^T G d and the four components of G d per segment (second_order.py)."""
     for s in range(L.shape[0]):
@@ -95,7 +101,6 @@ def _shape_products(start, end, L, z, delta, G):
         delta[s] = 0.5 * (dw * g0 + t0 * g1 + t1 * g3)
 
 
-@_jit
 def march(code, params, dt, c_a, c_v, idx,
           Z, z0, O, o0, A, a0, P0, rigid, omega,
           m, aM, beta_node, seg_start, seg_end, seg_L, seg_EA, seg_beta, seg_K, gauge_seg,
