@@ -9,7 +9,9 @@ from .kinematics import (FourBarGeometry, FourBarMotion, LinkMotion, SliderCrank
                          fourbar_motion, slider_crank_motion)
 from .matrices import field_matrix, frame_rotation, point_matrix, rigid_element_matrix, spring_matrix
 from . import kernels
-from .ked import Coupling, CrankMotion, KEDResult, TimeDomain, quasi_static, rigid_body_loads, time_domain
+from .ked import Coupling, CrankMotion, KEDResult, quasi_static, rigid_body_loads
+from .transient import TimeDomain
+from .march import March, time_domain
 from .materials import Damping, StandardLinearSolid
 from .mechanism import FourBarMechanism, Link, PointMass, SliderCrankMechanism
 from .post import (Gauge, bending_axial_strain, distortion, gauge_strains, soderberg, state_at, static_safety_factor,

@@ -70,7 +70,7 @@ def _advance(code, params, dt, c_a, c_v, z, d, v, a, acc, d1, d2, h_a, h_v):
     """Integrator update in place to the new displacements ``z`` (history computed before)."""
     n = d.shape[0]
     if code == GENERALIZED_ALPHA:
-        am, af, g, b = params[0], params[1], params[2], params[3]
+        b = params[3]
         for i in range(n):
             a_hist = (-d[i] - dt * v[i] - dt**2 * (0.5 - b) * a[i]) / (b * dt**2)
             a_new = z[i] / (b * dt**2) + a_hist

@@ -31,7 +31,8 @@ import numpy as np
 from scipy.integrate import solve_ivp
 
 from .errors import ConvergenceError, InputError, TMMError
-from .ked import CrankMotion, TimeDomain
+from .ked import CrankMotion
+from .transient import TimeDomain
 from .second_order import linearization
 
 STATE_KEYS = {"newmark": ("d", "v", "a"), "generalized_alpha": ("d", "v", "a", "acc"), "houbolt": ("d", "d1", "d2")}
@@ -53,25 +54,10 @@ class PeriodicResult:
     info: dict
 
 
-def _homogeneous_loads(td: TimeDomain, cfg, idx, h_a, h_v, beta, has_kv):
-    """The state-dependent part of a step's loads for a batch of histories (M, n_dof)."""
-    m = td.m_vec
-    loads = - m * (h_a + td.aM_vec * h_v)
-    if td.coupling.coriolis:
-        w = td._node_omega(cfg, idx)
-        is_u = np.tile([True, False, False], td.n_dof // 3)
-        is_w = np.tile([False, True, False], td.n_dof // 3)
-        loads = loads + np.where(is_u, 2.0 * m * w * np.roll(h_v, -1, axis=-1), 0.0) \
-            - np.where(is_w, 2.0 * m * w * np.roll(h_v, 1, axis=-1), 0.0)
-    if has_kv:
-        loads = loads - beta * (td.K_local @ h_v.T).T
-    return loads
-
-
-def _batched_step(td: TimeDomain, cfg, idx, state, dt, beta, has_kv):
+def _batched_step(td: TimeDomain, cfg, idx, state, dt):
     """One linear time step for a batch of states: every array in ``state`` is (M, n_dof)."""
     h_a, h_v = td.integrator.history(state, dt)
-    loads = cfg["rigid"][idx][None, :] + _homogeneous_loads(td, cfg, idx, h_a, h_v, beta, has_kv)
+    loads = td.step_loads(cfg, idx, h_a, h_v)
     maps = cfg["maps"]
     z = loads @ maps["Z"][idx].T + maps["z0"][idx]
     out = loads @ maps["O"][idx].T + maps["o0"][idx]
@@ -95,19 +81,17 @@ def periodic_steady_state(td: TimeDomain, speed_rad_s: float, *, step_s: float |
     if N is None:
         raise InputError("the step must divide a revolution into a whole number of steps")
     dt = crank.dt
-    cfg = td._configurations(crank.angle[:N], crank.speed[:N], crank.acceleration[:N], dt, maps=True)
+    cfg = td.configurations(crank.angle[:N], crank.speed[:N], crank.acceleration[:N], dt, maps=True)
     if cfg["maps"] is None:
         raise InputError("periodic solver: the load-to-response maps exceed the memory budget (max_map_bytes)")
     n = td.n_dof
     ns = len(keys) * n
-    beta = np.concatenate([np.full(3 * l.n_nodes, l.damping.stiffness_s) for l in td.links])
-    has_kv = bool(np.any(beta > 0))
     # Column 0: zero initial state (the forced, affine part); columns 1..ns: unit states.
     X0 = np.zeros((ns + 1, ns))
     X0[1:] = np.eye(ns)
     state = _state(td, keys, X0)
     for k in range(1, N + 1):
-        state, _, _ = _batched_step(td, cfg, k % N, state, dt, beta, has_kv)
+        state, _, _ = _batched_step(td, cfg, k % N, state, dt)
     XN = np.concatenate([state[k] for k in keys], axis=1)           # (ns + 1, ns)
     c = XN[0]
     Phi = (XN[1:] - c).T                                             # x_N = Phi x_0 + c
@@ -120,7 +104,7 @@ def periodic_steady_state(td: TimeDomain, speed_rad_s: float, *, step_s: float |
         jacobian, last = None, math.inf
         for it in range(newton_iterations):
             try:
-                xN, trajectory, outs = _revolution(td, cfg, keys, x0, N, dt, beta, has_kv)
+                xN, trajectory, outs = _revolution(td, cfg, keys, x0, N, dt)
             except TMMError as exc:
                 raise ConvergenceError(f"periodic solver: Newton shooting left the range of the model at iteration "
                                        f"{it + 1} ({exc}); the response may not be periodic at this speed (march in "
@@ -129,20 +113,20 @@ def periodic_steady_state(td: TimeDomain, speed_rad_s: float, *, step_s: float |
             if residual < newton_tolerance:
                 break
             if jacobian is None or residual > 0.25 * last:
-                jacobian = np.eye(ns) - _monodromy(td, cfg, keys, trajectory, dt, beta, has_kv)
+                jacobian = np.eye(ns) - _monodromy(td, cfg, keys, trajectory, dt)
             last = residual
             x0 = x0 + np.linalg.solve(jacobian, xN - x0)
         else:
             raise ConvergenceError(f"periodic solver: Newton shooting did not converge in {newton_iterations} "
                                    f"iterations (last relative residual {residual:.3g})")
-        Phi = _monodromy(td, cfg, keys, trajectory, dt, beta, has_kv)
+        Phi = _monodromy(td, cfg, keys, trajectory, dt)
         info["newton_iterations"] = it + 1
     else:
         # One revolution from the periodic state, for the outputs and as a check.
         st = _state(td, keys, x0[None, :])
         outs = []
         for k in range(1, N + 1):
-            st, _, out = _batched_step(td, cfg, k % N, st, dt, beta, has_kv)
+            st, _, out = _batched_step(td, cfg, k % N, st, dt)
             outs.append(out[0])
         xN = np.concatenate([st[k][0] for k in keys])
         residual = float(np.max(np.abs(xN - x0)) / max(np.max(np.abs(x0)), 1e-300))
@@ -163,7 +147,7 @@ def _state(td: TimeDomain, keys, X):
     return full
 
 
-def _revolution(td: TimeDomain, cfg, keys, x0, N, dt, beta, has_kv):
+def _revolution(td: TimeDomain, cfg, keys, x0, N, dt):
     """One nonlinear (second-order) revolution from the state vector ``x0``: the final state
     vector, the trajectory ``(idx, z, v, P)`` per step for the linearization, and the outputs."""
     state = _state(td, keys, x0)
@@ -184,7 +168,7 @@ def _revolution(td: TimeDomain, cfg, keys, x0, N, dt, beta, has_kv):
     return np.concatenate([march.state[k] for k in keys]), trajectory, list(outs)
 
 
-def _monodromy(td: TimeDomain, cfg, keys, trajectory, dt, beta, has_kv):
+def _monodromy(td: TimeDomain, cfg, keys, trajectory, dt):
     """Monodromy matrix of the second-order step linearized about ``trajectory``: every unit
     state marched through one revolution in one batch, each step a dense solve of the step's
     Jacobian in (displacements, segment axial forces)."""
@@ -199,7 +183,7 @@ def _monodromy(td: TimeDomain, cfg, keys, trajectory, dt, beta, has_kv):
     maps = cfg["maps"]
     for idx, z, v, P in trajectory:
         h_a, h_v = td.integrator.history(state, dt)
-        dL = _homogeneous_loads(td, cfg, idx, h_a, h_v, beta, has_kv)
+        dL = td.step_loads(cfg, idx, h_a, h_v, rigid=False)
         f_z, f_P, f_h, F_z, F_h = linearization(seg, n, c_v, z, v, P, cfg["P0"][idx])
         Z, A = maps["Z"][idx], maps["A"][idx]
         J = np.block([[np.eye(n) - Z @ f_z, -Z @ f_P], [-(A @ f_z + F_z), np.eye(n_seg) - A @ f_P]])

@@ -55,7 +55,7 @@ class TMMEngine:
             N = int(round(N))
             j = np.arange(N)
             angles = angle + ref_speed * self._dt * j
-            self.cache = (N, ref_speed, angles, self.td._configurations(angles, np.full(N, ref_speed), np.zeros(N),
+            self.cache = (N, ref_speed, angles, self.td.configurations(angles, np.full(N, ref_speed), np.zeros(N),
                                                                          self._dt))
         self.links = self.td.links                          # elastic links (their DOFs)
         self.drawn = scenario.mechanism.links()             # every link, rigid ones too
@@ -123,7 +123,7 @@ class TMMEngine:
         if any(c is None for c in cached):
             # Every step the cache does not cover, factorized in one vectorised batch.
             rest = [i for i, c in enumerate(cached) if c is None]
-            batch = (self.td._configurations(angle[rest], speed[rest], accel[rest], self._dt, maps=False),
+            batch = (self.td.configurations(angle[rest], speed[rest], accel[rest], self._dt, maps=False),
                      {i: j for j, i in enumerate(rest)})
         # Runs of consecutive steps on the same configuration batch are marched together (compiled
         # for the cached revolution, tmm_core.kernels).

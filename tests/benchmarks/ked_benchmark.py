@@ -24,7 +24,7 @@ from cosim.runlog import LOG_ROOT, run_folder, write_json
 from cosim.units import INCH, RPM
 from scenarios.rigs import alexander_lawrence
 from tmm_core import CrankMotion, Gauge, quasi_static
-from tmm_core.ked import TimeDomain
+from tmm_core.transient import TimeDomain
 
 W = -400 * RPM
 GAUGES = [Gauge("rocker_mid", "rocker", 10.5 * INCH / 2), Gauge("coupler_mid", "coupler", 5.5 * INCH)]

@@ -1,0 +1,211 @@
+"""The solution of one time step of :class:`tmm_core.TimeDomain` (numpy reference path).
+
+A step is a static solution of the instantaneous structure with the step's inertia as node
+stiffness (:mod:`tmm_core.ked`). Linear ('quasi_static', 'none'): one solve on the cached
+factorization (a dense map product or a Riccati load sweep). Second order ('dynamic'): the
+pseudo-loads of :mod:`tmm_core.second_order` iterated to convergence with Anderson mixing on the
+cached factorization, and refactorized at the step's own axial forces when that fails.
+
+Owns: :class:`StepSolver`, mixed into TimeDomain. The compiled march (:mod:`tmm_core.kernels`)
+does the same arithmetic and is checked against this code.
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+
+from .errors import ConvergenceError
+from .ked import segment_forces
+from .mechanism import torque_from_terms
+from .post import gauge_strains
+from .second_order import pseudo_loads, shape_products
+from .structure import solve_factored
+
+AXIAL_FORCE_MODELS = ("dynamic", "quasi_static", "none")
+ANDERSON_DEPTH = 4          # iterates mixed by the second-order step iteration
+AXIAL_RESTARTS = 3          # refactorizations of a second-order step that does not converge
+DYNAMIC_TERMS = ("shortening", "axial_force")
+
+
+class StepSolver:
+    """One step on a configuration batch: the mixin of :class:`tmm_core.TimeDomain` (it reads the
+    model's ``links``, ``gauges``, ``segments``, ``integrator`` and tolerances)."""
+
+    def solve_step(self, cfg, k, loads, state, dt, axial_guess=None):
+        """Displacements ``z``, outputs and segment axial forces [N] of one time step at
+        configuration ``k`` of ``cfg`` for the stacked local ``loads`` (inertia history included)
+        and the integrator ``state`` before the step. Linear for 'quasi_static' and 'none';
+        for 'dynamic' the second-order pseudo-loads are iterated to convergence on the cached
+        factorization, starting from ``axial_guess`` (e.g. the previous step's forces). Where the
+        axial forces move far from the cached ones (a strong transient) that iteration can fail;
+        the step is then factorized afresh at the latest axial forces and iterated again."""
+        if self.axial_force != "dynamic":
+            return self._solve_one(cfg, k, loads)
+        guess = axial_guess
+        diag = (0, float("nan"), float("nan"))
+        for attempt in range(AXIAL_RESTARTS + 1):
+            if cfg["indefinite"][k]:
+                if guess is None:
+                    break
+                result, guess_new = None, guess
+            else:
+                result, guess_new, diag = self._iterate(cfg, k, loads, state, dt, guess)
+            if result is not None:
+                self.last_iterations = diag[0]
+                return result
+            # Refactorize this step at the best axial forces known: the previous step's, then
+            # the failed iteration's last finite estimate.
+            guess = guess if attempt == 0 and guess is not None else guess_new
+            if guess is None or not np.all(np.isfinite(guess)):
+                break
+            angle, speed, accel = (x[k:k + 1] for x in cfg["crank"])
+            cfg, k = self.configurations(angle, speed, accel, dt, maps=False, axial_force=guess[None]), 0
+        crank = math.degrees(float(cfg["crank"][0][k]))
+        raise ConvergenceError(
+            f"the second-order (axial_force 'dynamic') step did not converge at crank angle {crank:.6g} deg "
+            f"(after {AXIAL_RESTARTS} refactorizations; last relative changes: displacement {diag[1]:.3g}, axial "
+            f"force {diag[2]:.3g}); the links are near a dynamic instability or the step is too large (reduce "
+            "solver.tmm.step)")
+
+    def _iterate(self, cfg, k, loads, state, dt, axial_guess):
+        """The fixed-point iteration of :meth:`solve_step` on one factorization: ``((z, out, P),
+        None, (iterations, 0, 0))`` when converged, else ``(None, last finite P, (iterations,
+        displacement change, axial-force change))``."""
+        seg = self.segments
+        c_a, c_v = self.integrator.coefficients(dt)
+        _, h_v = self.integrator.history(state, dt)
+        # Kelvin-Voigt: the physical axial force adds beta EA/L times the history part of the
+        # relative axial velocity (the solver's own force carries EA (1 + beta c_v) (u1 - u0)/L).
+        damping = seg.beta * seg.stiffness * (h_v[seg.end] - h_v[seg.start])
+        P0 = cfg["P0"][k]
+        P = P0 if axial_guess is None else axial_guess
+        z = state["d"] + dt * state["v"] + 0.5 * dt**2 * state["a"]
+        # Anderson acceleration of the fixed point on x = (z, P L/EA): the axial force scaled to
+        # the axial displacement it causes, so that both parts weigh alike in the mixing.
+        n, to_len = len(z), seg.length / seg.EA
+        x = np.concatenate([z, P * to_len])
+        history, previous, last_finite = [], None, None
+        scale_P = 1e-9 * float(np.max(seg.EA))
+        dz = dP = float("nan")
+        shorten, own_force = "shortening" in self.dynamic_terms, "axial_force" in self.dynamic_terms
+        for it in range(self.axial_iterations):
+            z, P = x[:n], x[n:] / to_len
+            f, F, delta = pseudo_loads(seg, z, c_v * z + h_v, P if own_force else P0, P0, shorten)
+            z_new, out, N = self._solve_one(cfg, k, loads + f)
+            P_new = N + damping + F
+            if not (np.all(np.isfinite(z_new)) and np.all(np.isfinite(P_new))):
+                break
+            last_finite = P_new
+            dz = float(np.max(np.abs(z_new - z))) / (float(np.max(np.abs(z_new))) + 1e-300)
+            dP = float(np.max(np.abs(P_new - P))) / (float(np.max(np.abs(P_new))) + scale_P)
+            # The axial force only feeds the geometric stiffness: 1e-6 is ample (and its round-off
+            # floor, a difference of large nodal forces, sits near 1e-8).
+            if dz < self.axial_tolerance and dP < 1e-6:
+                if len(self._gauge_segment) and shorten:
+                    # Gauge axial strain = the full axial strain, with the shortening from bending.
+                    delta = shape_products(seg, z_new)[0]
+                    out = out.copy()
+                    out[2::2] += delta[self._gauge_segment] / seg.length[self._gauge_segment]
+                return (z_new, out, P_new), None, (it + 1, dz, dP)
+            if dz > 1e3 or dP > 1e3:       # diverging: refactorize rather than iterate on
+                break
+            gx = np.concatenate([z_new, P_new * to_len])
+            r = gx - x
+            if previous is not None:
+                history.append((r - previous[0], gx - previous[1]))
+                history = history[-ANDERSON_DEPTH:]
+            previous = (r, gx)
+            x = gx
+            if history:
+                dR = np.stack([h[0] for h in history], axis=1)
+                dG = np.stack([h[1] for h in history], axis=1)
+                try:
+                    gamma = np.linalg.lstsq(dR, r, rcond=None)[0]
+                    x = gx - dG @ gamma
+                except np.linalg.LinAlgError:
+                    history = []
+        return None, last_finite, (self.axial_iterations, dz, dP)
+
+    def _solve_one(self, cfg, k, loads):
+        """Response to the stacked local loads at configuration index k (map or sweep):
+        ``(z, out, N)`` with ``N`` the solver's segment axial forces (None without them)."""
+        maps = cfg["maps"]
+        if maps is not None:
+            N = maps["A"][k] @ loads + maps["a0"][k] if "A" in maps else None
+            return maps["Z"][k] @ loads + maps["z0"][k], maps["O"][k] @ loads + maps["o0"][k], N
+        node_loads = self._node_loads(loads)
+        if cfg["factor"].batch[0] == 1:
+            factor = cfg["factor"]
+        else:
+            # Selecting one configuration walks the whole factor (4 ms at 32 segments per link):
+            # keep each selection (views, no copies) for the following revolutions.
+            chosen = cfg.setdefault("selected", {})
+            factor = chosen.get(k)
+            if factor is None:
+                factor = chosen[k] = _select(cfg["factor"], k)
+        return self._response(solve_factored(factor, node_loads, frame="local"), _terms_at(cfg["drive"], k))
+
+    def _response(self, sol, drive):
+        """``(z, out, N)`` of a single-configuration solution: node displacements, outputs and the
+        segment axial forces; ``drive``: the configuration's drive-torque terms
+        (:meth:`FourBarMechanism.drive_torque_terms`)."""
+        z = np.concatenate([sol.members[l.name].state[..., 0, :3].reshape(-1) for l in self.links])
+        out = [np.reshape(torque_from_terms(sol.reactions, *drive), ())]
+        for g in self.gauges:
+            b, a = gauge_strains(sol.members[g.link], g)
+            out += [b.reshape(()), a.reshape(())]
+        N = np.concatenate([segment_forces(sol.members[l.name]).reshape(-1) for l in self.links])
+        return z, np.array(out), N
+
+    def _node_loads(self, loads):
+        return {l.name: loads[self.offsets[l.name]:self.offsets[l.name] + 3 * l.n_nodes]
+                .reshape(l.n_nodes, 3)[None, None] for l in self.links}
+
+    def _kernel_data(self, cfg):
+        """The arrays of a configuration batch the compiled march reads (cached in the batch)."""
+        data = cfg.get("kernel")
+        if data is None:
+            maps = cfg["maps"]
+            B = len(cfg["rigid"])
+            ns = len(self.segments.length)
+            dynamic = self.axial_force == "dynamic"
+            omega = np.stack([self._node_omega(cfg, i) for i in range(B)]) if self.coupling.coriolis else \
+                np.zeros((1, self.n_dof))
+            data = cfg["kernel"] = tuple(np.ascontiguousarray(x, dtype=float) for x in (
+                maps["Z"], maps["z0"], maps["O"], maps["o0"],
+                maps["A"] if dynamic else np.zeros((1, ns, self.n_dof)), maps["a0"] if dynamic else np.zeros((1, ns)),
+                cfg["P0"] if dynamic else np.zeros((1, ns)), cfg["rigid"], omega))
+        return data
+
+
+def _terms_at(terms, k):
+    """Drive-torque terms of configuration ``k`` (an index or a slice) of a batch."""
+    joint, arm, offset = terms
+    if arm is None:
+        return terms
+    return joint, arm[k], np.asarray(offset)[k]
+
+
+def _select(factor, k):
+    """Configuration ``k`` (an index or a slice) of a factor with batch (B, 1): views, no copies."""
+    sl = k if isinstance(k, slice) else slice(k, k + 1)
+    n = len(range(*sl.indices(factor.batch[0])))
+
+    def take(x):
+        if isinstance(x, np.ndarray) and x.ndim >= 2 and x.shape[0] == factor.batch[0] and x.shape[1] == 1:
+            return x[sl]
+        if isinstance(x, tuple):
+            return tuple(take(v) for v in x)
+        if isinstance(x, list):
+            return [take(v) for v in x]
+        if isinstance(x, dict):
+            return {kk: take(v) for kk, v in x.items()}
+        if dataclasses.is_dataclass(x) and not isinstance(x, type):
+            return dataclasses.replace(x, **{f.name: take(getattr(x, f.name)) for f in dataclasses.fields(x)
+                                            if f.name not in ("structure", "case")})
+        return x
+
+    out = take(factor)
+    return dataclasses.replace(out, batch=(n, 1))

@@ -1,0 +1,454 @@
+"""Time-domain analysis of a linkage under a prescribed crank motion (transfer-matrix method).
+
+The elastic motion adds inertia ``m (q_ddot + coupling)`` at every lumped mass (:mod:`tmm_core.ked`
+gives the mass model and the rotating-frame terms). With an implicit integrator
+(:mod:`tmm_core.integrators`) each step is a static solution of the instantaneous structure with a
+"dynamic stiffness" ``m c_a`` at each mass and history loads (Shin Eq. 3.47).
+
+Speed: for every distinct crank position the solver factorizes the instantaneous structure once
+and stores the dense maps from nodal loads to nodal displacements, drive torque, gauge strains
+and segment axial forces (unit loads pushed through the Riccati factorization, batched). A
+constant-speed run re-uses the maps of one revolution and marches them in the compiled kernel
+(:mod:`tmm_core.kernels`); other crank histories are processed in chunks.
+
+Public: :class:`TimeDomain` (``configurations``, ``step_loads``, ``solve_step``, ``begin``,
+``run``). Owns the configuration batches (dicts with the factor, the maps and the rigid-body
+loads of each crank state).
+"""
+from __future__ import annotations
+
+import math
+from typing import Callable, Mapping, Sequence
+
+import numpy as np
+
+from . import kernels
+from .errors import DynamicStabilityError, InputError, require_positive
+from .integrators import get_integrator
+from .ked import (Coupling, CrankMotion, KEDResult, _coupling_stiffness, _node_mass_arrays, quasi_static,
+                  rigid_body_loads, segment_forces)
+from .matrices import field_matrix
+from .mechanism import FourBarMechanism, torque_from_terms
+from .post import Gauge, gauge_strains
+from .riccati import segment_stiffness
+from .second_order import Segments
+from .structure import LoadCase, factorize, solve_factored
+from .time_step import AXIAL_FORCE_MODELS, DYNAMIC_TERMS, StepSolver, _select, _terms_at
+
+# The dense load-to-response maps cost O(n_dof^2) per configuration to build (once per revolution
+# of a periodic run) and a mat-vec per step to apply; without them every step runs the Riccati load
+# sweep, O(n_dof) but ~5 ms of Python per step. Measured (FE crank-rocker, one revolution at 1 deg,
+# maps built in chunks vs sweeps): 0.92 / 1.53 s at 81 dof (8 segments per link), 1.42 / 2.42 s at
+# 153 dof, 4.9 / 5.1 s at 297 dof (peak 509 MB; 13.2 s and 1.1 GB when built in one batch); each
+# further revolution costs the maps almost nothing. So the maps are used up to 32 segments per
+# link (and within max_map_bytes); beyond, the sweeps keep the cost linear in the segment count.
+MAP_MAX_DOF = 320
+MAP_CHUNK_BYTES = 64e6       # working memory of one chunk of the map solve
+
+
+class TimeDomain(StepSolver):
+    """Time-domain analysis of a four-bar under a prescribed crank motion.
+
+    Parameters
+    ----------
+    mech : the mechanism (links carry their mass model, damping and viscoelastic law).
+    integrator : 'newmark' (average acceleration) or 'houbolt' (Shin).
+    coupling : rotating-frame terms, see :class:`Coupling`.
+    beam_column : include the axial-force (beam-column) coupling of bending; False is linear
+        theory (``axial_force='none'``).
+    axial_force : how the axial force enters the bending equations when ``beam_column``:
+        'dynamic' (default): second-order beam theory (:mod:`tmm_core.second_order`): the
+        step's own axial force, including the axial shortening from bending, iterated within
+        every step on the cached factorization; it agrees with geometrically exact beams near
+        buckling (FE crank-rocker at 373 rpm, within a few per cent of exudyn where
+        'quasi_static' is 8-24 % off). A transient excursion past the static Euler load is
+        integrated as long as the dynamic system stays positive definite.
+        'quasi_static': the quasi-static (rigid-body) axial force of each crank position, fixed
+        in the field matrices; linear per step and cheaper; good far from buckling.
+    axial_tolerance, axial_iterations : relative tolerance and iteration limit of the 'dynamic'
+        step iteration.
+    dynamic_terms : the second-order terms of the 'dynamic' step: 'shortening' (axial shortening
+        from bending) and 'axial_force' (the step's own axial force in the bending equations).
+    compiled : march configurations with cached maps in the compiled kernel
+        (:mod:`tmm_core.kernels`); the numpy path is the reference and the fallback.
+    gravity : gravity vector [m/s^2] in the mechanism plane, or None.
+    gauges : gauges whose strains are recorded.
+    max_map_bytes : memory budget for the stored load-to-response maps; above it each step
+        runs the Riccati load sweep instead (same result, slower).
+    """
+
+    def __init__(self, mech: FourBarMechanism, *, integrator: str = "newmark", coupling: Coupling = Coupling(),
+                 beam_column: bool = True, gravity=None, gauges: Sequence[Gauge] = (),
+                 max_map_bytes: float = 400e6, axial_force: str = "dynamic", axial_tolerance: float = 1e-8,
+                 axial_iterations: int = 60, dynamic_terms: tuple = DYNAMIC_TERMS, compiled: bool = True):
+        self.mech = mech
+        #: March cached configurations in the compiled kernel (tmm_core.kernels) when numba is
+        #: installed; False keeps the numpy reference path.
+        self.compiled = bool(compiled) and kernels.AVAILABLE
+        if not set(dynamic_terms) <= set(DYNAMIC_TERMS):
+            raise InputError(f"dynamic_terms must be a subset of {DYNAMIC_TERMS}, got {dynamic_terms!r}")
+        #: The second-order terms the 'dynamic' step carries (both by default; one alone is for
+        #: the experiment that separates them, scenarios/engines_agree_experiment.py).
+        self.dynamic_terms = tuple(dynamic_terms)
+        self.integrator = get_integrator(integrator)
+        self.coupling = coupling
+        self.beam_column = beam_column
+        if axial_force == "iterated":
+            raise InputError("axial_force 'iterated' was replaced by 'dynamic' (the step's own axial force together "
+                             "with the axial shortening from bending; the axial force alone was measured to be worse)")
+        if axial_force not in AXIAL_FORCE_MODELS:
+            raise InputError(f"axial_force must be one of {AXIAL_FORCE_MODELS}, got {axial_force!r}")
+        self.axial_force = "none" if not beam_column else axial_force
+        self.axial_tolerance = float(require_positive("axial_tolerance", axial_tolerance))
+        self.axial_iterations = int(axial_iterations)
+        self.gravity = None if gravity is None else np.asarray(gravity, dtype=float)
+        self.gauges = tuple(gauges)
+        for g in self.gauges:
+            if g.link not in {l.name for l in mech.elastic_links()}:
+                raise InputError(f"gauge '{g.name}': unknown or rigid link '{g.link}' (a rigid link has no strain)")
+        self.max_map_bytes = max_map_bytes
+        self.structure = mech.structure()
+        self.links = mech.elastic_links()
+        # Node layout: every link's nodes, local (u, w, theta), concatenated.
+        self.offsets, off = {}, 0
+        for link in self.links:
+            self.offsets[link.name] = off
+            off += 3 * link.n_nodes
+        self.n_dof = off
+        masses = _node_mass_arrays(mech)
+        self.m_vec = np.concatenate([np.repeat(masses[l.name][0], 3) * np.tile([1.0, 1.0, 0.0], l.n_nodes)
+                                     + np.repeat(masses[l.name][1], 3) * np.tile([0.0, 0.0, 1.0], l.n_nodes)
+                                     for l in self.links])
+        self.aM_vec = np.concatenate([np.full(3 * l.n_nodes, l.damping.mass_per_s) for l in self.links])
+        #: Stiffness-proportional (Kelvin-Voigt) damping coefficient of every node's link [s].
+        self.beta_node = np.concatenate([np.full(3 * l.n_nodes, l.damping.stiffness_s) for l in self.links])
+        self.has_kv = bool(np.any(self.beta_node > 0))
+        self._is_u = np.tile([True, False, False], self.n_dof // 3)
+        self._is_w = np.tile([False, True, False], self.n_dof // 3)
+        self._build_segment_operators()
+        if self.axial_force == "dynamic" and any(l.viscoelastic is not None for l in self.links):
+            raise InputError("axial_force 'dynamic' is not available with viscoelastic (standard-linear-solid) links; "
+                             "use 'quasi_static'")
+        starts, lengths, EA, beta = [], [], [], []
+        for link in self.links:
+            m = link.member("s", "e")
+            starts.append(self.offsets[link.name] + 3 * np.arange(link.total_segments))
+            lengths.append(np.asarray(m.segment_lengths))
+            EA.append(m.EA)
+            beta.append(np.full(link.total_segments, link.damping.stiffness_s))
+        starts = np.concatenate(starts)
+        #: Segment data of the node vector (second-order terms, axial forces).
+        self.segments = Segments(starts, starts + 3, np.concatenate(lengths), np.concatenate(EA), np.concatenate(beta))
+        seg_offset = np.cumsum([0] + [l.total_segments for l in self.links])
+        self._gauge_segment = np.array([
+            seg_offset[[l.name for l in self.links].index(g.link)] + int(np.clip(
+                np.searchsorted(l.stations, g.position_m, side="right") - 1, 0, l.total_segments - 1))
+            for g in self.gauges for l in self.links if l.name == g.link], dtype=int)
+
+    # -- material history operators -------------------------------------------------------
+    def _build_segment_operators(self):
+        """Sparse operators on the node vector: gather of segment end displacements, the block
+        diagonal of segment stiffnesses (material, at the material's E), and per-segment data."""
+        import scipy.sparse as sp          # here: importing it costs 0.2 s that most users never need
+
+        rows, blocks, visco_E1 = [], [], []
+        for link in self.links:
+            m = link.member("s", "e")
+            K, _ = segment_stiffness(field_matrix(np.asarray(m.segment_lengths), m.EA, m.EI))
+            off = self.offsets[link.name]
+            for j in range(link.total_segments):
+                rows.append(off + 3 * j + np.arange(6))
+                blocks.append(K[j])
+                sls = link.viscoelastic if link.flexible[j] else None
+                visco_E1.append(0.0 if sls is None else sls.maxwell_modulus_Pa / link.material.E_Pa)
+        self.n_seg = len(blocks)
+        cols = np.concatenate(rows)
+        self.gather = sp.csr_matrix((np.ones(len(cols)), (np.arange(len(cols)), cols)), shape=(len(cols), self.n_dof))
+        self.seg_K = sp.block_diag(blocks, format="csr")
+        self.seg_blocks = np.ascontiguousarray(np.array(blocks))     # (n_seg, 6, 6), for the compiled step
+        # Maxwell modulus / reference modulus per segment entry (0 for elastic segments).
+        self.seg_E1 = np.repeat(np.array(visco_E1), 6)
+        # Material stiffness in local frames, assembled member by member (no joint coupling needed:
+        # the history loads are computed per member and applied at its own nodes).
+        self.K_local = (self.gather.T @ self.seg_K @ self.gather).tocsr()
+
+    def _link_factor(self, c_v: float, dt: float):
+        """Effective-modulus factor of every segment ``{link: (n,)}`` and, per link, the
+        viscoelastic step coefficients ``(decay, g)`` of its span."""
+        factors, visco = {}, {}
+        for link in self.links:
+            f = np.full(link.total_segments, 1.0 + link.damping.stiffness_s * c_v)
+            if link.viscoelastic is not None:
+                sls = link.viscoelastic
+                decay, g = sls.step_coefficients(dt)
+                f[link.flexible] = ((sls.relaxed_modulus_Pa + g * sls.maxwell_modulus_Pa) / link.material.E_Pa
+                                    + link.damping.stiffness_s * c_v)
+                visco[link.name] = (decay, g)
+            factors[link.name] = f
+        return factors, visco
+
+    # -- per-configuration maps -------------------------------------------------------------
+    def configurations(self, angle, speed, accel, dt, maps: bool | str = "auto", axial_force=None):
+        """Factorize the instantaneous structures of a batch of crank states and return the
+        affine maps from nodal loads (local, stacked) to nodal displacements, drive torque and
+        gauge strains (and, for the 'dynamic' axial force, segment axial forces). ``maps``: True,
+        False, or "auto" (only for models up to MAP_MAX_DOF). ``axial_force``: stacked segment
+        forces ``(B, n_seg)`` [N] for the field matrices instead of the quasi-static estimate."""
+        mech = self.mech
+        motion = mech.motion(angle, speed, accel)
+        c_a, c_v = self.integrator.coefficients(dt)
+        Kn = _coupling_stiffness(mech, motion, self.coupling, c_a, c_v)
+        factors, _ = self._link_factor(c_v, dt)
+        P = None
+        if axial_force is not None:
+            cuts = np.cumsum([l.total_segments for l in self.links])[:-1]
+            P = dict(zip([l.name for l in self.links], np.split(np.asarray(axial_force, dtype=float), cuts, axis=-1)))
+        elif self.axial_force != "none":
+            # The axial forces only enter the field matrices: 1e-8 relative is ample. The dynamic
+            # step iterates from the linear (rigid-body) estimate, which exists beyond the static
+            # Euler load too; the quasi-static model uses the beam-column one.
+            qs = quasi_static(mech, angle, speed, accel, beam_column=self.axial_force == "quasi_static",
+                              coupling=Coupling(), gravity=self.gravity, tol=1e-8)
+            # The segment forces of the solution (for the beam-column solve they equal the ones in
+            # its field matrices; a linear solve has none there).
+            P = {k: segment_forces(r) for k, r in qs.solution.members.items()}
+        # Batch (B, 1): the second axis carries the unit loads. Gravity acts through the lumped
+        # node masses (rigid_body_loads), like every other inertial load.
+        joints = {k: v[:, None, :] for k, v in mech.joint_positions(motion).items()}
+        case = LoadCase(joints, {}, {}, {k: v[:, None] for k, v in Kn.items()}, frame="local")
+        factor = factorize(self.structure, case, None if P is None else {k: v[:, None] for k, v in P.items()},
+                           check_buckling=False, stiffness_factor=factors, count_inertia=True)
+        indefinite = np.any(np.reshape(factor.negative_eigenvalues, (len(angle), -1)) > 0, axis=-1)
+        if np.any(indefinite) and (self.axial_force != "dynamic" or axial_force is not None):
+            # The axial forces are those the step uses: the step's dynamic system is indefinite.
+            raise DynamicStabilityError(
+                f"the dynamic system of the time step (stiffness with the axial forces, plus the step's inertia) is "
+                f"not positive definite at crank angle {math.degrees(float(angle[np.argmax(indefinite)])):.6g} deg: "
+                "the links buckle even with their inertia; the transfer-matrix model cannot continue (a smaller step "
+                "adds inertia)")
+        loads_local = rigid_body_loads(mech, motion, self.gravity, frame="local")
+        drive = mech.drive_torque_terms(motion, self.gravity)
+        P0 = None if P is None else np.concatenate([P[l.name] for l in self.links], axis=-1)
+        B = len(angle)
+        n_rows = self.n_dof + 1 + 2 * len(self.gauges) + (len(self.segments.length) if self.axial_force == "dynamic" else 0)
+        n_bytes = 8.0 * B * self.n_dof * n_rows
+        base = {"factor": factor, "rigid": self._stack(loads_local), "motion": motion, "maps": None, "drive": drive,
+                "P0": P0, "crank": (np.asarray(angle, float), np.asarray(speed, float), np.asarray(accel, float)),
+                # Configurations whose estimated axial forces leave the step indefinite: the
+                # dynamic step refactorizes them at its own axial forces.
+                "indefinite": indefinite}
+        if not maps or n_bytes > self.max_map_bytes or (maps == "auto" and self.n_dof > MAP_MAX_DOF):
+            return base
+        unit = {}
+        for link in self.links:
+            n1 = link.n_nodes
+            U = np.zeros((self.n_dof, n1, 3))
+            off = self.offsets[link.name]
+            U[off:off + 3 * n1].reshape(n1, 3, n1, 3)[np.arange(n1), :, np.arange(n1), :] = np.eye(3)
+            unit[link.name] = U
+        # Unit loads plus one zero-load column (the response to gravity and other base loads).
+        unit = {k: np.concatenate([v, np.zeros((1,) + v.shape[1:])])[None] for k, v in unit.items()}
+        # Solved in chunks of configurations: the station states of every unit load take about
+        # 32 n_dof^2 bytes per configuration (0.5 GB for a revolution at 0.5 deg, 16 segments per link).
+        chunk = max(1, int(MAP_CHUNK_BYTES // (32.0 * self.n_dof ** 2)))
+        n_out = 1 + 2 * len(self.gauges)
+        maps = {"Z": np.empty((B, self.n_dof, self.n_dof)), "z0": np.empty((B, self.n_dof)),
+                "O": np.empty((B, n_out, self.n_dof)), "o0": np.empty((B, n_out))}
+        axial = self.axial_force == "dynamic"
+        if axial:
+            n_seg = len(self.segments.length)
+            maps["A"], maps["a0"] = np.empty((B, n_seg, self.n_dof)), np.empty((B, n_seg))
+        for c0 in range(0, B, chunk):
+            sl = slice(c0, min(B, c0 + chunk))
+            sol = solve_factored(factor if (sl.start, sl.stop) == (0, B) else _select(factor, sl), unit, frame="local")
+            z = np.concatenate([sol.members[l.name].state[..., 0, :3].reshape(sl.stop - sl.start, self.n_dof + 1, -1)
+                                for l in self.links], axis=-1)                 # (b, loads+1, n_dof)
+            torque = torque_from_terms(sol.reactions, *_terms_at(drive, sl))   # (b, loads+1)
+            g_out = [np.stack(gauge_strains(sol.members[g.link], g), -1) for g in self.gauges]
+            outs = np.concatenate([torque[..., None]] + g_out, axis=-1) if g_out else torque[..., None]
+            maps["Z"][sl] = np.swapaxes(z[:, :-1] - z[:, -1:], 1, 2)
+            maps["z0"][sl] = z[:, -1]
+            maps["O"][sl] = np.swapaxes(outs[:, :-1] - outs[:, -1:], 1, 2)
+            maps["o0"][sl] = outs[:, -1]
+            if axial:
+                N = np.concatenate([segment_forces(sol.members[l.name]) for l in self.links], axis=-1)
+                maps["A"][sl] = np.swapaxes(N[:, :-1] - N[:, -1:], 1, 2)
+                maps["a0"][sl] = N[:, -1]
+            del sol
+        return {**base, "maps": maps}
+
+    def stack(self, per_link):
+        """Stack per-link arrays ``{link: (..., n+1, 3)}`` into the node vector ``(..., n_dof)``."""
+        return self._stack(per_link)
+
+    def _stack(self, per_link):
+        return np.concatenate([per_link[l.name].reshape(per_link[l.name].shape[:-2] + (-1,)) for l in self.links], -1)
+
+    # -- marching -----------------------------------------------------------------------------
+    def begin(self, dt: float, angle: float, speed: float, acceleration: float = 0.0, *, start: str = "rest",
+              initial: Mapping[str, np.ndarray] | None = None):
+        """Start an incremental march at a crank state (step ``dt`` [s]); see :class:`March`."""
+        from .march import March
+        return March(self, float(require_positive("time step dt_s", dt)), float(angle), float(speed),
+                     float(acceleration), start, initial)
+
+    def run(self, crank: CrankMotion, *, start: str = "rest", steady_tol: float | None = None,
+            min_revolutions: int = 2, record_displacements: bool = True,
+            callback: Callable[[int, float], bool] | None = None, chunk: int = 720,
+            initial: Mapping[str, np.ndarray] | None = None) -> KEDResult:
+        """March through the crank history.
+
+        ``start``: 'rest' (zero elastic state, Shin) or 'quasi_static' (elastic state of the
+        quasi-static solution at the first positions). ``steady_tol``: stop when the
+        revolution-to-revolution change of the drive torque and gauge strains, relative to their
+        peak-to-peak, falls below it (needs a constant-speed history); the change is reported.
+        ``callback(step, t)`` returning False stops the run early (partial results kept).
+        ``initial``: explicit initial state instead of ``start``: ``{'d', 'v', 'a', 'previous'}``
+        with stacked local node vectors (see :attr:`offsets`) and ``previous = (d_-1, d_-2)``.
+        """
+        dt = crank.dt
+        n_steps = len(crank.t)
+        N = crank.steps_per_revolution()
+        if steady_tol is not None:
+            require_positive("steady_tol", steady_tol)
+            if N is None:
+                raise InputError("steady_tol needs a constant-speed crank history with a whole number of steps per "
+                                 "revolution")
+        march = self.begin(dt, crank.angle[0], crank.speed[0], crank.acceleration[0], start=start, initial=initial)
+        outputs = np.full((n_steps, march.n_out), np.nan)
+        disp = np.full((n_steps, self.n_dof), np.nan) if record_displacements else None
+        outputs[0] = march.out
+        if disp is not None:
+            disp[0] = march.z
+
+        cfg, cfg_start, cfg_len = None, -1, 0
+        steady, change, done = False, float("nan"), n_steps
+        k = 1
+        while k < n_steps:
+            # Configurations are factorized in batches: one revolution when the history is periodic,
+            # chunks of consecutive steps otherwise. Steps are marched in blocks that end at a
+            # revolution (the steady-state check) or at the end of a chunk; one by one with a callback.
+            if N is not None:
+                if cfg is None:
+                    cfg = self.configurations(crank.angle[:N], crank.speed[:N], crank.acceleration[:N], dt)
+                end = min(n_steps, (k // N + 1) * N)
+                indices = np.arange(k, end) % N
+            else:
+                if cfg is None or k >= cfg_start + cfg_len:
+                    cfg_start, cfg_len = k, min(chunk, n_steps - k)
+                    sl = slice(k, k + cfg_len)
+                    cfg = self.configurations(crank.angle[sl], crank.speed[sl], crank.acceleration[sl], dt)
+                end = cfg_start + cfg_len
+                indices = np.arange(k, end) - cfg_start
+            if callback is not None:
+                indices, end = indices[:1], k + 1
+            zs, outs = march.step_many(cfg, indices, record_z=disp is not None)
+            outputs[k:end] = outs
+            if disp is not None:
+                disp[k:end] = zs
+            if not np.all(np.isfinite(outs)):
+                bad = k + int(np.argmax(~np.all(np.isfinite(outs), axis=1)))
+                raise InputError(f"time-domain solution became non-finite at step {bad} (t = {crank.t[bad]:.6g} s)")
+            k = end
+            last = k - 1
+            if N is not None and last >= N and k % N == 0 and k // N >= min_revolutions:
+                rev = outputs[k - N:k]
+                prev = outputs[k - 2 * N:k - N]
+                ptp = np.maximum(np.ptp(rev, axis=0), 1e-300)
+                change = float(np.max(np.max(np.abs(rev - prev), axis=0) / ptp))
+                if steady_tol is not None and change < steady_tol:
+                    steady, done = True, k
+                    break
+            if callback is not None and callback(last, float(crank.t[last])) is False:
+                done = k
+                break
+
+        sl = slice(0, done)
+        gauges = {g.name: (outputs[sl, 1 + 2 * i], outputs[sl, 2 + 2 * i]) for i, g in enumerate(self.gauges)}
+        displacements = {}
+        if disp is not None:
+            displacements = self.unstack(disp[sl])
+        revs = (crank.angle[done - 1] - crank.angle[0]) / (2 * math.pi)
+        return KEDResult(crank.t[sl], crank.angle[sl], crank.speed[sl], crank.acceleration[sl], outputs[sl, 0],
+                         gauges, displacements, steady, change, abs(float(revs)), self.integrator.name,
+                         {"dt_s": dt, "steps": done, "steps_per_revolution": N, "start": start,
+                          "maps": cfg["maps"] is not None if cfg else None})
+
+    def unstack(self, vectors: np.ndarray):
+        """Split node vectors ``(..., n_dof)`` into ``{link: (..., n_nodes, 3)}``."""
+        out = {}
+        for l in self.links:
+            off = self.offsets[l.name]
+            out[l.name] = vectors[..., off:off + 3 * l.n_nodes].reshape(vectors.shape[:-1] + (l.n_nodes, 3))
+        return out
+
+    def step_loads(self, cfg, idx, h_a, h_v, *, rigid: bool = True, viscous=None):
+        """Stacked local nodal loads of a step at configuration ``idx`` of a batch, for the
+        integrator history ``h_a, h_v`` (``(n_dof,)``, or ``(M, n_dof)`` for a batch of states):
+        the configuration's D'Alembert loads (left out with ``rigid=False``: the state-dependent
+        part alone, for linearizations), the inertia history, the Coriolis terms and the
+        Kelvin-Voigt history; ``viscous = (q_sls, decay, gain, d)`` adds the standard-linear-solid
+        history of a march. The one place that writes a step's loads."""
+        m = self.m_vec
+        loads = -m * (h_a + self.aM_vec * h_v)
+        if rigid:
+            loads = loads + cfg["rigid"][idx]
+        if self.coupling.coriolis:
+            w = self._node_omega(cfg, idx)
+            # At u rows the w-velocity history of the same node, at w rows the u-velocity one.
+            loads = loads + np.where(self._is_u, 2.0 * m * w * np.roll(h_v, -1, axis=-1), 0.0) \
+                - np.where(self._is_w, 2.0 * m * w * np.roll(h_v, 1, axis=-1), 0.0)
+        if self.has_kv:
+            loads = loads - self.beta_node * (self.K_local @ h_v.T).T
+        if viscous is not None:
+            q_sls, decay, gain, d = viscous
+            loads = loads - self.gather.T @ (decay * q_sls - gain * (self.seg_K @ (self.gather @ d)))
+        return loads
+
+    def _rest_acceleration(self, loads, motion):
+        """Accelerations of the lumped masses under ``loads`` (stacked local) with the structure at
+        rest and undeformed: each mass alone, except at joints, where all member ends share the
+        translation (and, for rigid connections, the rotation); supported DOFs stay at rest."""
+        m = self.m_vec
+        a = np.divide(loads, m, out=np.zeros_like(loads), where=m > 0)
+        structure = self.structure
+        for joint in structure.joints:
+            ends = []
+            for link, member in zip(self.links, structure.members):
+                n = link.total_segments
+                if member.start == joint.name:
+                    ends.append((link, self.offsets[link.name], member.start_connection))
+                if member.end == joint.name:
+                    ends.append((link, self.offsets[link.name] + 3 * n, member.end_connection))
+            F, M_sum = np.zeros(2), 0.0
+            for link, i, _ in ends:
+                c, s_ = np.cos(motion.link(link.name).angle[0]), np.sin(motion.link(link.name).angle[0])
+                R = np.array([[c, -s_], [s_, c]])           # local -> global
+                F += R @ loads[i:i + 2]
+                M_sum += m[i]
+            acc = F / M_sum if M_sum > 0 and joint.support == "free" else np.zeros(2)
+            rigid = [e for e in ends if e[2] == "rigid"]
+            J_sum = sum(m[i + 2] for _, i, _ in rigid)
+            Mz = sum(loads[i + 2] for _, i, _ in rigid)
+            for link, i, conn in ends:
+                c, s_ = np.cos(motion.link(link.name).angle[0]), np.sin(motion.link(link.name).angle[0])
+                a[i:i + 2] = np.array([[c, s_], [-s_, c]]) @ acc
+                if conn == "rigid":
+                    a[i + 2] = Mz / J_sum if J_sum > 0 and joint.support != "clamped" else 0.0
+        return a
+
+    def _node_omega(self, cfg, idx):
+        motion = cfg["motion"]
+        return np.concatenate([np.full(3 * l.n_nodes, float(motion.link(l.name).omega[idx]))
+                               for l in self.links])
+
+    def _quasi_static_start(self, th, w, a, dt):
+        """Elastic state of the quasi-static solution at the first crank positions."""
+        angles = th + np.array([-2.0, -1.0, 0.0, 1.0]) * w * dt
+        qs = quasi_static(self.mech, angles, w, a, beam_column=self.beam_column, coupling=Coupling(),
+                          gravity=self.gravity)
+        z = np.concatenate([qs.solution.members[l.name].state[:, :, 0, :3].reshape(4, -1) for l in self.links], -1)
+        d2, d1, d0, dp = z
+        v0 = (dp - d1) / (2 * dt)
+        a0 = (dp - 2 * d0 + d1) / dt**2
+        return d0, v0, a0, (d1, d2)
