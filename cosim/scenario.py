@@ -57,6 +57,7 @@ of every engine's step.
 from __future__ import annotations
 
 import math
+import re
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -69,6 +70,7 @@ from tmm_core import (Coupling, Damping, FourBarMechanism, Gauge, InputError, Li
 from tmm_core.mechanism import EndBlock
 
 UREG = pint.UnitRegistry()
+_NUMBER = re.compile(r"^\s*\(*\s*[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?")
 G0 = 9.80665
 SCENARIO_DIR = Path(__file__).resolve().parent.parent / "scenarios"
 
@@ -191,6 +193,18 @@ class Scenario:
     def crank_speed_rad_s(self) -> float:
         return self.drive.speed_rad_s
 
+    def with_overrides(self, overrides: dict) -> "Scenario":
+        """A variant of this scenario with key paths of its file set to new values, e.g.
+        ``{"drive.speed": "300 rpm", "links.coupler.damping.ratio": "3 %"}``, validated by the
+        loader (its errors name the key). See :mod:`cosim.overrides`."""
+        from .overrides import OverrideError, apply_overrides
+        label = f"{self.path or self.name} (with {', '.join(f'{k} = {v!r}' for k, v in overrides.items())})"
+        try:
+            data = apply_overrides(self.raw, overrides)
+        except OverrideError as exc:
+            raise ScenarioError(f"scenario '{self.path or self.name}': {exc}") from None
+        return from_dict(data, label, default_name=self.name)
+
     @property
     def revolution_period_s(self) -> float:
         return 2 * math.pi / abs(self.drive.speed_rad_s)
@@ -247,6 +261,9 @@ class _Reader:
             else:
                 raise self.fail(key, f"has no unit; write it with one, e.g. '{raw} {_example_unit(unit)}'", raw)
         elif isinstance(raw, str):
+            if not _NUMBER.match(raw):
+                # pint reads a bare unit ("rpm", "psi") as one of it: a number is required.
+                raise self.fail(key, f"has no number; write a number and a unit, e.g. '1 {_example_unit(unit)}'", raw)
             try:
                 parsed = UREG.Quantity(raw.replace("^", "**"))
             except Exception:
@@ -740,7 +757,10 @@ def _tmm_settings(r: _Reader, data) -> TMMSettings:
     step_s = step_rad = None
     if "step" in d:
         raw = r._unwrap(d["step"], "solver.tmm.step")
-        q = UREG.Quantity(str(raw).replace("^", "**")) if isinstance(raw, str) else None
+        try:
+            q = UREG.Quantity(str(raw).replace("^", "**")) if isinstance(raw, str) and _NUMBER.match(raw) else None
+        except Exception:
+            q = None              # r.quantity below names the key and the value
         if q is not None and isinstance(q, pint.Quantity) and q.dimensionality == UREG.Quantity(1, "s").dimensionality:
             step_s = r.quantity(raw, "solver.tmm.step", "s", positive=True)
         else:

@@ -6,7 +6,6 @@ reproduce the analyses the scripts and tests were written for (no damping unless
 """
 from __future__ import annotations
 
-import copy
 import functools
 
 from cosim import scenario as sc
@@ -16,35 +15,26 @@ LINKS = ("crank", "coupler", "rocker")
 
 
 @functools.lru_cache(maxsize=None)
-def _raw(name: str) -> dict:
-    """The merged TOML tree of a scenario (cached; callers get a copy)."""
-    path = sc.SCENARIO_DIR / f"{name}.toml"
-    return sc._read_with_bases(path, [])
+def _scenario(name: str):
+    return sc.load(name)
 
 
-def _build(name: str, edit) -> FourBarMechanism:
-    raw = copy.deepcopy(_raw(name))
-    edit(raw)
-    return sc.from_dict(raw, f"{name} (rigs.py)").mechanism
+def _build(name: str, overrides: dict) -> FourBarMechanism:
+    return _scenario(name).with_overrides(overrides).mechanism
 
 
-def _segments(raw, n, links=LINKS):
-    for link in links:
-        raw["links"][link]["segments"] = n
+def _segments(n, links=LINKS):
+    return {f"links.{link}.segments": n for link in links}
 
 
-def _damping(raw, ratio, frequency_Hz, links=LINKS):
-    for link in links:
-        if ratio:
-            raw["links"][link]["damping"] = {"ratio": f"{ratio * 100} %", "frequency": f"{frequency_Hz} Hz"}
-        else:
-            raw["links"][link].pop("damping", None)
+def _damping(ratio, frequency_Hz, links=LINKS):
+    return {f"links.{link}.damping": {"ratio": f"{ratio * 100} %", "frequency": f"{frequency_Hz} Hz"} for link in links}
 
 
-def _scale_modulus(raw, material, factor):
-    E = raw["materials"][material]["E"]
+def _scale_modulus(scenario: str, material: str, factor):
+    E = _scenario(scenario).raw["materials"][material]["E"]
     value = E["value"] if isinstance(E, dict) else E
-    raw["materials"][material]["E"] = f"({value}) * {factor!r}"
+    return {f"materials.{material}.E": f"({value}) * {factor!r}"}
 
 
 def alexander_lawrence(n: int = 8, damping: float = 0.0, damping_Hz: float = 47.0, E_factor: float = 1.0,
@@ -52,14 +42,13 @@ def alexander_lawrence(n: int = 8, damping: float = 0.0, damping_Hz: float = 47.
     """Shin §8.3 (scenarios/alexander_lawrence_400rpm.toml) with ``n`` segments per link, modal
     ``damping`` at ``damping_Hz`` on every link (none by default), the modulus scaled by
     ``E_factor`` and ``bearing_lb`` at each coupler end."""
-    def edit(raw):
-        _segments(raw, n)
-        _damping(raw, damping, damping_Hz)
-        if E_factor != 1.0:
-            _scale_modulus(raw, "aluminium", E_factor)
-        for pm in raw["links"]["coupler"]["point_masses"]:
-            pm["mass"] = f"{bearing_lb} lb"
-    return _build("alexander_lawrence_400rpm", edit)
+    name = "alexander_lawrence_400rpm"
+    over = {**_segments(n), **_damping(damping, damping_Hz)}
+    if E_factor != 1.0:
+        over.update(_scale_modulus(name, "aluminium", E_factor))
+    for i in range(len(_scenario(name).raw["links"]["coupler"]["point_masses"])):
+        over[f"links.coupler.point_masses[{i}].mass"] = f"{bearing_lb} lb"
+    return _build(name, over)
 
 
 def fe_crank_rocker(n: int = 8, bearing_lbf: float = 0.13128, damping: float = 0.0, damping_Hz: float = 79.0,
@@ -68,30 +57,25 @@ def fe_crank_rocker(n: int = 8, bearing_lbf: float = 0.13128, damping: float = 0
     link, ``bearing_lbf`` at each coupler end, modal ``damping`` on the coupler and rocker (none
     by default) and a rigid crank (the file's assumption), or an elastic crank with
     ``crank_stiffness_factor`` times the strip's modulus."""
-    def edit(raw):
-        _segments(raw, n)
-        _damping(raw, damping, damping_Hz, ("coupler", "rocker"))
-        for pm in raw["links"]["coupler"]["point_masses"]:
-            pm["weight"] = f"{bearing_lbf} lbf"
-        if crank_stiffness_factor is not None:
-            raw["materials"]["crank_stiffened"] = {"E": f"{10.3e6 * crank_stiffness_factor} psi",
-                                                   "density": "5.292 slug/ft^3"}
-            raw["links"]["crank"]["material"] = "crank_stiffened"
-            raw["links"]["crank"]["rigid"] = False
-    return _build("crank_rocker_373rpm", edit)
+    name = "crank_rocker_373rpm"
+    over = {**_segments(n), **_damping(damping, damping_Hz, ("coupler", "rocker"))}
+    for i in range(len(_scenario(name).raw["links"]["coupler"]["point_masses"])):
+        over[f"links.coupler.point_masses[{i}].weight"] = f"{bearing_lbf} lbf"
+    if crank_stiffness_factor is not None:
+        over.update({"materials.crank_stiffened": {"E": f"{10.3e6 * crank_stiffness_factor} psi",
+                                                   "density": "5.292 slug/ft^3"},
+                     "links.crank.material": "crank_stiffened", "links.crank.rigid": False})
+    return _build(name, over)
 
 
 def wang_steel(n: int = 4, depth_in: float = 0.062) -> FourBarMechanism:
     """Wang's steel four-bar (scenarios/wang_steel_342rpm.toml) with ``n`` segments per flexible
     span and strip depth ``depth_in`` (0.062 in his code, 0.055 in his text)."""
-    def edit(raw):
-        _segments(raw, n, ("coupler", "rocker"))
-        raw["sections"]["strip"]["depth"] = f"{depth_in} in"
-    return _build("wang_steel_342rpm", edit)
+    return _build("wang_steel_342rpm", {**_segments(n, ("coupler", "rocker")), "sections.strip.depth": f"{depth_in} in"})
 
 
 def _composite_sls() -> StandardLinearSolid:
-    return _build("wang_composite_297rpm", lambda raw: None).coupler.viscoelastic
+    return _scenario("wang_composite_297rpm").mechanism.coupler.viscoelastic
 
 
 #: Assumed standard-linear-solid constants of Wang's +/-45 deg graphite-epoxy (declared in
@@ -102,11 +86,9 @@ WANG_COMPOSITE_SLS = _composite_sls()
 def wang_composite(n: int = 4, sls: StandardLinearSolid = WANG_COMPOSITE_SLS) -> FourBarMechanism:
     """Wang's +/-45 deg composite four-bar (scenarios/base/wang_composite.toml) with ``n``
     segments per flexible span and the given standard-linear-solid constants."""
-    def edit(raw):
-        _segments(raw, n, ("coupler", "rocker"))
-        ve = raw["materials"]["composite"]
-        ve["viscoelastic"] = {"instantaneous_modulus": f"{sls.instantaneous_modulus_Pa} Pa",
-                              "relaxed_modulus": f"{sls.relaxed_modulus_Pa} Pa",
-                              "relaxation_time": f"{sls.relaxation_time_s} s"}
-        ve["E"] = f"{sls.instantaneous_modulus_Pa} Pa"
-    return _build("wang_composite_297rpm", edit)
+    return _build("wang_composite_297rpm", {
+        **_segments(n, ("coupler", "rocker")),
+        "materials.composite.viscoelastic": {"instantaneous_modulus": f"{sls.instantaneous_modulus_Pa} Pa",
+                                             "relaxed_modulus": f"{sls.relaxed_modulus_Pa} Pa",
+                                             "relaxation_time": f"{sls.relaxation_time_s} s"},
+        "materials.composite.E": f"{sls.instantaneous_modulus_Pa} Pa"})

@@ -1,0 +1,63 @@
+"""Scenario variants through one typed API: key paths of the scenario file set to new values.
+
+``Scenario.with_overrides({"drive.speed": "300 rpm", "links.coupler.damping.ratio": "3 %"})``
+sets each key path in the scenario's TOML tree (a copy) and loads it again, so every value is
+validated by the loader with its usual messages (which name the key). A path names tables with
+dots and list items with ``[i]`` (``links.coupler.point_masses[0].weight``). A ``{value = ...,
+assumption = ...}`` table keeps its provenance and takes the new value. A path whose parent table
+does not exist is refused, naming the path; a new key in an existing table is allowed (the loader
+then refuses it if the table does not know it).
+
+Owns: key-path editing of scenario trees. Used by sweeps, uncertainty bands, the rigs of the
+scripts and tests; nothing else edits ``Scenario.raw``.
+"""
+from __future__ import annotations
+
+import copy
+import re
+
+_INDEX = re.compile(r"^(\w+)\[(\d+)\]$")
+
+
+class OverrideError(ValueError):
+    """A key path does not lead anywhere in the scenario file."""
+
+
+def set_key(raw: dict, key: str, value) -> None:
+    """Set the key path ``key`` (``a.b[0].c``) in the TOML tree ``raw`` in place."""
+    node = raw
+    parts = key.split(".")
+    for i, part in enumerate(parts):
+        m = _INDEX.match(part)
+        last = i == len(parts) - 1
+        if m:
+            name, j = m.group(1), int(m.group(2))
+            if not isinstance(node, dict) or not isinstance(node.get(name), list) or j >= len(node[name]):
+                raise OverrideError(f"key '{key}': there is no list item {part}")
+            if last:
+                node[name][j] = value
+                return
+            node = node[name][j]
+            continue
+        if not isinstance(node, dict):
+            raise OverrideError(f"key '{key}': '{'.'.join(parts[:i])}' is not a table")
+        if last:
+            if isinstance(node.get(part), dict) and "value" in node[part]:
+                node[part] = dict(node[part], value=value)
+            else:
+                node[part] = value
+            return
+        if part not in node:
+            if i == 0:
+                node[part] = {}          # a top-level table the file does not have yet
+            else:
+                raise OverrideError(f"key '{key}': there is no table '{'.'.join(parts[:i + 1])}'")
+        node = node[part]
+
+
+def apply_overrides(raw: dict, overrides: dict) -> dict:
+    """A copy of ``raw`` with every ``{key path: value}`` of ``overrides`` set."""
+    data = copy.deepcopy(raw)
+    for key, value in overrides.items():
+        set_key(data, str(key), value)
+    return data

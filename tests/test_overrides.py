@@ -1,0 +1,36 @@
+"""Scenario variants through Scenario.with_overrides (one typed API over key paths, validated by
+the loader), and the refusal of a bare unit with no number."""
+import pytest
+
+from cosim.scenario import ScenarioError, load
+
+
+def test_overrides_reach_every_kind_of_key():
+    base = load("crank_rocker_373rpm")
+    v = base.with_overrides({"drive.speed": "300 rpm", "links.coupler.damping.ratio": "3 %",
+                             "links.coupler.point_masses[0].weight": "0.06564 lbf", "solver.tmm.segments": 16})
+    assert v.drive.speed_rad_s == pytest.approx(300 * 3.141592653589793 / 30)
+    assert v.tmm.segments == 16 and v.mechanism.coupler.n_segments == 16
+    assert v.mechanism.coupler.point_masses[0].mass_kg == pytest.approx(0.06564 * 4.4482216152605 / 9.80665)
+    assert v.mechanism.coupler.damping.stiffness_s == pytest.approx(2 * 0.03 / (2 * 3.141592653589793 * 79))
+    # The base is unchanged, and a value with provenance keeps it.
+    assert base.tmm.segments == 8
+    assert any(a.key == "links.coupler.point_masses[0]" for a in v.assumptions)
+
+
+@pytest.mark.parametrize("key, value, named", [
+    ("links.nolink.length", "3 in", "links.nolink"),
+    ("links.coupler.point_masses[5].weight", "1 lbf", "point_masses[5]"),
+    ("drive.speed", "3 kg", "drive.speed"),
+    ("links.coupler.damping.ratio", "-1 %", "links.coupler.damping.ratio"),
+])
+def test_bad_overrides_are_refused_naming_the_key(key, value, named):
+    with pytest.raises(ScenarioError, match=named.replace("[", r"\[").replace("]", r"\]")):
+        load("crank_rocker_373rpm").with_overrides({key: value})
+
+
+@pytest.mark.parametrize("key, value", [("drive.speed", "rpm"), ("materials.aluminium.E", "psi"),
+                                        ("solver.tmm.step", "abc"), ("solver.tmm.step", " ")])
+def test_a_bare_unit_or_text_without_a_number_is_refused(key, value):
+    with pytest.raises(ScenarioError, match=rf"key '{key}'.*(no number|not a quantity)"):
+        load("crank_rocker_373rpm").with_overrides({key: value})
