@@ -79,7 +79,7 @@ class TimeDomain(StepSolver):
 
     def __init__(self, mech: FourBarMechanism, *, integrator: str = "newmark", coupling: Coupling = Coupling(),
                  beam_column: bool = True, gravity=None, gauges: Sequence[Gauge] = (),
-                 max_map_bytes: float = 400e6, axial_force: str = "dynamic", axial_tolerance: float = 1e-8,
+                 max_map_bytes: float = 1e9, axial_force: str = "dynamic", axial_tolerance: float = 1e-8,
                  axial_iterations: int = 60, dynamic_terms: tuple = DYNAMIC_TERMS, compiled: bool = True):
         self.mech = mech
         #: March cached configurations in the compiled kernel (tmm_core.kernels) when numba is
