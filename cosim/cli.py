@@ -4,14 +4,23 @@
     cosim run <name|path> [options]              run a scenario through the engines, write logs/
     cosim sweep <name|path> --rpm 100:400:25     peak strain against speed, points in parallel
     cosim uncertainty <name|path>                band of predicted strains over uncertain parameters
-    cosim compare <run-dir>                      the comparison table of a finished run
+    cosim compare <folder>                       the table of a run, sweep or uncertainty folder
+    cosim new <name> [--like SCENARIO]           a commented scenario file to start from
+    cosim synthesize --case I|II ...             link lengths of a rigid crank-rocker (cosim.synthesis)
 
 Bad input (unknown scenario or engine, malformed range, bad scenario file) ends with a one-line
 ``error: ...`` on stderr and exit status 2; a run in which an engine failed exits with 1.
+``python -m cosim`` is the same command.
+
+Output: the tables (and where the results were written) go to stdout; progress bars and messages
+go to stderr through :mod:`logging` (``-v`` adds detail, ``-q`` leaves only warnings and errors
+and switches the bars off; bars are off anyway when stderr is not a terminal). Results are
+written under ``./logs/`` of the current directory unless ``--out`` says otherwise.
 """
 from __future__ import annotations
 
 import argparse
+import logging
 import sys
 from pathlib import Path
 
@@ -43,6 +52,59 @@ def _engines(text: str) -> tuple:
     return names
 
 
+class _Prefix(logging.Formatter):
+    """Messages as they are; warnings and errors prefixed (``error: ...`` is the CLI's contract)."""
+
+    def format(self, record):
+        text = record.getMessage()
+        return text if record.levelno < logging.WARNING else f"{record.levelname.lower()}: {text}"
+
+
+class _Stderr(logging.StreamHandler):
+    """Writes to the *current* ``sys.stderr`` (pytest's capture and notebooks replace it)."""
+
+    def __init__(self):
+        super().__init__(sys.stderr)
+
+    @property
+    def stream(self):
+        return sys.stderr
+
+    @stream.setter
+    def stream(self, value):
+        pass
+
+
+_HANDLER = None
+
+
+def setup_logging(verbose: int = 0, quiet: bool = False) -> None:
+    """The ``cosim`` logger to stderr at INFO (``-v``: DEBUG, ``-q``: WARNING). Idempotent: a
+    second call (tests, scripts) replaces the handler instead of doubling every line."""
+    global _HANDLER
+    logger = logging.getLogger("cosim")
+    if _HANDLER is not None:
+        logger.removeHandler(_HANDLER)
+    _HANDLER = _Stderr()
+    _HANDLER.setFormatter(_Prefix())
+    logger.addHandler(_HANDLER)
+    logger.setLevel(logging.WARNING if quiet else logging.DEBUG if verbose else logging.INFO)
+    logger.propagate = False         # no second copy through a root handler
+
+
+def _verbosity_arguments(parser, top: bool = False) -> None:
+    """``-v``/``-q`` on ``cosim`` itself and on each subcommand (either place works)."""
+    suffix = "_top" if top else ""
+    parser.add_argument("-v", "--verbose", dest=f"verbose{suffix}", action="count", default=0,
+                        help="more detail on stderr (debug messages)")
+    parser.add_argument("-q", "--quiet", dest=f"quiet{suffix}", action="store_true",
+                        help="no progress bars; only warnings and errors on stderr")
+
+
+def _quiet(args) -> bool:
+    return bool(getattr(args, "quiet", False) or getattr(args, "quiet_top", False))
+
+
 def _executor_arguments(parser, jobs: str) -> None:
     """The options of :func:`cosim.parallel.executor`: local processes or a Dask cluster."""
     parser.add_argument("--workers", type=int, help="local worker processes (default: the number of cores)")
@@ -58,7 +120,8 @@ def _parser() -> argparse.ArgumentParser:
                "--revolutions 2 --spawn; cosim sweep crank_rocker_373rpm --rpm 100:400:25; cosim compare "
                "logs/crank_rocker_373rpm-<timestamp>")
     p.add_argument("--version", action="version", version=f"cosim {__version__}")
-    sub = p.add_subparsers(dest="command", metavar="{list,run,sweep,uncertainty,compare}")
+    _verbosity_arguments(p, top=True)
+    sub = p.add_subparsers(dest="command", metavar="{list,run,sweep,uncertainty,compare,new,synthesize}")
 
     sub.add_parser("list", help="show the scenarios and their one-line descriptions",
                    description="Show the scenario files under scenarios/ with their one-line descriptions.")
@@ -74,7 +137,11 @@ def _parser() -> argparse.ArgumentParser:
                         "drive.mode)")
     r.add_argument("--revolutions", type=float, help="crank revolutions to simulate (default: the scenario's "
                                                       "output.revolutions)")
-    r.add_argument("--out", type=Path, help="output folder (default: logs/<scenario>-<timestamp>)")
+    r.add_argument("--out", type=Path, help="output folder (default: ./logs/<scenario>-<timestamp> in the current "
+                                            "directory)")
+    r.add_argument("--records", type=Path, metavar="DIR",
+                   help="score against the records in DIR (<name>.csv + <name>.toml each, format in "
+                        "cosim/records.py) instead of the shipped scenarios/records")
     view = r.add_mutually_exclusive_group()
     view.add_argument("--save", dest="viewer", action="store_const", const="save",
                       help="write run.rrd only, no viewer (default; headless)")
@@ -87,7 +154,7 @@ def _parser() -> argparse.ArgumentParser:
                       help="no rerun recording at all")
     r.add_argument("--exaggeration", type=float, default=20.0,
                    help="factor on the elastic displacements in the linkage drawing (default 20)")
-    r.add_argument("--quiet", action="store_true", help="no progress bar")
+    _verbosity_arguments(r)
 
     s = sub.add_parser("sweep", help="peak strain against crank speed; points run in parallel",
                        description="Run prescribed-speed points of a scenario and record the last revolution's peak "
@@ -101,8 +168,13 @@ def _parser() -> argparse.ArgumentParser:
                    help="TMM: periodic steady state in one solve with Floquet multipliers (default), or time marching; "
                         "exudyn and MuJoCo always march")
     _executor_arguments(s, "points")
-    s.add_argument("--out", type=Path, help="output folder (default: logs/<scenario>-sweep-<timestamp>)")
-    s.add_argument("--quiet", action="store_true", help="no progress bar")
+    s.add_argument("--out", type=Path, help="output folder (default: ./logs/<scenario>-sweep-<timestamp>)")
+    s.add_argument("--no-campbell", dest="campbell", action="store_false",
+                   help="skip the natural-frequency map and Campbell diagram (36 eigenvalue searches over a "
+                        "revolution; four-bars only)")
+    s.add_argument("--records", type=Path, metavar="DIR",
+                   help="draw the recorded peaks from DIR instead of the shipped scenarios/records")
+    _verbosity_arguments(s)
 
     u = sub.add_parser("uncertainty", help="band of predicted strains over the scenario's uncertain parameters",
                        description="Monte Carlo over the parameters in the scenario's [uncertainty] table (periodic "
@@ -112,32 +184,55 @@ def _parser() -> argparse.ArgumentParser:
     u.add_argument("--samples", type=int, help="Monte Carlo samples (default: the scenario's)")
     u.add_argument("--seed", type=int, help="random seed (default: the scenario's)")
     _executor_arguments(u, "samples")
-    u.add_argument("--out", type=Path, help="output folder (default: logs/<scenario>-uncertainty-<timestamp>)")
+    u.add_argument("--out", type=Path, help="output folder (default: ./logs/<scenario>-uncertainty-<timestamp>)")
+    u.add_argument("--records", type=Path, metavar="DIR",
+                   help="check the recorded peaks from DIR instead of the shipped scenarios/records")
+    _verbosity_arguments(u)
 
-    c = sub.add_parser("compare", help="print the comparison table of a finished run",
-                       description="Print the last-revolution strain extremes per engine and gauge, records and "
-                                   "scores, times and (motor runs) the speed fluctuation of a run folder.")
-    c.add_argument("run_dir", type=Path, help="a run folder (logs/<scenario>-<timestamp>)")
+    c = sub.add_parser("compare", help="print the table of a run, sweep or uncertainty folder",
+                       description="Print the table of a results folder: for a run the last-revolution strain "
+                                   "extremes per engine and gauge, records and scores, times, and (motor runs) the "
+                                   "speed fluctuation, motor current and energy balance; for a sweep the peaks per "
+                                   "speed; for an uncertainty run the band. An unfinished folder is said to be so.")
+    c.add_argument("run_dir", type=Path, help="a results folder (logs/<scenario>-<timestamp>, ...-sweep-..., "
+                                              "...-uncertainty-...)")
+    _verbosity_arguments(c)
+
+    n = sub.add_parser("new", help="write a commented scenario file to start a rig of your own",
+                       description="Write NAME.toml: a complete, commented four-bar scenario (every value to replace "
+                                   "marked as an assumption), or with --like a copy of an existing scenario (and the "
+                                   "base files it extends). The file is checked to load; an existing file is never "
+                                   "overwritten.")
+    n.add_argument("name", help="scenario name (letters, digits, _ and -): the file is NAME.toml")
+    n.add_argument("--like", metavar="SCENARIO", help="copy this scenario (name or path) instead of the template")
+    n.add_argument("--out", type=Path, metavar="DIR", help="folder to write to (default: the current directory)")
+    _verbosity_arguments(n)
+
+    from .synthesis import add_parser as add_synthesize_parser
+    _verbosity_arguments(add_synthesize_parser(sub))
     return p
 
 
 def main(argv: list[str] | None = None) -> int:
     parser = _parser()
     args = parser.parse_args(argv)
+    setup_logging(getattr(args, "verbose", 0) + getattr(args, "verbose_top", 0), _quiet(args))
+    log = logging.getLogger("cosim.cli")
+    log.debug("cosim %s, options %s", __version__, vars(args))
     try:
         return _dispatch(parser, args)
     except KeyboardInterrupt:
-        print("interrupted", file=sys.stderr)
+        log.warning("interrupted")
         return 130
     except (ValueError, FileNotFoundError, OSError) as exc:
-        print(f"error: {_one_line(exc)}", file=sys.stderr)
+        log.error(_one_line(exc))
         return 2
     except Exception as exc:
         from tmm_core import TMMError
 
         from .engines import EngineError
         if isinstance(exc, (TMMError, EngineError)):
-            print(f"error: {_one_line(exc)}", file=sys.stderr)
+            log.error(_one_line(exc))
             return 2
         raise
 
@@ -158,29 +253,48 @@ def _dispatch(parser, args) -> int:
     if args.command == "sweep":
         from .sweep import parse_rpm, run_sweep
         rpm = parse_rpm(args.rpm)
+        from .report import sweep_table
         folder, summary = run_sweep(args.scenario, rpm, _engines(args.engines), args.revolutions, args.workers,
-                                    args.scheduler, args.out, progress=not args.quiet, method=args.method)
-        print(f"sweep {summary['status']}: {len(summary['points'])} points in {summary['wall_time_s']:.1f} s; "
+                                    args.scheduler, args.out, progress=not _quiet(args), method=args.method,
+                                    resonance=args.campbell, records_dir=args.records)
+        print(sweep_table(summary))
+        print(f"\nsweep {summary['status']}: {len(summary['points'])} points in {summary['wall_time_s']:.1f} s; "
               f"written to {folder}")
         return 0 if summary["status"] == "completed" else 1
     if args.command == "uncertainty":
+        from .report import uncertainty_table
         from .uncertainty import run_uncertainty
-        folder, summary = run_uncertainty(args.scenario, args.samples, args.seed, args.workers, args.scheduler, args.out)
-        print(f"uncertainty {summary['status']}: {summary['samples']} samples in {summary.get('wall_time_s', 0):.1f} s")
-        for g, b in (summary.get("band") or {}).items():
-            print(f"  {g}: +peak {b['peak_max_range_ue'][0]:.1f}..{b['peak_max_range_ue'][1]:.1f} ue, -peak "
-                  f"{b['peak_min_range_ue'][0]:.1f}..{b['peak_min_range_ue'][1]:.1f} ue; most influential: "
-                  f"{summary.get('most_influential', {}).get(g)}")
-        for r in summary.get("records") or []:
-            print(f"  record {r['record']} {r['gauge']} {r['peak']}peak {r['recorded_ue']:.1f} ue: "
-                  f"{'inside' if r['inside'] else 'outside'} the band")
-        print(f"written to {folder}")
+        folder, summary = run_uncertainty(args.scenario, args.samples, args.seed, args.workers, args.scheduler,
+                                          args.out, progress=not _quiet(args), records_dir=args.records)
+        print(uncertainty_table(summary))
+        print(f"\nwritten to {folder}")
         return 0 if summary["status"].startswith("completed") else 1
-    if args.command == "compare":
-        from .report import comparison_table, load_summary
-        print(comparison_table(load_summary(args.run_dir)))
+    if args.command == "new":
+        from .template import new_scenario
+        path, bases = new_scenario(args.name, args.like, args.out)
+        print(f"wrote {path}" + (f" and its base file(s) {', '.join(str(b) for b in bases)}" if bases else ""))
+        print(f"run it with: cosim run {path}")
         return 0
+    if args.command == "synthesize":
+        from .synthesis import run_command
+        return run_command(args)
+    if args.command == "compare":
+        return compare_main(args.run_dir)
     parser.print_help()
+    return 0
+
+
+def compare_main(folder) -> int:
+    """``cosim compare``: the folder's own table; a summary that cannot be read or shown is one
+    ``error:`` line and exit 2, never a traceback."""
+    from .report import load_summary, report
+    summary = load_summary(folder)          # ValueError / FileNotFoundError name the file
+    try:
+        text = report(summary)
+    except Exception as exc:                # a summary.json edited by hand or from another version
+        raise ValueError(f"{Path(folder)}/summary.json: cannot be shown ({type(exc).__name__}: {exc}); it may be "
+                         "from another version of the bench or edited by hand") from None
+    print(text)
     return 0
 
 
@@ -188,6 +302,7 @@ def run_main(scenario: str, args=None) -> int:
     """``cosim run``; also what each scenario script calls (``python scenarios/<name>.py``)."""
     if args is None:      # a scenario script: its own command line with the same options
         args = _parser().parse_args(["run", scenario] + sys.argv[1:])
+        setup_logging(args.verbose, args.quiet)
     from .report import comparison_table
     from .run import RunOptions, run_scenario
     viewer = "connect" if getattr(args, "connect", None) else (args.viewer or "save")
@@ -195,6 +310,8 @@ def run_main(scenario: str, args=None) -> int:
     sc = load(scenario)
     if getattr(sc, "kind", None) == "structure":       # a structure at one position: static analysis
         from .structure_scenario import run_static, summary_table
+        if getattr(args, "records", None) is not None:
+            logging.getLogger("cosim.cli").warning("--records: a static structure has no records to score; ignored")
         folder, summary = run_static(sc, args.out)
         print(summary_table(summary))
         print(f"\nwritten to {folder}")
@@ -202,7 +319,7 @@ def run_main(scenario: str, args=None) -> int:
     engines = _engines(args.engines) if args.engines else sc.output.engines
     options = RunOptions(engines=engines, mode=args.drive, revolutions=args.revolutions, out=args.out,
                          viewer=viewer, connect_url=getattr(args, "connect", None), exaggeration=args.exaggeration,
-                         progress=not args.quiet)
+                         progress=not _quiet(args), records=args.records)
     result = run_scenario(sc, options)
     print(comparison_table(result.summary))
     print(f"\nwritten to {result.folder}")

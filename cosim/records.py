@@ -99,6 +99,16 @@ class Record:
     def label(self) -> str:
         return f"{self.name} ({self.kind.replace('_', ' ')})"
 
+    @property
+    def title(self) -> str:
+        """A name for figures and reports, from the provenance instead of the file id:
+        ``"FE crank-rocker thesis, TABLE I (measurement)"`` for ``fe_table1``."""
+        source = str(self.provenance.get("source") or "").split(",")[0].strip()
+        table = str(self.provenance.get("table") or self.provenance.get("figure") or "")
+        table = table.split(":")[0].split(" (")[0].strip()       # the table's name, not its caption
+        head = ", ".join(x for x in (source, table) if x) or self.name
+        return f"{head} ({self.kind.replace('_', ' ')})"
+
     def channel(self, column: str) -> Channel:
         for c in self.channels:
             if c.column == column:
@@ -265,13 +275,22 @@ def _load_history(side, data_path, meta, common) -> Record:
 
 
 def shipped_records(directory: Path = RECORD_DIR) -> list:
-    """Every record under ``scenarios/records`` (sidecars)."""
-    return [load_record(p) for p in sorted(Path(directory).glob("*.toml"))]
+    """Every record in ``directory`` (sidecars; default the shipped ``scenarios/records``). A
+    directory that does not exist is an error, not an empty list: a mistyped ``--records DIR``
+    must not look like a rig without records."""
+    directory = Path(directory)
+    if not directory.is_dir():
+        raise RecordError(f"records directory {directory}: not found (or not a directory)")
+    return [load_record(p) for p in sorted(directory.glob("*.toml"))]
 
 
-def records_for(scenario, directory: Path = RECORD_DIR) -> list:
+def records_for(scenario, directory: Path | None = RECORD_DIR) -> list:
     """Records of the scenario's rig at its speed (history records: same speed within 0.5 rpm;
-    peaks records: rows at that speed)."""
+    peaks records: rows at that speed), from ``directory`` (``None``: the shipped records; a
+    user's own directory with ``cosim run --records DIR``)."""
+    directory = Path(RECORD_DIR if directory is None else directory)
+    if not directory.is_dir():           # checked even for a scenario without rig: a typo is never silent
+        raise RecordError(f"records directory {directory}: not found (or not a directory)")
     rig = getattr(scenario, "rig", None)
     if not rig:
         return []

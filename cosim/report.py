@@ -1,4 +1,7 @@
-"""Text tables of a finished run (``cosim compare <run-dir>``), read from its summary.json."""
+"""Text tables of a results folder (``cosim compare <folder>``), read from its summary.json: a
+run's comparison table, a sweep's peaks per speed, an uncertainty run's band, a static
+structure's results (:func:`report` picks the one that fits the folder). A summary that is not a
+JSON object, or a folder that is still running or was cut short, is said so, never a traceback."""
 from __future__ import annotations
 
 import json
@@ -6,15 +9,69 @@ from pathlib import Path
 
 
 def load_summary(run_dir) -> dict:
+    """The parsed summary.json of a folder (or the file itself); ValueError naming the file when
+    it is not a JSON object of a bench summary."""
     path = Path(run_dir)
     if path.is_dir():
         path = path / "summary.json"
     if not path.exists():
         raise FileNotFoundError(f"no summary.json in {Path(run_dir)} (is it a run folder under logs/?)")
     try:
-        return json.loads(path.read_text(encoding="utf-8"))
+        data = json.loads(path.read_text(encoding="utf-8"))
     except json.JSONDecodeError as exc:
         raise ValueError(f"{path}: not valid JSON ({exc})") from None
+    except UnicodeDecodeError:
+        raise ValueError(f"{path}: not a text file") from None
+    if not isinstance(data, dict):
+        raise ValueError(f"{path}: not a bench summary (a JSON {type(data).__name__}, expected an object with "
+                         "'scenario' and 'status')")
+    if "scenario" not in data or "status" not in data:
+        missing = " and ".join(k for k in ("scenario", "status") if k not in data)
+        raise ValueError(f"{path}: not a bench summary (no key {missing})")
+    return data
+
+
+def folder_kind(summary: dict) -> str:
+    """``"run"``, ``"sweep"``, ``"uncertainty"`` or ``"structure"`` (from the summary's keys)."""
+    if summary.get("kind") == "structure":
+        return "structure"
+    if "points" in summary and "rpm" in summary:
+        return "sweep"
+    if "samples" in summary and "parameters" in summary:
+        return "uncertainty"
+    return "run"
+
+
+def status_notice(summary: dict, kept: str = "traces.csv holds every completed step") -> str | None:
+    """One line when the folder's work did not finish (``None`` when it did); ``kept`` says what
+    the folder keeps of an unfinished run."""
+    status = summary.get("status")
+    if status in ("completed", "completed with failed samples"):
+        return None
+    if status == "incomplete":
+        done = summary.get("progress")
+        return ("INCOMPLETE: still running, or killed before it could finish" +
+                (f" (progress {100 * done:.0f} %)" if isinstance(done, (int, float)) else "") +
+                f"; the table shows the summary as last written ({kept})")
+    if status == "interrupted":
+        return "INTERRUPTED: stopped by the user or a signal; the results below cover what ran"
+    if status == "failed":
+        return "FAILED: see the errors below"
+    return f"status {status!r}"
+
+
+def report(summary: dict) -> str:
+    """The table that fits the summary's folder (:func:`folder_kind`)."""
+    kind = folder_kind(summary)
+    if kind == "run":
+        return comparison_table(summary)
+    if kind == "structure":
+        notice = status_notice(summary)
+        if notice:
+            return f"scenario {summary.get('scenario')}  static structure analysis\n{notice}"
+        from .structure_scenario import summary_table
+        return summary_table(summary)
+    return (sweep_table if kind == "sweep" else uncertainty_table)(summary)
 
 
 def _fmt(x, digits=1):
@@ -26,7 +83,18 @@ def comparison_table(summary: dict) -> str:
     and simulated time; records and scores where the summary has them."""
     lines = [f"scenario {summary.get('scenario')}  status {summary.get('status')}  mode {summary.get('mode')}  "
              f"revolutions {summary.get('revolutions')}" + (f"  (stop: {summary['stop']})" if summary.get("stop") else "")]
-    engines = summary.get("engines", {})
+    notice = status_notice(summary)
+    if notice:
+        lines.append(notice)
+    lk = summary.get("linkage") or {}
+    if lk.get("transmission_min_deg") is not None:
+        limits = ""
+        if lk.get("crank_angle_extended_deg") is not None:
+            limits = (f"; limit positions at crank {lk['crank_angle_extended_deg']:.2f} and "
+                      f"{lk['crank_angle_folded_deg']:.2f} deg (rocker swing {lk['oscillation_deg']:.2f} deg)")
+        lines.append(f"linkage: {lk.get('grashof', '')}, transmission angle {lk['transmission_min_deg']:.2f} to "
+                     f"{lk['transmission_max_deg']:.2f} deg{limits}")
+    engines = summary.get("engines") or {}
     gauges = sorted({g for e in engines.values() for g in (e.get("gauges") or {})})
     head = f"{'gauge':<14} {'engine':<8} {'bend max':>9} {'bend min':>9} {'axial max':>9} {'axial min':>9}  [microstrain]"
     lines += ["", head, "-" * len(head)]
@@ -35,8 +103,8 @@ def comparison_table(summary: dict) -> str:
             s = (e.get("gauges") or {}).get(g)
             if s is None:
                 continue
-            lines.append(f"{g:<14} {name:<8} {_fmt(s['bending_max_ue']):>9} {_fmt(s['bending_min_ue']):>9} "
-                         f"{_fmt(s['axial_max_ue']):>9} {_fmt(s['axial_min_ue']):>9}"
+            lines.append(f"{g:<14} {name:<8} {_fmt(s.get('bending_max_ue')):>9} {_fmt(s.get('bending_min_ue')):>9} "
+                         f"{_fmt(s.get('axial_max_ue')):>9} {_fmt(s.get('axial_min_ue')):>9}"
                          + ("" if e.get("steady", True) else "  NOT STEADY"))
         for rec in (summary.get("records") or {}).get(g, []):
             lines.append(f"{g:<14} {'record':<8} {_fmt(rec.get('bending_max_ue')):>9} {_fmt(rec.get('bending_min_ue')):>9} "
@@ -57,7 +125,9 @@ def comparison_table(summary: dict) -> str:
     if speed:
         lines += ["", "crank speed (motor): mean [rpm] and (max - min) / mean of the last revolution"]
         for n, s in speed.items():
-            lines.append(f"  {n:<8} {s['mean_rpm_last']:.2f} rpm  fluctuation {100 * s['fluctuation_last']:.2f} %")
+            lines.append(f"  {n:<8} {_fmt(s.get('mean_rpm_last'), 2)} rpm  fluctuation "
+                         f"{_fmt(100 * s['fluctuation_last'] if s.get('fluctuation_last') is not None else None, 2)} %")
+    lines += _motor_lines(engines)
     scores = summary.get("scores")
     if scores:
         head = (f"{'engine':<8} {'gauge':<12} {'record':<18} {'+peak err':>9} {'-peak err':>9} {'rms [ue]':>8} "
@@ -65,7 +135,8 @@ def comparison_table(summary: dict) -> str:
         lines += ["", "scores against records (peak errors = model / record - 1; for - peaks, + = larger magnitude)",
                   head, "-" * len(head)]
         for s in scores:
-            lines.append(f"{s['engine']:<8} {s['gauge']:<12} {s['record']:<18} {_pct(s.get('plus_peak_error')):>9} "
+            lines.append(f"{s.get('engine', '?'):<8} {s.get('gauge', '?'):<12} {s.get('record', '?'):<18} "
+                         f"{_pct(s.get('plus_peak_error')):>9} "
                          f"{_pct(s.get('minus_peak_error')):>9} {_fmt(s.get('rms_error_ue')):>8} "
                          f"{_fmt(s.get('correlation'), 2):>6} {_fmt(s.get('phase_lag_deg')):>9} "
                          f"{_fmt(s.get('scale'), 2):>6} {_fmt(s.get('inside_envelope'), 2):>6}"
@@ -77,3 +148,83 @@ def comparison_table(summary: dict) -> str:
 
 def _pct(x):
     return "-" if x is None or x != x else f"{100 * x:+.1f}%"
+
+
+def _motor_lines(engines: dict) -> list:
+    """Motor current and voltage ranges and the energy balance of the last revolution (motor runs)."""
+    lines = []
+    for n, e in engines.items():
+        m, en = e.get("motor"), e.get("energy_J")
+        if not m and not en:
+            continue
+        if not lines:
+            lines += ["", "motor (whole run: current and voltage range; last revolution: energy balance [J])"]
+        if m:
+            lines.append(f"  {n:<8} current {_fmt(m.get('current_min_A'), 2)} .. {_fmt(m.get('current_max_A'), 2)} A"
+                         f"  voltage {_fmt(m.get('voltage_min_V'), 1)} .. {_fmt(m.get('voltage_max_V'), 1)} V")
+        if isinstance(en, dict) and "note" in en:
+            lines.append(f"  {n:<8} energy balance: {en['note']}")
+        elif isinstance(en, dict):
+            e_in = en.get("electrical_in_J")
+            res = en.get("residual_J")
+            rel = f" ({100 * res / e_in:+.2f} % of the input)" if e_in and res is not None else ""
+            lines.append(f"  {n:<8} electrical in {_fmt(e_in, 3)} = copper {_fmt(en.get('copper_loss_J'), 3)} + "
+                         f"friction {_fmt(en.get('friction_loss_J'), 3)} + linkage work {_fmt(en.get('linkage_work_J'), 3)} + "
+                         f"drive kinetic {_fmt(en.get('drive_kinetic_energy_change_J'), 3)} + magnetic "
+                         f"{_fmt(en.get('magnetic_energy_change_J'), 3)} + residual {_fmt(res, 3)}{rel}")
+    return lines
+
+
+def sweep_table(summary: dict) -> str:
+    """Peaks per speed, engine and gauge of a ``cosim sweep`` folder [microstrain]."""
+    rpm = summary.get("rpm") or []
+    points = summary.get("points") or []
+    lines = [f"sweep of {summary.get('scenario')}  status {summary.get('status')}  method {summary.get('method')}  "
+             f"{len(points)} of {len(rpm)} points"]
+    notice = status_notice(summary, kept="sweep.csv holds every finished point")
+    if notice:
+        lines.append(notice)
+    head = (f"{'rpm':>7} {'engine':<8} {'gauge':<14} {'status':<10} {'bend max':>9} {'bend min':>9} "
+            f"{'floquet':>8}  [microstrain]")
+    lines += ["", head, "-" * len(head)]
+    for p in points:
+        if p.get("did_not_run"):
+            lines.append(f"{_fmt(p.get('rpm')):>7} did not run: {p.get('error')}")
+            continue
+        for engine, e in (p.get("engines") or {}).items():
+            gauges = e.get("gauges") or {"-": {}}
+            for g, st in gauges.items():
+                lines.append(f"{_fmt(p.get('rpm')):>7} {engine:<8} {g:<14} {str(e.get('status')):<10} "
+                             f"{_fmt(st.get('bending_max_ue')):>9} {_fmt(st.get('bending_min_ue')):>9} "
+                             f"{_fmt(e.get('floquet_max'), 3):>8}" + (f"  {e['error']}" if e.get("error") else ""))
+    if summary.get("parametric_resonance_rpm"):
+        lines.append(f"parametric resonance (|Floquet multiplier| > 1) at {summary['parametric_resonance_rpm']} rpm")
+    if summary.get("points_without_solution"):
+        lines.append(f"no solution at {summary['points_without_solution']} rpm")
+    for c in summary.get("resonance_candidates") or []:
+        lines.append(f"resonance candidate: mode {c['mode']} x harmonic {c['harmonic']} at "
+                     f"{c['rpm'][0]:.0f}-{c['rpm'][1]:.0f} rpm")
+    return "\n".join(lines)
+
+
+def uncertainty_table(summary: dict) -> str:
+    """Band of the predicted peaks, the most influential parameter and the record check of a
+    ``cosim uncertainty`` folder [microstrain]."""
+    lines = [f"uncertainty of {summary.get('scenario')}  status {summary.get('status')}  "
+             f"{summary.get('samples')} samples in {_fmt(summary.get('wall_time_s'))} s"]
+    notice = status_notice(summary, kept="the band is computed when every sample has finished")
+    if notice:
+        lines.append(notice)
+    if summary.get("error"):
+        lines.append(f"error: {summary['error']}")
+    for g, b in (summary.get("band") or {}).items():
+        lo_max, hi_max = b.get("peak_max_range_ue") or (None, None)
+        lo_min, hi_min = b.get("peak_min_range_ue") or (None, None)
+        lines.append(f"  {g}: +peak {_fmt(lo_max)}..{_fmt(hi_max)} ue, -peak {_fmt(lo_min)}..{_fmt(hi_min)} ue; "
+                     f"most influential: {(summary.get('most_influential') or {}).get(g)}")
+    for r in summary.get("records") or []:
+        lines.append(f"  record {r.get('title') or r.get('record')} {r.get('gauge')} {r.get('peak')}peak "
+                     f"{_fmt(r.get('recorded_ue'))} ue: {'inside' if r.get('inside') else 'outside'} the band")
+    if summary.get("failed_samples"):
+        lines.append(f"  failed samples: {', '.join(summary['failed_samples'])}")
+    return "\n".join(lines)

@@ -15,11 +15,17 @@ from pathlib import Path
 import numpy as np
 
 
-def frequency_map(scenario, n_angles: int = 36, n_modes: int = 4, f_max_Hz: float = 1000.0) -> dict:
-    """Natural frequencies [Hz] at ``n_angles`` crank angles: {"angle_rad", "f_Hz" (angles, modes)}."""
+def frequency_map(scenario, n_angles: int = 36, n_modes: int = 4, f_max_Hz: float = 1000.0,
+                  progress: bool = False) -> dict:
+    """Natural frequencies [Hz] at ``n_angles`` crank angles: {"angle_rad", "f_Hz" (angles, modes)}.
+    One angle at a time (a few seconds each on a four-bar), so that ``progress`` can show a bar."""
+    from tqdm import tqdm
+
     from tmm_core.frequencies import fourbar_frequencies
     angles = scenario.drive.start_angle_rad + np.linspace(0, 2 * math.pi, n_angles, endpoint=False)
-    return {"angle_rad": angles, "f_Hz": fourbar_frequencies(scenario.mechanism, angles, n_modes, f_max_Hz)}
+    rows = [fourbar_frequencies(scenario.mechanism, [a], n_modes, f_max_Hz)[0]
+            for a in tqdm(angles, desc="natural frequencies", unit="angle", disable=None if progress else True)]
+    return {"angle_rad": angles, "f_Hz": np.array(rows).reshape(n_angles, n_modes)}
 
 
 def campbell(fmap: dict, rpm_min: float, rpm_max: float, max_harmonic: int = 20) -> list:
@@ -40,25 +46,30 @@ def campbell(fmap: dict, rpm_min: float, rpm_max: float, max_harmonic: int = 20)
     return out
 
 
-def plot_sweep(folder, name: str, points: list, fmap: dict | None, marks_rpm=(), max_harmonic: int = 20) -> list:
-    """Write ``sweep_peaks`` and ``campbell`` figures (PNG and SVG) to ``folder``; returns the paths."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+def plot_sweep(folder, name: str, points: list, fmap: dict | None, marks_rpm=(), max_harmonic: int = 20,
+               record_peaks=()) -> list:
+    """Write ``sweep_peaks`` and ``campbell`` figures (PNG and SVG) to ``folder``; returns the paths.
+    ``record_peaks`` (:func:`cosim.figures.peaks_by_speed`) are drawn as open markers at their speeds."""
+    from .figures import gauge_label, new_figure, peak_markers, save
 
     folder = Path(folder)
     paths = []
     done = [p for p in points if p.get("rpm") is not None]
-    fig, ax = plt.subplots(figsize=(8, 4.5))
+    fig = new_figure(figsize=(9, 4.8))
+    ax = fig.subplots()
     series = {}
     for p in sorted(done, key=lambda q: q["rpm"]):
         for engine, e in p["engines"].items():
             for g, s in (e.get("gauges") or {}).items():
                 series.setdefault((engine, g), []).append((p["rpm"], s["bending_max_ue"], s["bending_min_ue"]))
+    gauge_colors = {}
     for (engine, g), v in sorted(series.items()):
         v = np.array(v)
-        line, = ax.plot(v[:, 0], v[:, 1], label=f"{engine} {g} +peak")
-        ax.plot(v[:, 0], v[:, 2], "--", color=line.get_color(), label=f"{engine} {g} -peak")
+        line, = ax.plot(v[:, 0], v[:, 1], label=f"{engine}, {gauge_label(g)} +peak")
+        ax.plot(v[:, 0], v[:, 2], "--", color=line.get_color(), label=f"{engine}, {gauge_label(g)} -peak")
+        gauge_colors.setdefault(g, line.get_color())
+    # Only the gauges the sweep computed: a record of another gauge has no curve to compare with.
+    peak_markers(ax, [p for p in record_peaks if p["gauge"] in gauge_colors], gauge_colors)
     failed = [p["rpm"] for p in done if any(e.get("status") != "completed" for e in p["engines"].values())]
     for r in failed:
         ax.axvline(r, color="0.85", lw=3, zorder=0)
@@ -67,18 +78,15 @@ def plot_sweep(folder, name: str, points: list, fmap: dict | None, marks_rpm=(),
     ax.set_xlabel("crank speed [rpm]")
     ax.set_ylabel("peak bending strain [µε]")
     ax.set_title(f"{name}: steady-state peak strain vs speed" + (" (grey: no solution, e.g. buckling)" if failed else ""))
-    ax.legend(fontsize=7, ncol=2)
+    ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0)
     ax.grid(alpha=0.3)
-    for ext in ("png", "svg"):
-        path = folder / f"sweep_peaks.{ext}"
-        fig.savefig(path, dpi=130, bbox_inches="tight")
-        paths.append(path)
-    plt.close(fig)
+    paths += save(fig, folder, "sweep_peaks")
     if fmap is None:
         return paths
     rpms = np.array([p["rpm"] for p in done]) if done else np.array([1.0])
     r_lo, r_hi = float(rpms.min()), float(rpms.max())
-    fig, (a1, a2) = plt.subplots(1, 2, figsize=(11, 4.5))
+    fig = new_figure(figsize=(12, 4.8))
+    a1, a2 = fig.subplots(1, 2)
     f = fmap["f_Hz"]
     deg = np.degrees(fmap["angle_rad"])
     for m in range(f.shape[1]):
@@ -98,20 +106,41 @@ def plot_sweep(folder, name: str, points: list, fmap: dict | None, marks_rpm=(),
         if y[0] > fmax:
             break
         a2.plot(rr, y, color="0.4", lw=0.7)
-        a2.text(rr[-1], min(y[-1], fmax), f"{k}x", fontsize=6, va="bottom")
+    _harmonic_labels(a2, r_lo, r_hi, fmax, max_harmonic)
     for r in marks_rpm:
         a2.axvline(r, color="k", lw=0.8, ls=":")
+    a2.set_xlim(r_lo, r_hi)
     a2.set_ylim(0, fmax)
     a2.set_xlabel("crank speed [rpm]")
     a2.set_ylabel("frequency [Hz]")
-    a2.set_title("Campbell: crank-speed harmonics vs mode bands")
-    a2.legend(fontsize=7, loc="upper left")
-    for ext in ("png", "svg"):
-        path = folder / f"campbell.{ext}"
-        fig.savefig(path, dpi=130, bbox_inches="tight")
-        paths.append(path)
-    plt.close(fig)
+    a2.set_title("Campbell: crank-speed harmonics vs mode bands", pad=14)
+    a2.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.06, 1.0), borderaxespad=0)
+    paths += save(fig, folder, "campbell")
     return paths
+
+
+def _harmonic_labels(ax, r_lo: float, r_hi: float, fmax: float, max_harmonic: int, min_gap: float = 0.045) -> None:
+    """Label each harmonic line "kx" where it leaves the plot (right edge, or top edge for the
+    steep ones), skipping a label that would land within ``min_gap`` (fraction of the axis) of
+    one already placed: with 20 harmonics the right-edge labels would otherwise overprint."""
+    placed = {"right": [], "top": []}
+    span_r = max(r_hi - r_lo, 1e-9)
+    for k in range(1, max_harmonic + 1):
+        y_end = k * r_hi / 60
+        if k * r_lo / 60 > fmax:
+            break
+        if y_end <= fmax:            # leaves through the right edge: position along y
+            edge, pos, xy = "right", y_end / fmax, (r_hi, y_end)
+            kw = dict(ha="left", va="center")
+        else:                        # leaves through the top: position along x
+            x = 60 * fmax / k
+            edge, pos, xy = "top", (x - r_lo) / span_r, (x, fmax)
+            kw = dict(ha="center", va="bottom")
+        if any(abs(pos - q) < min_gap for q in placed[edge]):
+            continue
+        placed[edge].append(pos)
+        ax.annotate(f"{k}x", xy, xytext=(2, 0) if edge == "right" else (0, 1), textcoords="offset points",
+                    fontsize=6, color="0.3", clip_on=False, **kw)
 
 
 def record_map(rec, fmap: dict, rpm_range, max_harmonic: int = 20) -> None:

@@ -1,12 +1,16 @@
 """One run of a scenario through the engines, with its log folder and rerun recording.
 
-``logs/<scenario>-<timestamp>/`` receives:
+``./logs/<scenario>-<timestamp>/`` (under the current directory; ``RunOptions.out`` overrides) receives:
 
 * ``scenario.resolved.toml``: the scenario as run (every value in SI after units, defaults and
   derivations; every assumption with its rationale; the file as written);
 * ``traces.csv``: time column and one column per trace, units in the names
   (:mod:`cosim.traces`), appended every macro step;
 * ``run.rrd``: the rerun recording (:mod:`cosim.recording`);
+* ``traces.parquet``: the traces as one long table, written when the run ends
+  (:mod:`cosim.results`, ``cosim.load_run``);
+* ``strains.png`` / ``strains.svg``: strain against crank angle per gauge, engines and records
+  (:mod:`cosim.figures`); a figure that fails is a note in the summary, never a lost run;
 * ``summary.json``: ``scenario``, ``status``, per engine ``wall_time_s``, ``sim_time_s``,
   ``status``, ``error`` and, for the last revolution, ``gauges.<g>.{bending,axial}_{max,min}_ue``
   and the drive torque range; in motor mode the speed fluctuation and the energy balance.
@@ -18,6 +22,7 @@ engine's message and keeps the other engines' results.
 """
 from __future__ import annotations
 
+import logging
 import math
 import signal
 import time
@@ -35,6 +40,7 @@ from .scenario import Scenario, load, resolved
 from .traces import TraceWriter
 
 SUMMARY_EVERY_S = 2.0
+log = logging.getLogger(__name__)
 
 
 @dataclass
@@ -47,6 +53,8 @@ class RunOptions:
     connect_url: str | None = None
     exaggeration: float = 20.0
     progress: bool = True
+    records: Path | None = None          # records directory (default: the shipped scenarios/records)
+    figures: bool = True                 # strains.png/.svg in the run folder
 
 
 @dataclass
@@ -77,6 +85,21 @@ def last_revolution_stats(run, period: float | None = None, t0: float = 0.0) -> 
         out["gauges"][g] = {"bending_max_ue": float(b.max()), "bending_min_ue": float(b.min()),
                             "axial_max_ue": float(a.max()), "axial_min_ue": float(a.min())}
     return out
+
+
+def linkage_summary(sc: Scenario) -> dict | None:
+    """Limit positions and transmission-angle range of a four-bar scenario [deg]
+    (:func:`cosim.synthesis.limit_positions`); None for other linkages or a non-Grashof one."""
+    from tmm_core import FourBarMechanism, TMMError
+    if not isinstance(sc.mechanism, FourBarMechanism):
+        return None
+    from .synthesis import limit_positions
+    try:
+        lim = limit_positions(sc.mechanism.geometry)
+    except TMMError as exc:
+        return {"note": str(exc)}
+    return {k.replace("_rad", "_deg"): (None if v is None else math.degrees(v)) if k.endswith("_rad") else v
+            for k, v in lim.items()}
 
 
 def _engine_summary(ch, scenario: Scenario, sim_t0: float) -> dict:
@@ -134,8 +157,13 @@ def run_scenario(scenario, options: RunOptions = RunOptions(), callback=None) ->
     if not (isinstance(revolutions, (int, float)) and math.isfinite(revolutions) and revolutions > 0):
         raise InputError(f"revolutions must be a positive finite number, got {revolutions!r}")
     duration = cosim.duration_for(revolutions)
+    if options.records is not None:       # a bad user records directory is refused before the run
+        from .records import records_for
+        records_for(sc, Path(options.records))
 
     folder = run_folder(sc.name, options.out)
+    log.info("%s through %s (%s, %s); results to %s", sc.name, ", ".join(engines), mode,
+             "until steady" if until_steady else f"{revolutions:g} revolutions", folder)
     import tomli_w
     (folder / "scenario.resolved.toml").write_text(tomli_w.dumps(resolved(sc)), encoding="utf-8")
     summary = {"scenario": sc.name, "status": "incomplete", "bench_version": __version__, "mode": mode,
@@ -148,6 +176,7 @@ def run_scenario(scenario, options: RunOptions = RunOptions(), callback=None) ->
                "engines": {n: {"status": "unavailable", "error": msg} for n, msg in unavailable.items()},
                "files": {"traces": "traces.csv", "recording": "run.rrd" if options.viewer != "none" else None,
                          "scenario": "scenario.resolved.toml"}}
+    summary["linkage"] = linkage_summary(sc)
     write_json(folder / "summary.json", summary)
 
     writer = TraceWriter(folder / "traces.csv")
@@ -223,7 +252,12 @@ def run_scenario(scenario, options: RunOptions = RunOptions(), callback=None) ->
             notes.append(f"not steady: {', '.join(unsteady)} (the last two revolutions differ by more than "
                          f"{100 * sc.output.steady_tolerance:.2g} %); its peaks are a transient, not a steady state")
         try:
-            score_records(sc, result, summary, recorder[0])
+            score_records(sc, result, summary, recorder[0], options.records)
+            if options.records is not None:
+                summary["records_dir"] = str(Path(options.records).resolve())
+                if not summary.get("records_used"):
+                    notes.append(f"no record in {options.records} is of rig {getattr(sc, 'rig', None)!r} at "
+                                 "this speed; nothing was scored")
         except Exception as exc:          # scoring must never lose the run's own results
             notes.append(f"scoring against records failed: {type(exc).__name__}: {exc}")
     if recorder[0] is not None:
@@ -238,20 +272,41 @@ def run_scenario(scenario, options: RunOptions = RunOptions(), callback=None) ->
     else:
         for name in engines:
             summary["engines"].setdefault(name, {"status": "interrupted"})
+    if writer.columns is not None:
+        _write_results(folder, sc, summary, notes, options)
     if notes:
         summary["notes"] = notes
     write_json(folder / "summary.json", summary)
     return RunResult(folder, summary, result, notes)
 
 
-def score_records(sc: Scenario, result, summary: dict, recorder=None) -> None:
+def _write_results(folder: Path, sc: Scenario, summary: dict, notes: list, options: RunOptions) -> None:
+    """traces.parquet and strains.png/.svg after the run. Neither may lose the run: a failure is
+    logged and written into the summary's notes (traces.csv stays the run's crash-safe file)."""
+    write_json(folder / "summary.json", summary)          # the figure reads the final verdicts
+    try:
+        from .results import write_parquet
+        summary["files"]["traces_parquet"] = write_parquet(folder).name
+    except Exception as exc:
+        notes.append(f"traces.parquet not written: {type(exc).__name__}: {exc}")
+        log.warning(notes[-1])
+    if options.figures:
+        try:
+            from .figures import write_run_figures
+            summary["files"]["figures"] = [p.name for p in write_run_figures(folder, sc, options.records)]
+        except Exception as exc:
+            notes.append(f"strain figure not drawn: {type(exc).__name__}: {exc}")
+            log.warning(notes[-1])
+
+
+def score_records(sc: Scenario, result, summary: dict, recorder=None, directory=None) -> None:
     """Records of the scenario's rig at its speed: listed in the summary, scored against every
     engine's last revolution (peaks records: peak errors; histories over crank angle: peak, RMS,
     correlation, phase lag, scale, envelope), drawn in the recording under /records."""
     from .compare import convention_warnings, score_history, score_peaks, sign_check
     from .records import history_over_angle, peaks_at, records_for
 
-    recs = records_for(sc)
+    recs = records_for(sc, directory)
     if not recs:
         return
     rpm = abs(sc.drive.speed_rad_s) * 30 / math.pi
@@ -263,7 +318,8 @@ def score_records(sc: Scenario, result, summary: dict, recorder=None) -> None:
     for rec in recs:
         if rec.format == "peaks":
             for g, p in peaks_at(rec, rpm).items():
-                summary["records"].setdefault(g, []).append({"label": rec.label, **p})
+                summary["records"].setdefault(g, []).append({"label": rec.label, "title": rec.title,
+                                                             "format": rec.format, **p})
                 if recorder is not None:
                     recorder.log_reference(g, rec.name, bending_ue=(p.get("bending_max_ue"), p.get("bending_min_ue")),
                                            kind=rec.kind)
@@ -283,7 +339,8 @@ def score_records(sc: Scenario, result, summary: dict, recorder=None) -> None:
                     continue
                 warnings += convention_warnings(rec, gauges[g])
                 rb = series["bending_ue"]
-                summary["records"].setdefault(g, []).append({"label": rec.label, "bending_max_ue": float(rb.max()),
+                summary["records"].setdefault(g, []).append({"label": rec.label, "title": rec.title,
+                                                             "format": rec.format, "bending_max_ue": float(rb.max()),
                                                              "bending_min_ue": float(rb.min())})
                 if recorder is not None:
                     recorder.log_reference(g, rec.name, angle=hist["angle_rad"], bending_ue=rb, kind=rec.kind)

@@ -1,4 +1,9 @@
-"""Run folders under ``logs/`` and small writers used by scenario scripts."""
+"""Run folders under ``./logs/`` and small writers used by scenario scripts.
+
+Results go where the user is: ``logs/`` under the *current working directory*, not next to the
+package (an installed package's folder may be read-only, and a user running from their own
+project expects their results there). ``--out`` on every command overrides it.
+"""
 from __future__ import annotations
 
 import csv
@@ -7,14 +12,35 @@ import math
 import time
 from pathlib import Path
 
-LOG_ROOT = Path(__file__).resolve().parent.parent / "logs"
+
+def log_root() -> Path:
+    """``./logs`` of the current working directory (evaluated at each call: the cwd may change)."""
+    return Path.cwd() / "logs"
+
+
+def __getattr__(name):
+    # ``LOG_ROOT`` stays importable for the benchmark scripts; it is ./logs at import time.
+    if name == "LOG_ROOT":
+        return log_root()
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 def run_folder(name: str, out: Path | None = None) -> Path:
-    """``out`` or ``logs/<name>-<timestamp>`` (created)."""
-    folder = Path(out) if out is not None else LOG_ROOT / f"{name}-{time.strftime('%Y%m%d-%H%M%S')}"
-    folder.mkdir(parents=True, exist_ok=True)
-    return folder
+    """``out`` or ``./logs/<name>-<timestamp>`` (created). Two runs started in the same second get
+    distinct folders (``-2``, ``-3`` ...) rather than writing into each other."""
+    if out is not None:
+        folder = Path(out)
+        folder.mkdir(parents=True, exist_ok=True)
+        return folder
+    stem = log_root() / f"{name}-{time.strftime('%Y%m%d-%H%M%S')}"
+    for k in range(1, 1000):
+        folder = stem if k == 1 else stem.with_name(f"{stem.name}-{k}")
+        try:
+            folder.mkdir(parents=True, exist_ok=False)     # atomic: a parallel run takes the next name
+            return folder
+        except FileExistsError:
+            continue
+    raise FileExistsError(f"{stem}: 999 run folders with this name and second already exist")
 
 
 def _clean(value):

@@ -14,6 +14,7 @@ sweep keeps what it computed.
 from __future__ import annotations
 
 import copy
+import logging
 import math
 import re
 import time
@@ -26,6 +27,7 @@ from .parallel import describe, executor
 from .runlog import run_folder, write_csv, write_json
 from .scenario import ScenarioError, from_dict, load
 
+log = logging.getLogger(__name__)
 RANGE = re.compile(r"^\s*([0-9.eE+-]+)\s*:\s*([0-9.eE+-]+)\s*:\s*([0-9.eE+-]+)\s*$")
 
 
@@ -138,8 +140,11 @@ def _rows(point: dict) -> list:
 
 def run_sweep(scenario: str, rpm, engines=("tmm",), revolutions: float | None = None, workers: int | None = None,
               scheduler: str | None = None, out: Path | None = None, progress: bool = True,
-              record: bool = True, method: str = "periodic", resonance: bool = True) -> tuple:
-    """Run the sweep; returns ``(folder, summary)``."""
+              record: bool = True, method: str = "periodic", resonance: bool = True,
+              records_dir: Path | None = None) -> tuple:
+    """Run the sweep; returns ``(folder, summary)``. ``resonance``: also the natural-frequency map
+    and Campbell diagram (four-bars; 36 eigenvalue searches, with a progress bar); ``records_dir``:
+    where the recorded peaks drawn on the figure come from (default: the shipped records)."""
     sc = load(scenario)
     rpms = parse_rpm(rpm) if isinstance(rpm, str) else np.asarray(rpm, dtype=float)
     revs = sc.output.revolutions if revolutions is None else revolutions
@@ -147,7 +152,10 @@ def run_sweep(scenario: str, rpm, engines=("tmm",), revolutions: float | None = 
     for e in engines:
         if e not in ENGINES:
             raise ScenarioError(f"unknown engine {e!r}; choose from {', '.join(ENGINES)}")
+    from .figures import peaks_by_speed
+    record_peaks = peaks_by_speed(getattr(sc, "rig", None), float(rpms.min()), float(rpms.max()), records_dir)
     folder = run_folder(f"{sc.name}-sweep", out)
+    log.info("sweep of %s at %d speeds (%s); results to %s", sc.name, len(rpms), ", ".join(engines), folder)
     summary = {"scenario": sc.name, "status": "incomplete", "rpm": rpms.tolist(), "engines": list(engines),
                "revolutions": revs, "method": method, "executor": describe(scheduler),
                "points": []}
@@ -188,18 +196,29 @@ def run_sweep(scenario: str, rpm, engines=("tmm",), revolutions: float | None = 
             bar.close()
     summary["wall_time_s"] = time.perf_counter() - tic
     fmap = None
-    if resonance and type(sc.mechanism).__name__ == "FourBarMechanism" and points:
+    four_bar = type(sc.mechanism).__name__ == "FourBarMechanism"
+    if resonance and not four_bar:
+        log.info("no Campbell diagram: the natural-frequency map is implemented for four-bars only")
+    if resonance and four_bar and points and summary["status"] != "interrupted":
         from .resonance import campbell, frequency_map
-        fmap = frequency_map(sc)
-        summary["natural_frequencies_Hz"] = {"angle_deg": np.degrees(fmap["angle_rad"]).tolist(),
-                                             "modes": np.where(np.isfinite(fmap["f_Hz"]), fmap["f_Hz"], -1).tolist()}
-        summary["resonance_candidates"] = campbell(fmap, float(rpms.min()), float(rpms.max()))
+        log.info("natural frequencies over a revolution for the Campbell diagram (--no-campbell skips it)")
+        try:
+            fmap = frequency_map(sc, progress=progress)
+        except KeyboardInterrupt:        # the sweep's points are done: keep them, drop only the map
+            log.warning("Campbell map interrupted; the sweep's results are written without it")
+            summary.setdefault("notes", []).append("the natural-frequency map was interrupted (no Campbell diagram)")
+        if fmap is not None:
+            modes = np.where(np.isfinite(fmap["f_Hz"]), fmap["f_Hz"], -1).tolist()
+            summary["natural_frequencies_Hz"] = {"angle_deg": np.degrees(fmap["angle_rad"]).tolist(), "modes": modes}
+            summary["resonance_candidates"] = campbell(fmap, float(rpms.min()), float(rpms.max()))
     summary["parametric_resonance_rpm"] = sorted(p["rpm"] for p in points if p["rpm"] is not None and
                                                  (p["engines"].get("tmm") or {}).get("parametric_resonance"))
+    summary["records_peaks"] = record_peaks
     if points:
         from .resonance import plot_sweep
         summary["figures"] = [str(x.name) for x in plot_sweep(folder, sc.name, summary["points"], fmap,
-                                                                marks_rpm=[abs(sc.drive.speed_rad_s) * 30 / math.pi])]
+                                                                marks_rpm=[abs(sc.drive.speed_rad_s) * 30 / math.pi],
+                                                                record_peaks=record_peaks)]
     write_json(folder / "summary.json", summary)
     if record and points:
         _record(folder / "sweep.rrd", sc.name, summary["points"], fmap, (float(rpms.min()), float(rpms.max())))

@@ -25,6 +25,7 @@ against the band of the peaks.
 from __future__ import annotations
 
 import copy
+import logging
 import math
 import re
 import time
@@ -36,6 +37,7 @@ from .parallel import executor
 from .runlog import run_folder, write_csv, write_json
 from .scenario import ScenarioError, from_dict, load
 
+log = logging.getLogger(__name__)
 N_GRID = 360
 _INDEX = re.compile(r"^(\w+)\[(\d+)\]$")
 
@@ -145,8 +147,10 @@ def solve_sample(raw: dict, path: str, specs: dict, sample: dict) -> dict:
 
 def run_uncertainty(scenario: str, samples: int | None = None, seed: int | None = None, workers: int | None = None,
                     scheduler: str | None = None, out: Path | None = None, record: bool = True,
-                    sensitivity: bool = True) -> tuple:
-    """Monte Carlo band, sensitivity ranking, record check; returns ``(folder, summary)``."""
+                    sensitivity: bool = True, progress: bool = True, records_dir: Path | None = None) -> tuple:
+    """Monte Carlo band, sensitivity ranking, record check; returns ``(folder, summary)``.
+    ``progress``: a bar over the solves (auto-off when stderr is not a terminal); ``records_dir``:
+    where the records checked against the band come from (default: the shipped records)."""
     sc = load(scenario)
     n_default, seed_default, specs = parameters(sc.raw, str(sc.path))
     n = samples if samples is not None else n_default
@@ -154,6 +158,7 @@ def run_uncertainty(scenario: str, samples: int | None = None, seed: int | None 
     if n < 2:
         raise ScenarioError("an uncertainty run needs at least 2 samples")
     folder = run_folder(f"{sc.name}-uncertainty", out)
+    log.info("uncertainty of %s: %d samples; results to %s", sc.name, n, folder)
     summary = {"scenario": sc.name, "status": "incomplete", "samples": n, "seed": seed,
                "parameters": {k: {kk: vv for kk, vv in v.items() if kk != "keys"} | {"keys": v["keys"]}
                               for k, v in specs.items()}}
@@ -167,7 +172,8 @@ def run_uncertainty(scenario: str, samples: int | None = None, seed: int | None 
                     [spec["mean"] - 2 * spec["std"], spec["mean"] + 2 * spec["std"]])
             jobs += [(f"one-at-a-time {name}={v}", {name: v}) for v in ends]
     tic = time.perf_counter()
-    results = _map(solve_sample, [(sc.raw, str(sc.path), specs, d) for _, d in jobs], workers, scheduler)
+    results = _map(solve_sample, [(sc.raw, str(sc.path), specs, d) for _, d in jobs], workers, scheduler,
+                   desc=f"uncertainty {sc.name}" if progress else None)
     labels = [j[0] for j in jobs]
     nominal = results[0]
     mc = [r for lab, r in zip(labels, results) if lab.startswith("sample") and r.get("status") == "completed"]
@@ -208,7 +214,7 @@ def run_uncertainty(scenario: str, samples: int | None = None, seed: int | None 
         summary["sensitivity_peak_spread_ue"] = ranking
         summary["most_influential"] = {g: max(ranking, key=lambda k: ranking[k][g] if ranking[k][g] == ranking[k][g]
                                               else -1) for g in nominal["gauges"]}
-    summary["records"] = _record_check(sc, bands)
+    summary["records"] = _record_check(sc, bands, records_dir)
     summary["status"] = "completed" if not failed else "completed with failed samples"
     write_csv(folder / "band.csv", rows)
     summary["figures"] = [p.name for p in _plot(folder, sc.name, rows, summary["records"])]
@@ -218,12 +224,12 @@ def run_uncertainty(scenario: str, samples: int | None = None, seed: int | None 
     return folder, summary
 
 
-def _record_check(sc, bands) -> list:
+def _record_check(sc, bands, records_dir=None) -> list:
     """Is each recorded peak inside the band of the predicted peaks?"""
     from .records import peaks_at, records_for
     rpm = abs(sc.drive.speed_rad_s) * 30 / math.pi
     out = []
-    for rec in records_for(sc):
+    for rec in records_for(sc, records_dir):
         if rec.format != "peaks":
             continue
         for g, p in peaks_at(rec, rpm).items():
@@ -236,22 +242,29 @@ def _record_check(sc, bands) -> list:
                 if v is None:
                     continue
                 lo, hi = b[rng_key]
-                out.append({"record": rec.name, "gauge": g, "peak": side, "recorded_ue": v, "band_ue": [lo, hi],
-                            "inside": bool(lo <= v <= hi)})
+                out.append({"record": rec.name, "title": rec.title, "gauge": g, "peak": side, "recorded_ue": v,
+                            "band_ue": [lo, hi], "inside": bool(lo <= v <= hi)})
     return out
 
 
-def _map(fn, argsets, workers, scheduler):
+def _map(fn, argsets, workers, scheduler, desc: str | None = None):
+    """``fn(*a)`` for every argument set, in order; a bar over the finished solves when ``desc``."""
+    from concurrent.futures import as_completed
+
+    from tqdm import tqdm
     with executor(workers, scheduler) as ex:
-        return [f.result() for f in [ex.submit(fn, *a) for a in argsets]]
+        futures = [ex.submit(fn, *a) for a in argsets]
+        with tqdm(total=len(futures), desc=desc, unit="solve", disable=None if desc else True) as bar:
+            for _ in as_completed(futures):
+                bar.update(1)
+        return [f.result() for f in futures]
 
 
 def _plot(folder, name, rows, records):
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from .figures import gauge_label, new_figure, save
     gauges = sorted({r["gauge"] for r in rows})
-    fig, axes = plt.subplots(1, len(gauges), figsize=(6 * len(gauges), 4), squeeze=False)
+    fig = new_figure(figsize=(6.5 * len(gauges), 4.6), layout="constrained")
+    axes = fig.subplots(1, len(gauges), squeeze=False)
     for ax, g in zip(axes[0], gauges):
         rr = [r for r in rows if r["gauge"] == g]
         a = [r["crank_angle_deg"] for r in rr]
@@ -260,20 +273,15 @@ def _plot(folder, name, rows, records):
         ax.plot(a, [r["nominal_ue"] for r in rr], "k", lw=1, label="nominal")
         for rec in records:
             if rec["gauge"] == g:
-                ax.axhline(rec["recorded_ue"], ls="--", color="C3",
-                           label=f"{rec['record']} {rec['peak']}peak ({'inside' if rec['inside'] else 'outside'})")
-        ax.set_title(f"{name}: {g} bending")
+                ax.axhline(rec["recorded_ue"], ls="--" if rec["peak"] == "+" else "-.", color="C3",
+                           label=f"{rec.get('title') or rec['record']} {rec['peak']}peak "
+                                 f"({'inside' if rec['inside'] else 'outside'} the band)")
+        ax.set_title(f"{name}: {gauge_label(g)}, bending")
         ax.set_xlabel("crank angle [deg]")
         ax.set_ylabel("bending strain [µε]")
-        ax.legend(fontsize=7)
+        ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.16), ncol=2)   # under the axis, off the band
         ax.grid(alpha=0.3)
-    paths = []
-    for ext in ("png", "svg"):
-        p = Path(folder) / f"band.{ext}"
-        fig.savefig(p, dpi=130, bbox_inches="tight")
-        paths.append(p)
-    plt.close(fig)
-    return paths
+    return save(fig, folder, "band")
 
 
 def _record(path, sc, rows, records) -> None:
