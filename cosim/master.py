@@ -216,7 +216,7 @@ class _Channel:
         compliant shaft in its steady start the shaft carries the same torque)."""
         p = self.motor.p
         wm = p.gear_ratio * self.state.rotor_speed_rad_s
-        return p.gear_ratio * (p.torque_constant_Nm_A * self.state.current_A - float(self.motor._friction(wm)))
+        return p.gear_ratio * (p.torque_constant_Nm_A * self.state.current_A - self.motor.friction(wm))
 
     # -- one macro step ---------------------------------------------------------------------------
     def step(self, t_a: float, t_b: float):

@@ -36,7 +36,7 @@ import dataclasses
 from dataclasses import dataclass, replace
 import numpy as np
 
-from tmm_core import InputError
+from tmm_core import ConvergenceError, InputError
 
 
 @dataclass(frozen=True)
@@ -281,6 +281,7 @@ class Motor:
         self.p = params
         self.integrates_crank = integrates_crank
         self.compliant = params.shaft_stiffness_Nm_rad is not None
+        self._ix = self.layout()
 
     @property
     def crank_side_inertia_kg_m2(self) -> float:
@@ -297,43 +298,79 @@ class Motor:
         wm = p.gear_ratio * crank_speed
         if crank_speed == 0:
             return MotorState(t0, 0.0, 0.0, crank_angle, 0.0, crank_angle, 0.0)
-        i = (float(self._friction(wm)) + load_torque / p.gear_ratio) / p.torque_constant_Nm_A
+        i = (self.friction(wm) + load_torque / p.gear_ratio) / p.torque_constant_Nm_A
         v = p.resistance_ohm * i + p.back_emf_V_s_rad * wm
         # The shaft is twisted by the torque it carries.
-        twist = 0.0 if not self.compliant else (p.gear_ratio * (p.torque_constant_Nm_A * i - float(self._friction(wm)))
+        twist = 0.0 if not self.compliant else (p.gear_ratio * (p.torque_constant_Nm_A * i - self.friction(wm))
                                                 / p.shaft_stiffness_Nm_rad)
         if p.current_loop:     # speed integrator holds the current, current integrator the voltage
             return MotorState(t0, i, i, crank_angle, crank_speed, crank_angle + twist, crank_speed,
                               current_integrator_V=v)
         return MotorState(t0, i, v, crank_angle, crank_speed, crank_angle + twist, crank_speed)
 
-    # -- pieces ------------------------------------------------------------------------------------
-    def _friction(self, wm):
+    # -- the physics: one right-hand side -----------------------------------------------------------
+    def friction(self, wm: float) -> float:
         """Motor friction torque [N m] at motor speed ``wm``: viscous plus Coulomb, the sign
         function regularised over 0.01 rad/s so the ODE stays smooth through standstill."""
         p = self.p
-        return p.viscous_friction_Nm_s_rad * wm + p.coulomb_friction_Nm * np.tanh(wm / 0.01)
+        return p.viscous_friction_Nm_s_rad * wm + p.coulomb_friction_Nm * math.tanh(wm / 0.01)
 
-    def _voltage(self, t, x_I, w_crank, i=None, x_Ii=None):
-        """Armature voltage [V] and the integrators' rates (vectorised; used for the traces)."""
-        p = self.p
-        e = p.setpoint(t) - w_crank
+    def layout(self) -> dict:
+        """Index of each integrated quantity in the state vector (which ones exist depends on
+        the coupling and the drive train): current, speed-loop integrator, the four energies,
+        the crank (kinematic engines), the rotor (compliant shaft), the current-loop integrator."""
+        names = ["current", "integrator", "energy_in", "copper_loss", "friction_loss", "drive_work"]
+        if self.integrates_crank:
+            names += ["crank_angle", "crank_speed"]
+        if self.compliant:
+            names += ["rotor_angle", "rotor_speed"]
+        if self.p.current_loop:
+            names.append("current_integrator")
+        return {name: k for k, name in enumerate(names)}
+
+    def evaluate(self, y, setpoint: float, external: float, external_angle: float | None, load_inertia=None):
+        """Right-hand side at one instant: ``(rates, values)`` for the state vector ``y``
+        (:meth:`layout`), the speed set-point [rad/s] and the external signal (the load torque
+        [N m] for a kinematic engine, else the engine's crank speed [rad/s] and angle [rad]).
+        ``values`` holds the voltage, friction, electromagnetic, drive torque and crank
+        acceleration (NaN for a torque-driven engine) at that instant."""
+        p, ix = self.p, self._ix
+        n = p.gear_ratio
+        i, xI = y[ix["current"]], y[ix["integrator"]]
+        th_c, w_c = (y[ix["crank_angle"]], y[ix["crank_speed"]]) if self.integrates_crank else (external_angle, external)
+        th_m, w_m = (y[ix["rotor_angle"]], y[ix["rotor_speed"]]) if self.compliant else (th_c, w_c)
         lo, hi = p.voltage_range
-        if not p.current_loop:
-            v = p.kp_V_s_rad * e + x_I
-            v_sat = np.clip(v, lo, hi)
-            # Conditional integration: stop integrating while saturated and the error drives further.
-            windup = ((v > hi) & (e > 0)) | ((v < lo) & (e < 0))
-            return v_sat, np.where(windup, 0.0, p.ki_V_rad * e)
-        i_ref = p.speed_kp_A_s_rad * e + x_I
-        i_sat = np.clip(i_ref, -p.current_limit_A, p.current_limit_A)
-        ei = i_sat - i
-        v = p.current_kp_V_A * ei + x_Ii
-        return np.clip(v, lo, hi), None
-
-    def _shaft(self, th_m, w_m, th_c, w_c):
-        p = self.p
-        return p.shaft_stiffness_Nm_rad * (th_m - th_c) + p.shaft_damping_Nm_s_rad * (w_m - w_c)
+        e = setpoint - w_c
+        dxIi = None
+        # Saturation with conditional integration: an integrator stops while its output is
+        # saturated and the error drives it further.
+        if p.current_loop:
+            i_ref, dxI = _saturated(p.speed_kp_A_s_rad * e + xI, p.speed_ki_A_rad * e, e, -p.current_limit_A,
+                                    p.current_limit_A)
+            ei = i_ref - i
+            v, dxIi = _saturated(p.current_kp_V_A * ei + y[ix["current_integrator"]], p.current_ki_V_A_s * ei, ei,
+                                 lo, hi)
+        else:
+            v, dxI = _saturated(p.kp_V_s_rad * e + xI, p.ki_V_rad * e, e, lo, hi)
+        wm = n * w_m
+        Tf = self.friction(wm)
+        T_em = p.torque_constant_Nm_A * i
+        T_motor = n * (T_em - Tf)
+        T_drive = (p.shaft_stiffness_Nm_rad * (th_m - th_c) + p.shaft_damping_Nm_s_rad * (w_m - w_c)
+                   if self.compliant else T_motor)
+        rates = [(v - p.resistance_ohm * i - p.back_emf_V_s_rad * wm) / p.inductance_H, dxI, v * i,
+                 p.resistance_ohm * i * i, Tf * wm, T_drive * w_c]
+        acc = float("nan")
+        if self.integrates_crank:
+            J = self.crank_side_inertia_kg_m2 + (float(load_inertia(th_c)) if load_inertia is not None else 0.0)
+            acc = (T_drive - external) / J
+            rates += [w_c, acc]
+        if self.compliant:
+            rates += [w_m, (T_motor - T_drive) / (n**2 * p.rotor_inertia_kg_m2)]
+        if p.current_loop:
+            rates.append(dxIi)
+        return rates, {"voltage": v, "friction": Tf, "torque_em": T_em, "drive_torque": T_drive, "motor_speed": wm,
+                       "crank_angle": th_c, "crank_speed": w_c, "crank_acceleration": acc}
 
     # -- integration over a macro step -------------------------------------------------------------
     def fastest_rate(self, load_inertia_max: float = 0.0) -> float:
@@ -392,75 +429,24 @@ class Motor:
             ang, spd = crank(half)
             ext = np.asarray(spd, dtype=float) * np.ones_like(half)
             ext_angle = np.asarray(ang, dtype=float) * np.ones_like(half)
-        R, L, Kt, Ke, n = p.resistance_ohm, p.inductance_H, p.torque_constant_Nm_A, p.back_emf_V_s_rad, p.gear_ratio
-        kp, ki = p.kp_V_s_rad, p.ki_V_rad
-        cascade = p.current_loop
-        kpw, kiw, kpi, kii, i_max = (p.speed_kp_A_s_rad, p.speed_ki_A_rad, p.current_kp_V_A, p.current_ki_V_A_s,
-                                     p.current_limit_A)
-        lo, hi = p.voltage_range
-        b, Tc = p.viscous_friction_Nm_s_rad, p.coulomb_friction_Nm
-        J = self.crank_side_inertia_kg_m2
-        Jm = n**2 * p.rotor_inertia_kg_m2
-        k_s, c_s = p.shaft_stiffness_Nm_rad or 0.0, p.shaft_damping_Nm_s_rad
-        compliant, kinematic = self.compliant, self.integrates_crank
-        tanh = math.tanh
-        J_load = load_inertia if load_inertia is not None else None
+        kinematic = self.integrates_crank
+        angles = None if kinematic else ext_angle
 
         def rates(j, y):
             """Time derivatives at stage index j (on the half-step grid) of the state list y."""
-            i, xI = y[0], y[1]
-            if kinematic:
-                th_c, w_c = y[6], y[7]
-            else:
-                th_c, w_c = ext_angle[j], ext[j]
-            if compliant:
-                th_m, w_m = y[r0], y[r0 + 1]
-            else:
-                th_m, w_m = th_c, w_c
-            e = sp[j] - w_c
-            if cascade:
-                i_ref = kpw * e + xI
-                dxI = kiw * e
-                if i_ref > i_max:
-                    i_ref, dxI = i_max, (0.0 if e > 0 else dxI)
-                elif i_ref < -i_max:
-                    i_ref, dxI = -i_max, (0.0 if e < 0 else dxI)
-                ei = i_ref - i
-                v = kpi * ei + y[-1]
-                dxi = kii * ei
-                if v > hi:
-                    v, dxi = hi, (0.0 if ei > 0 else dxi)
-                elif v < lo:
-                    v, dxi = lo, (0.0 if ei < 0 else dxi)
-            else:
-                v = kp * e + xI
-                dxI = ki * e
-                if v > hi:
-                    v, dxI = hi, (0.0 if e > 0 else dxI)
-                elif v < lo:
-                    v, dxI = lo, (0.0 if e < 0 else dxI)
-            wm = n * w_m
-            Tf = b * wm + Tc * tanh(wm / 0.01)
-            T_motor = n * (Kt * i - Tf)
-            T_drive = k_s * (th_m - th_c) + c_s * (w_m - w_c) if compliant else T_motor
-            out = [(v - R * i - Ke * wm) / L, dxI, v * i, R * i * i, Tf * wm, T_drive * w_c]
-            if kinematic:
-                Jt = J + (float(J_load(th_c)) if J_load is not None else 0.0)
-                out += [w_c, (T_drive - ext[j]) / Jt]
-            if compliant:
-                out += [w_m, (T_motor - T_drive) / Jm]
-            if cascade:
-                out.append(dxi)
-            return out
+            return self.evaluate(y, sp[j], ext[j], None if kinematic else angles[j], load_inertia)[0]
 
-        y = [state.current_A, state.integrator_V, *state.energies.tolist()]
+        ix = self._ix
+        y = [0.0] * len(ix)
+        y[ix["current"]], y[ix["integrator"]] = state.current_A, state.integrator_V
+        for k, name in enumerate(("energy_in", "copper_loss", "friction_loss", "drive_work")):
+            y[ix[name]] = float(state.energies[k])
         if kinematic:
-            y += [state.crank_angle_rad, state.crank_speed_rad_s]
-        r0 = len(y)                       # rotor states of a compliant shaft start here
-        if compliant:
-            y += [state.rotor_angle_rad, state.rotor_speed_rad_s]
-        if cascade:
-            y.append(state.current_integrator_V)
+            y[ix["crank_angle"]], y[ix["crank_speed"]] = state.crank_angle_rad, state.crank_speed_rad_s
+        if self.compliant:
+            y[ix["rotor_angle"]], y[ix["rotor_speed"]] = state.rotor_angle_rad, state.rotor_speed_rad_s
+        if p.current_loop:
+            y[ix["current_integrator"]] = state.current_integrator_V
         nY = len(y)
         Y = np.empty((len(ts), nY))
         dts = np.diff(edges) / m
@@ -478,35 +464,35 @@ class Motor:
                 j += 2
             Y[s_idx] = y
         if not np.all(np.isfinite(Y)):
-            raise InputError(f"motor integration produced non-finite values before t = {t_next:.6g} s")
+            raise ConvergenceError(f"motor integration produced non-finite values before t = {t_next:.6g} s")
         return self._trace(state, t_next, ts, Y, half[2 * m::2 * m], sp[2 * m::2 * m], ext[2 * m::2 * m],
                            None if kinematic else ext_angle[2 * m::2 * m], load_inertia)
 
     def _trace(self, state, t_next, ts, Y, t_check, sp, ext, ext_angle, load_inertia):
-        """Motor trace at the sample times from the integrated states ``Y`` (samples x states)."""
-        p = self.p
-        n = p.gear_ratio
-        i, xI = Y[:, 0], Y[:, 1]
-        if self.integrates_crank:
-            th_c, w_c = Y[:, 6], Y[:, 7]
-        else:
-            th_c, w_c = ext_angle, ext
-        r0 = 8 if self.integrates_crank else 6
-        th_m, w_m = (Y[:, r0], Y[:, r0 + 1]) if self.compliant else (th_c, w_c)
-        x_Ii = Y[:, -1] if p.current_loop else None
-        v, _ = self._voltage(ts, xI, w_c, i, x_Ii)
-        wm = n * w_m
-        Tf = self._friction(wm)
-        T_em = p.torque_constant_Nm_A * i
-        T_drive = self._shaft(th_m, w_m, th_c, w_c) if self.compliant else n * (T_em - Tf)
-        if self.integrates_crank:
-            Jt = self.crank_side_inertia_kg_m2 + (0.0 if load_inertia is None else np.asarray(load_inertia(th_c)))
-            acc = (T_drive - ext) / Jt
-        else:
-            acc = np.full(ts.shape, np.nan)
-        new = MotorState(float(t_next), float(i[-1]), float(xI[-1]), float(th_c[-1]), float(w_c[-1]),
-                         float(th_m[-1]), float(w_m[-1]), *(float(e) for e in Y[-1, 2:6]),
-                         float(x_Ii[-1]) if p.current_loop else 0.0)
-        trace = MotorTrace(ts, i, v, T_em, wm, T_drive, np.array(th_c, dtype=float), np.array(w_c, dtype=float), acc,
-                           sp, v * i, p.resistance_ohm * i**2, Tf * wm, Y[:, 2], Y[:, 3], Y[:, 4], Y[:, 5])
+        """Motor trace at the sample times from the integrated states ``Y`` (samples x states),
+        through the same right-hand side as the integration (:meth:`evaluate`)."""
+        p, ix = self.p, self._ix
+        values = [self.evaluate(Y[k], sp[k], ext[k], None if ext_angle is None else ext_angle[k], load_inertia)[1]
+                  for k in range(len(ts))]
+        col = {key: np.array([v[key] for v in values], dtype=float) for key in values[0]}
+        i, v = Y[:, ix["current"]], col["voltage"]
+        w_m = Y[:, ix["rotor_speed"]] if self.compliant else col["crank_speed"]
+        th_m = Y[:, ix["rotor_angle"]] if self.compliant else col["crank_angle"]
+        energies = [Y[:, ix[name]] for name in ("energy_in", "copper_loss", "friction_loss", "drive_work")]
+        new = MotorState(float(t_next), float(i[-1]), float(Y[-1, ix["integrator"]]), float(col["crank_angle"][-1]),
+                         float(col["crank_speed"][-1]), float(th_m[-1]), float(w_m[-1]), *(float(e[-1]) for e in energies),
+                         float(Y[-1, ix["current_integrator"]]) if p.current_loop else 0.0)
+        trace = MotorTrace(ts, i, v, col["torque_em"], col["motor_speed"], col["drive_torque"], col["crank_angle"],
+                           col["crank_speed"], col["crank_acceleration"], sp, v * i, p.resistance_ohm * i**2,
+                           col["friction"] * col["motor_speed"], *energies)
         return new, trace
+
+
+def _saturated(value, rate, error, lo, hi):
+    """A controller output clipped to [lo, hi] and its integrator's rate, held at zero while the
+    output is saturated and the error drives it further (conditional-integration anti-windup)."""
+    if value > hi:
+        return hi, (0.0 if error > 0 else rate)
+    if value < lo:
+        return lo, (0.0 if error < 0 else rate)
+    return value, rate

@@ -201,7 +201,7 @@ def floquet_multipliers(A, period: float, n: int, rtol: float = 1e-10) -> np.nda
         return (A(t) @ y.reshape(n, n)).ravel()
     sol = solve_ivp(rhs, (0.0, period), np.eye(n).ravel(), method="DOP853", rtol=rtol, atol=rtol)
     if not sol.success:
-        raise InputError(f"Floquet integration failed: {sol.message}")
+        raise ConvergenceError(f"Floquet integration failed: {sol.message}")
     M = sol.y[:, -1].reshape(n, n)
     mu = np.linalg.eigvals(M)
     return mu[np.argsort(-np.abs(mu))]

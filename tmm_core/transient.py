@@ -23,7 +23,7 @@ from typing import Callable, Mapping, Sequence
 import numpy as np
 
 from . import kernels
-from .errors import DynamicStabilityError, InputError, require_positive
+from .errors import ConvergenceError, DynamicStabilityError, InputError, require_positive
 from .integrators import get_integrator
 from .ked import (Coupling, CrankMotion, KEDResult, _coupling_stiffness, _node_mass_arrays, quasi_static,
                   rigid_body_loads, segment_forces)
@@ -348,7 +348,8 @@ class TimeDomain(StepSolver):
                 disp[k:end] = zs
             if not np.all(np.isfinite(outs)):
                 bad = k + int(np.argmax(~np.all(np.isfinite(outs), axis=1)))
-                raise InputError(f"time-domain solution became non-finite at step {bad} (t = {crank.t[bad]:.6g} s)")
+                raise ConvergenceError(f"time-domain solution became non-finite at step {bad} (t = {crank.t[bad]:.6g} s); "
+                                       "the step may be too large for the stiffest mode (reduce the step)")
             k = end
             last = k - 1
             if N is not None and last >= N and k % N == 0 and k // N >= min_revolutions:
