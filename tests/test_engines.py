@@ -27,8 +27,8 @@ def al_steady():
     """TMM (rotating-frame terms on, the physics exudyn contains) and exudyn, 8 revolutions."""
     sc = load(AL)
     sc_tmm = dataclasses.replace(sc, tmm=dataclasses.replace(sc.tmm, coupling=Coupling.all()))
-    return sc, {"tmm": run_prescribed(make_engine("tmm"), sc_tmm, 8, 360),
-                "exudyn": run_prescribed(make_engine("exudyn"), sc, 8, 360)}
+    return sc, {"tmm": run_prescribed(make_engine("tmm"), sc_tmm, 8),
+                "exudyn": run_prescribed(make_engine("exudyn"), sc, 8)}
 
 
 def test_one_scenario_builds_all_three_engines_and_a_length_change_reaches_all(tmp_path):
@@ -40,8 +40,8 @@ def test_one_scenario_builds_all_three_engines_and_a_length_change_reaches_all(t
     base, longer = load(AL), load(path)
     assert longer.mechanism.coupler.length_m == pytest.approx(11.3 * 0.0254)
     for name in ("tmm", "exudyn", "mujoco"):
-        a = run_prescribed(make_engine(name), base, 0.05, 360)
-        b = run_prescribed(make_engine(name), longer, 0.05, 360)
+        a = run_prescribed(make_engine(name), base, 0.05)
+        b = run_prescribed(make_engine(name), longer, 0.05)
         # The rocker tip (joint C) moves elsewhere in every engine.
         assert np.max(np.abs(a.nodes["rocker"][-1, -1] - b.nodes["rocker"][-1, -1])) > 1e-3, name
 
@@ -77,7 +77,7 @@ def test_stiff_links_approach_the_rigid_quasi_static_estimate():
     stiff = {l.name: dataclasses.replace(l, material=dataclasses.replace(l.material, E_Pa=l.material.E_Pa * 1000))
              for l in mech.links()}
     sc = dataclasses.replace(sc, mechanism=dataclasses.replace(mech, **stiff))
-    runs = {name: run_prescribed(make_engine(name), sc, 2, 360) for name in ("tmm", "exudyn", "mujoco")}
+    runs = {name: run_prescribed(make_engine(name), sc, 2) for name in ("tmm", "exudyn", "mujoco")}
     T = sc.revolution_period_s
     for gauge in ("follower_mid", "coupler_mid"):
         rigid = _history(runs["mujoco"], gauge, T)
@@ -108,7 +108,7 @@ def test_exudyn_converges_in_mesh_and_step():
     peaks = []
     for elements, step in ((8, 1e-4), (16, 1e-4), (16, 5e-5)):
         s = dataclasses.replace(sc, exudyn=dataclasses.replace(sc.exudyn, elements=elements, step_s=step))
-        r = run_prescribed(make_engine("exudyn"), s, 5, 360)
+        r = run_prescribed(make_engine("exudyn"), s, 5)
         peaks.append([f(_history(r, g, T)) for g in ("follower_mid", "coupler_mid") for f in (np.min, np.max)])
     peaks = np.array(peaks)
     np.testing.assert_allclose(peaks[1], peaks[0], rtol=1e-2)
@@ -128,7 +128,7 @@ def test_missing_engine_library_gives_a_clear_message_and_the_others_run(monkeyp
         make_engine("exudyn")
     assert "exudyn" in (available_engines()["exudyn"] or "")
     assert available_engines()["tmm"] is None
-    run = run_prescribed(make_engine("tmm"), load(AL), 0.05, 360)
+    run = run_prescribed(make_engine("tmm"), load(AL), 0.05)
     assert np.all(np.isfinite(run.drive_torque))
 
 

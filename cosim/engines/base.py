@@ -21,7 +21,6 @@ step (iterated coupling).
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 from typing import Callable, Protocol
 
@@ -143,32 +142,16 @@ def concatenate(engine: str, outputs: list, wall_time_s: float) -> EngineRun:
                      gauges, nodes, extras, wall_time_s)
 
 
-def run_prescribed(engine: Engine, scenario: Scenario, revolutions: float | None = None,
-                   macro_steps_per_revolution: int = 72) -> EngineRun:
-    """Drive an engine at the scenario's constant crank speed for ``revolutions`` (default: the
+def run_prescribed(engine: Engine, scenario: Scenario, revolutions: float | None = None) -> EngineRun:
+    """Drive one engine at the scenario's constant crank speed for ``revolutions`` (default: the
     scenario's output setting; without one, until the engine is steady or the scenario's
-    ``output.max_revolutions``), in macro steps of a whole number of internal steps."""
-    from ..metrics import SteadyWatch
-    import time
-    w = scenario.drive.speed_rad_s
-    if w == 0:
-        raise EngineError("the scenario's drive speed is zero")
-    period = 2 * math.pi / abs(w)
-    revs = scenario.output.revolutions if revolutions is None else revolutions
-    until_steady = revs is None
-    revs = scenario.output.max_revolutions if until_steady else revs
-    watch = SteadyWatch(scenario.output.steady_tolerance)
-    t0 = time.perf_counter()      # wall time includes the engine's set-up
-    engine.reset(scenario, 0.0, scenario.drive.start_angle_rad, w)
-    h = engine.internal_step_s
-    per_macro = max(1, int(round(period / macro_steps_per_revolution / h)))
-    macro = per_macro * h
-    n_macro = int(math.ceil(revs * period / macro - 1e-9))
-    profile = constant_speed_profile(w, scenario.drive.start_angle_rad)
-    outputs = []
-    for k in range(n_macro):
-        outputs.append(engine.advance((k + 1) * macro, DriveInput(prescribed=profile)))
-        watch.add(engine.name, outputs[-1])
-        if until_steady and watch.steady(engine.name):
-            break
-    return concatenate(engine.name, outputs, time.perf_counter() - t0)
+    ``output.max_revolutions``). It is the co-simulation master's prescribed mode with a single
+    engine (one run loop, the scenario's macro step); an engine failure raises its error."""
+    from ..master import CoSimulation
+    result = CoSimulation(scenario, {engine.name: engine}, mode="prescribed").run(revolutions=revolutions)
+    channel = result[engine.name]
+    if channel.status == "failed":
+        raise EngineError(channel.error)
+    if channel.status == "interrupted":
+        raise KeyboardInterrupt
+    return channel.run
