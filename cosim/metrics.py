@@ -7,6 +7,9 @@ between its last revolution and the one before, at equal crank angle, relative t
 revolution's peak-to-peak, over the drive torque and every gauge's bending strain. A run is
 *steady* when that change is below the tolerance (default 0.5 %).
 
+Also the post-processing of motor-driven runs: the crank's revolutions in time, the speed
+fluctuation per revolution and the energy balance of a channel.
+
 Owns: these definitions. Must not touch: engines, files, the recording.
 """
 from __future__ import annotations
@@ -14,6 +17,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
+
+from tmm_core import InputError
 
 STEADY_TOLERANCE = 5e-3     # last two revolutions agree to 0.5 % of their peak-to-peak
 
@@ -103,3 +108,69 @@ class SteadyWatch:
         signals += [np.concatenate([c[2][i] for c in chunks]) for i in range(len(chunks[0][2]))]
         self.change[engine] = revolution_change(angle, [x for x in signals if np.all(np.isfinite(x))])
         return self.change[engine] < self.tolerance
+
+
+# -- motor-driven runs: speed and energy ---------------------------------------------------
+def revolutions_of(t, angle, start_angle: float = 0.0):
+    """Times [s] at which the crank completes each revolution from ``start_angle`` (linear
+    interpolation of the angle samples; either direction of rotation)."""
+    t, angle = np.asarray(t, dtype=float), np.asarray(angle, dtype=float)
+    if len(t) < 2:
+        return np.zeros(0)
+    turns = np.maximum.accumulate(np.abs(angle - start_angle) / (2 * math.pi))
+    marks = np.arange(1, int(np.floor(turns.max())) + 1)
+    return np.interp(marks, turns, t) if len(marks) else np.zeros(0)
+
+
+def speed_fluctuation(t, angle, speed, start_angle: float = 0.0, t0: float = 0.0) -> dict:
+    """Per complete crank revolution: ``t_start``, ``t_end`` [s], ``mean`` (2 pi / period),
+    ``max``, ``min`` [rad/s] of the speed samples and ``fluctuation`` = (max - min) / mean."""
+    t, speed = np.asarray(t, dtype=float), np.abs(np.asarray(speed, dtype=float))
+    ends = revolutions_of(t, angle, start_angle)
+    starts = np.r_[t0, ends[:-1]]
+    out = {k: [] for k in ("t_start", "t_end", "mean", "max", "min", "fluctuation")}
+    for a, b in zip(starts, ends):
+        sel = (t >= a) & (t <= b)
+        if not np.any(sel):
+            continue
+        mean = 2 * math.pi / (b - a)
+        hi, lo = float(speed[sel].max()), float(speed[sel].min())
+        for key, v in zip(out, (a, b, mean, hi, lo, (hi - lo) / mean)):
+            out[key].append(v)
+    return {k: np.array(v) for k, v in out.items()}
+
+
+def energy_balance(channel, t_start: float | None = None, t_end: float | None = None) -> dict:
+    """Energy flows [J] of a motor-driven channel between two motor sample times (default: its
+    last complete revolution): electrical energy in; copper and friction losses; the change of
+    magnetic energy (1/2 L i^2) and of the drive's kinetic energy (1/2 J_fw w^2 + 1/2 J_rotor
+    w_m^2); and the mechanical work the linkage takes, integrated from the *engine's* load torque
+    and crank speed (trapezoidal rule over the engine's samples). ``residual_J`` is the input
+    minus all the rest; it checks the coupling, because the linkage work comes from the engine
+    while everything else comes from the motor. (The elastic energy of a compliant shaft is not
+    counted: over a steady revolution it returns to its start value.)"""
+    tr, p = channel.motor, channel.motor_parameters
+    if tr is None or p is None:
+        raise InputError(f"{channel.engine}: an energy balance needs a motor-driven run")
+    run = channel.run
+    if t_start is None or t_end is None:
+        ends = np.r_[channel.t0, revolutions_of(run.t, run.crank_angle, channel.angle0)]
+        if len(ends) < 2:
+            raise InputError(f"{channel.engine}: no complete revolution to balance")
+        t_start, t_end = ends[-2], ends[-1]
+    # Window ends on engine samples (a subset of the motor's sample times).
+    ta, tb = (float(run.t[int(np.argmin(np.abs(run.t - x)))]) for x in (t_start, t_end))
+    ia, ib = (int(np.argmin(np.abs(tr.t - x))) for x in (ta, tb))
+    sel = (run.t >= ta - 1e-12) & (run.t <= tb + 1e-12)
+    d = lambda x: float(x[ib] - x[ia])          # noqa: E731
+    W_link = float(np.trapezoid(run.drive_torque[sel] * run.crank_speed[sel], run.t[sel]))
+    kinetic = 0.5 * p.flywheel_inertia_kg_m2 * tr.crank_speed_rad_s**2 + 0.5 * p.rotor_inertia_kg_m2 * \
+        tr.motor_speed_rad_s**2
+    out = {"t_start_s": ta, "t_end_s": tb, "electrical_in_J": d(tr.energy_in_J),
+           "copper_loss_J": d(tr.copper_loss_J), "friction_loss_J": d(tr.friction_loss_J),
+           "magnetic_energy_change_J": 0.5 * p.inductance_H * d(tr.current_A**2),
+           "drive_kinetic_energy_change_J": d(kinetic), "linkage_work_J": W_link,
+           "drive_work_J": d(tr.drive_work_J)}
+    out["residual_J"] = (out["electrical_in_J"] - out["copper_loss_J"] - out["friction_loss_J"] -
+                         out["magnetic_energy_change_J"] - out["drive_kinetic_energy_change_J"] - W_link)
+    return out

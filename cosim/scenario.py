@@ -16,6 +16,8 @@ File layout (all tables except ``[scenario]``, ``[linkage]``, ``[links.*]`` are 
     [scenario]      name, description, sources, rig (records of that rig are compared)
     [linkage]       type = "four-bar", ground, pivot, ground_angle, branch = "open" | "crossed"
                     type = "slider-crank", pivot, slide_angle, offset, slider_mass | slider_weight, branch
+                    type = "linkage" (any planar linkage in motion, with [joints.*], [plates.*],
+                    [sliders.*], [springs.*], [loads.*] and [[modules]]): see :mod:`cosim.linkage_scenario`
                     type = "structure": see :mod:`cosim.structure_scenario`
     [materials.X]   E, density, yield_strength, endurance_limit, poisson,
                     viscoelastic = {instantaneous_modulus, relaxed_modulus, relaxation_time}
@@ -75,9 +77,10 @@ G0 = 9.80665
 SCENARIO_DIR = Path(__file__).resolve().parent.parent / "scenarios"
 
 
-#: Mechanism types: four-bar or slider-crank main loops (motion), or a general structure held at
-#: one position (static analysis). Main loops with sub-loops in motion are not supported yet.
-LINKAGE_TYPES = ("four-bar", "slider-crank", "structure")
+#: Mechanism types: four-bar or slider-crank main loops (motion), a general linkage in motion
+#: (closed-form modules, sub-loops, plates, sliders: :mod:`cosim.linkage_scenario`), or a general
+#: structure held at one position (static analysis).
+LINKAGE_TYPES = ("four-bar", "slider-crank", "linkage", "structure")
 
 
 class ScenarioError(InputError):
@@ -488,7 +491,7 @@ def from_dict(data: dict, path: str = "<dict>", default_name: str = "scenario") 
     r = _Reader(path)
     top = r.table(data, "", {"scenario", "linkage", "materials", "sections", "links", "drive", "gravity", "gauges",
                              "solver", "output", "motor", "coupling", "joints", "plates", "springs", "sliders",
-                             "loads", "uncertainty"}, {"linkage", "links"})
+                             "loads", "uncertainty", "modules"}, {"linkage", "links"})
     meta = r.table(top.get("scenario", {}), "scenario", {"name", "description", "sources", "rig"})
     solver = r.table(top.get("solver", {}), "solver", {"tmm", "exudyn", "mujoco"})
     tmm = _tmm_settings(r, solver.get("tmm", {}))
@@ -511,37 +514,13 @@ def from_dict(data: dict, path: str = "<dict>", default_name: str = "scenario") 
     if kind == "structure":
         from .structure_scenario import build
         return build(r, top, path, default_name, materials, sections, meta)
-    for key in ("joints", "plates", "springs", "sliders", "loads"):
-        if key in top:
-            raise r.fail(key, f"only a 'structure' linkage has [{key}] (this one is a {kind})")
-
-    if kind == "slider-crank":
-        lk = r.table(top["linkage"], "linkage", {"type", "pivot", "slide_angle", "offset", "branch", "slider_mass",
-                                                 "slider_weight"}, {"type"})
+    if "modules" in top and kind != "linkage":
+        raise r.fail("modules", f"only a 'linkage' has [[modules]] (this one is a {kind})")
+    if kind == "linkage":
+        from .linkage_scenario import build_mechanism
+        mech, gauge_link = build_mechanism(r, top, materials, sections, viscos, tmm.segments)
     else:
-        lk = r.table(top["linkage"], "linkage", {"type", "ground", "pivot", "ground_angle", "branch"}, {"type", "ground"})
-    pivot = lk.get("pivot", ["0 m", "0 m"])
-    if not isinstance(pivot, list) or len(pivot) != 2:
-        raise r.fail("linkage.pivot", "must be a list of two coordinates", pivot)
-    pivot = tuple(r.quantity(p, f"linkage.pivot[{i}]", "m") for i, p in enumerate(pivot))
-    branch = {"open": 1, "crossed": -1}[r.number(lk.get("branch", "open"), "linkage.branch", choices=("open", "crossed"))]
-    names = ("crank", "coupler") if kind == "slider-crank" else ("crank", "coupler", "rocker")
-    links_raw = r.table(top["links"], "links", set(names), set(names))
-    links = {k: _link(r, k, v, sections, materials, viscos, tmm.segments) for k, v in links_raw.items()}
-    if kind == "slider-crank":
-        if "slider_mass" in lk and "slider_weight" in lk:
-            raise r.fail("linkage.slider_mass", "give either slider_mass or slider_weight")
-        mass = (r.quantity(lk["slider_weight"], "linkage.slider_weight", "N", nonnegative=True) / G0
-                if "slider_weight" in lk else
-                r.quantity(lk.get("slider_mass", "0 kg"), "linkage.slider_mass", "kg", nonnegative=True))
-        mech = SliderCrankMechanism(links["crank"], links["coupler"],
-                                    r.quantity(lk.get("offset", "0 m"), "linkage.offset", "m"), pivot,
-                                    r.quantity(lk.get("slide_angle", "0 deg"), "linkage.slide_angle", "rad"), branch,
-                                    mass)
-    else:
-        ground = r.quantity(lk["ground"], "linkage.ground", "m", positive=True)
-        ground_angle = r.quantity(lk.get("ground_angle", "0 deg"), "linkage.ground_angle", "rad")
-        mech = FourBarMechanism(links["crank"], links["coupler"], links["rocker"], ground, pivot, ground_angle, branch)
+        mech, gauge_link = _main_loop(r, top, kind, materials, sections, viscos, tmm.segments)
 
     drive = _drive(r, top.get("drive", {}))
     r.speed = drive.speed_rad_s
@@ -556,14 +535,7 @@ def from_dict(data: dict, path: str = "<dict>", default_name: str = "scenario") 
     for name, g in r.table(top.get("gauges", {}), "gauges", set(top.get("gauges", {}))).items():
         gk = f"gauges.{name}"
         gd = r.table(g, gk, {"link", "position", "face"}, {"link", "position"})
-        link = r.number(gd["link"], f"{gk}.link", choices=names)
-        if links[link].rigid:
-            raise r.fail(f"{gk}.link", f"the {link} is rigid (links.{link}.rigid = true): a rigid link has no strain",
-                         link)
-        pos = r.quantity(gd["position"], f"{gk}.position", "m", nonnegative=True)
-        if pos > links[link].length_m:
-            raise r.fail(f"{gk}.position", f"lies beyond the end of the {link} ({links[link].length_m:.6g} m)",
-                         gd["position"])
+        link, pos = gauge_link(gk, gd)
         gauges.append(Gauge(name, link, pos, r.number(gd.get("face", "top"), f"{gk}.face", choices=("top", "bottom"))))
 
     gravity = None
@@ -608,6 +580,53 @@ def from_dict(data: dict, path: str = "<dict>", default_name: str = "scenario") 
                     Path(path) if path != "<dict>" else None, tuple(sources), mech, drive, tuple(gauges), gravity,
                     tmm, exudyn, mujoco, output, tuple(r.assumptions), data, motor, coupling,
                     str(meta["rig"]) if "rig" in meta else None)
+
+
+def _main_loop(r: _Reader, top: dict, kind: str, materials: dict, sections: dict, viscos: dict, segments: int):
+    """The four-bar or slider-crank of a scenario; returns the mechanism and ``gauge_link(key,
+    table) -> (link, position_m)`` (a gauge's link and position, checked)."""
+    for key in ("joints", "plates", "springs", "sliders", "loads"):
+        if key in top:
+            raise r.fail(key, f"only a 'structure' or 'linkage' has [{key}] (this one is a {kind})")
+    if kind == "slider-crank":
+        lk = r.table(top["linkage"], "linkage", {"type", "pivot", "slide_angle", "offset", "branch", "slider_mass",
+                                                 "slider_weight"}, {"type"})
+    else:
+        lk = r.table(top["linkage"], "linkage", {"type", "ground", "pivot", "ground_angle", "branch"}, {"type", "ground"})
+    pivot = lk.get("pivot", ["0 m", "0 m"])
+    if not isinstance(pivot, list) or len(pivot) != 2:
+        raise r.fail("linkage.pivot", "must be a list of two coordinates", pivot)
+    pivot = tuple(r.quantity(p, f"linkage.pivot[{i}]", "m") for i, p in enumerate(pivot))
+    branch = {"open": 1, "crossed": -1}[r.number(lk.get("branch", "open"), "linkage.branch", choices=("open", "crossed"))]
+    names = ("crank", "coupler") if kind == "slider-crank" else ("crank", "coupler", "rocker")
+    links_raw = r.table(top["links"], "links", set(names), set(names))
+    links = {k: _link(r, k, v, sections, materials, viscos, segments) for k, v in links_raw.items()}
+    if kind == "slider-crank":
+        if "slider_mass" in lk and "slider_weight" in lk:
+            raise r.fail("linkage.slider_mass", "give either slider_mass or slider_weight")
+        mass = (r.quantity(lk["slider_weight"], "linkage.slider_weight", "N", nonnegative=True) / G0
+                if "slider_weight" in lk else
+                r.quantity(lk.get("slider_mass", "0 kg"), "linkage.slider_mass", "kg", nonnegative=True))
+        mech = SliderCrankMechanism(links["crank"], links["coupler"],
+                                    r.quantity(lk.get("offset", "0 m"), "linkage.offset", "m"), pivot,
+                                    r.quantity(lk.get("slide_angle", "0 deg"), "linkage.slide_angle", "rad"), branch,
+                                    mass)
+    else:
+        ground = r.quantity(lk["ground"], "linkage.ground", "m", positive=True)
+        ground_angle = r.quantity(lk.get("ground_angle", "0 deg"), "linkage.ground_angle", "rad")
+        mech = FourBarMechanism(links["crank"], links["coupler"], links["rocker"], ground, pivot, ground_angle, branch)
+
+    def gauge_link(gk, gd):
+        link = r.number(gd["link"], f"{gk}.link", choices=names)
+        if links[link].rigid:
+            raise r.fail(f"{gk}.link", f"the {link} is rigid (links.{link}.rigid = true): a rigid link has no strain",
+                         link)
+        pos = r.quantity(gd["position"], f"{gk}.position", "m", nonnegative=True)
+        if pos > links[link].length_m:
+            raise r.fail(f"{gk}.position", f"lies beyond the end of the {link} ({links[link].length_m:.6g} m)",
+                         gd["position"])
+        return link, pos
+    return mech, gauge_link
 
 
 def _step(r: _Reader, value, key: str) -> float:
@@ -822,7 +841,8 @@ def resolved(scenario: Scenario) -> dict:
                                           ("offset_m", getattr(mech, "offset_m", None)),
                                           ("slider_mass_kg", getattr(mech, "slider_mass_kg", None)),
                                           ("pivot_m", list(mech.pivot)), ("ground_angle_rad", mech.ground_angle),
-                                          ("branch", "open" if mech.branch == 1 else "crossed")) if v is not None},
+                                          ("branch", None if not hasattr(mech, "branch")
+                                           else "open" if mech.branch == 1 else "crossed")) if v is not None},
             "links": {link.name: link for link in mech.links()},
             "drive": scenario.drive, "gauges": {g.name: g for g in scenario.gauges},
             "gravity_m_s2": list(scenario.gravity) if scenario.gravity else None,

@@ -12,7 +12,8 @@ import numpy as np
 import pytest
 
 from cosim import scenario as sc
-from cosim.master import CoSimulation, CouplingError, speed_fluctuation
+from cosim.master import CoSimulation, CouplingError
+from cosim.metrics import speed_fluctuation
 from tests.monolithic import RigidFourBarWithMotor
 
 REVS = 3

@@ -95,7 +95,10 @@ class SliderJoint:
     """A block at joint ``block`` sliding along a link through joint ``guide``: the block's
     displacement equals the guide point's plus a free slide along the member ``along`` (its
     rigid-body axis), and the block turns with the guide (Shin's sliding joint, sub-loop cases 2
-    and 4). The guide joint must carry a rotation (a member rigidly connected there)."""
+    and 4). The guide joint must carry a rotation (a member rigidly connected there). A block away
+    from the guide joint (a block that has moved along a guide link, :mod:`tmm_core.linkage`) rides
+    the guide's tangent at the guide joint: the guide's rotation moves it through the lever arm
+    (the guide link's bending between the guide joint and the block is neglected)."""
 
     name: str
     block: str
@@ -686,6 +689,12 @@ def _constraint_map(structure: Structure, case: LoadCase, labels, fixed, batch):
         d = _joint_positions(case, m.end) - _joint_positions(case, m.start)
         e = np.broadcast_to(d / np.hypot(d[..., 0], d[..., 1])[..., None], batch + (2,))
         follow(sl.block, sl.guide, rotation=True)
+        # A block away from its guide joint (a block moving along a guide link) rides the guide's
+        # tangent there: the guide's rotation moves it through the lever block - guide.
+        lever = np.broadcast_to(_joint_positions(case, sl.block) - _joint_positions(case, sl.guide), batch + (2,))
+        r = col[index[(sl.guide, "r")]]
+        T[..., index[(sl.block, "x")], r] -= lever[..., 1]
+        T[..., index[(sl.block, "y")], r] += lever[..., 0]
         T[..., index[(sl.block, "x")], k] = e[..., 0]
         T[..., index[(sl.block, "y")], k] = e[..., 1]
         k += 1

@@ -1,4 +1,4 @@
-"""exudyn flexible-body engine: the same four-bar with planar ANCF cable elements.
+"""exudyn flexible-body engine: the same linkage with planar ANCF cable elements.
 
 Element choice: ``ObjectANCFCable2D`` (Euler-Bernoulli, geometrically exact in the plane, cubic
 in position with slope vectors at the nodes). It is the same beam theory as the transfer-matrix
@@ -6,11 +6,21 @@ model and, in exudyn 1.13, needs about a quarter of the elements of the linear g
 exact 2D beam for the same midspan strain (engine_pitfalls.md). The mesh of each link: one
 element per end block plus ``solver.exudyn.elements`` over the span.
 
-Joints are planar: ``RevoluteJoint2D`` at B and C and at the rocker pivot D (3D joints
-over-constrain a closed planar loop, exudyn issue #39). The crank's root node is clamped to a
-light rigid hub at A (``GenericJoint`` constraining x, y and the rotation about z, exudyn issue
-#1); the hub is pinned to the ground and either follows a prescribed angle (a coordinate
-constraint whose reaction is the drive torque) or carries an applied torque.
+One builder for every mechanism (:func:`tmm_core.linkage.as_linkage`: the four-bar, the
+slider-crank and every ``type = "linkage"``): one cable chain per link part, joined joint by
+joint. Joints are planar: ``RevoluteJoint2D`` between the members that meet at a revolute, the
+plate vertices and the ground pivots (3D joints over-constrain a closed planar loop, exudyn issue
+#39); welded ends (interior joints of a link, links welded to a slider block) are
+``GenericJoint`` s constraining x, y and the relative rotation about z. The crank's root node is
+clamped to a light rigid hub at its pivot (exudyn issue #1); the hub is pinned to the ground and
+either follows a prescribed angle (a coordinate constraint whose reaction is the drive torque) or
+carries an applied torque. A rigid crank and each plate are rigid bodies with their exact mass
+properties; a ground slide is a light block on a ``ObjectJointPrismatic2D`` to the ground, and a
+block on a moving guide one on a prismatic joint to the guide cable's tangent at its guide joint
+(the transfer-matrix model's sliding joint). Springs are ``ObjectConnectorSpringDamper`` s,
+constant loads ``LoadForceVector`` s on the loaded nodes. With springs or loads the run starts
+from the static equilibrium under them (``SolveStatic`` with the crank held), as the
+transfer-matrix model starts from its quasi-static state.
 
 Damping: exudyn's cable damping is material (Kelvin-Voigt): ``bendingDamping = beta EI`` and
 ``axialDamping = beta EA`` with the link's stiffness-proportional coefficient beta, the same
@@ -35,13 +45,13 @@ import numpy as np
 import exudyn as exu
 from exudyn.itemInterface import (CoordinateConstraint, GenericJoint, LoadCoordinate, LoadForceVector,
                                   LoadMassProportional, MarkerBodyMass, MarkerBodyPosition, MarkerBodyRigid,
-                                  MarkerNodeCoordinate, MarkerNodePosition, NodePoint2DSlope1, NodePointGround,
-                                  NodeRigidBody2D, ObjectANCFCable2D, ObjectGround, ObjectJointPrismatic2D,
-                                  ObjectMassPoint2D,
-                                  ObjectRigidBody2D, RevoluteJoint2D, SensorBody, SensorNode,
-                                  SensorObject)
+                                  LoadTorqueVector, MarkerNodeCoordinate, MarkerNodePosition, NodePoint2DSlope1,
+                                  NodePointGround, NodeRigidBody2D, ObjectANCFCable2D, ObjectConnectorSpringDamper,
+                                  ObjectGround, ObjectJointPrismatic2D, ObjectMassPoint2D, ObjectRigidBody2D,
+                                  RevoluteJoint2D, SensorBody, SensorNode, SensorObject)
 
-from tmm_core import SliderCrankMechanism
+from tmm_core import InputError
+from tmm_core.linkage import as_linkage
 
 from ..scenario import Scenario
 from .base import DriveInput, EngineError, EngineOutput, steps_in
@@ -51,6 +61,16 @@ HUB_MASS_KG = 1e-3        # the hub only transmits the drive; its own inertia mu
 HUB_INERTIA_KG_M2 = 1e-8
 
 
+def _rz(angle):
+    """Rotation about z by ``angle`` [rad], 3x3 (a weld's marker frame offset)."""
+    c, s = math.cos(angle), math.sin(angle)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def _wrap(angle: float) -> float:
+    return (angle + math.pi) % (2 * math.pi) - math.pi
+
+
 class ExudynEngine:
     name = "exudyn"
     kinematic = False
@@ -58,6 +78,16 @@ class ExudynEngine:
     def __init__(self):
         self._h = None
         self._drive = None
+        self._solution = None         # (path, period [s]) of write_solution
+
+    def write_solution(self, path, period_s: float = 2e-3) -> None:
+        """During the run, write the system coordinates every ``period_s`` [s] of simulated time
+        to ``path`` in exudyn's own solution-file format (one file over all macro steps), to
+        replay the run in exudyn's viewer: ``exudyn.interactive.SolutionViewer(engine.mbs,
+        exudyn.utilities.LoadSolutionFile(path))`` with an engine reset on the same scenario."""
+        if not period_s > 0:
+            raise ValueError(f"write_solution: period_s must be positive, got {period_s!r}")
+        self._solution = (str(path), float(period_s))
 
     @property
     def internal_step_s(self) -> float:
@@ -75,9 +105,15 @@ class ExudynEngine:
         self._speed0 = speed
         settings = scenario.exudyn
         mech = scenario.mechanism
-        links = [l if l.rigid else dataclasses.replace(l, n_segments=settings.elements) for l in mech.links()]
+        try:
+            lk = as_linkage(mech)
+        except InputError as exc:
+            raise EngineError(f"exudyn: {exc}") from None
+        self._carriers = {p.carrier: p for p in lk.plates}
+        links = [l if (l.rigid or l.name in self._carriers) else dataclasses.replace(l, n_segments=settings.elements)
+                 for l in mech.links()]
         for link in links:
-            if link.rigid:       # one rigid body with the exact mass properties: nothing to refuse
+            if link.rigid or link.name in self._carriers:   # rigid bodies with exact mass properties
                 continue
             if link.damping.mass_per_s > 0:
                 raise EngineError(f"exudyn: link '{link.name}' has mass-proportional damping, which the cable "
@@ -93,20 +129,25 @@ class ExudynEngine:
         self._h = settings.step_s
         self.t0, self.k = t0, 0
         self.gauges = scenario.gauges
-        self._build(mech, links, angle, speed, scenario.gravity)
+        self._build(lk, angle, speed, scenario.gravity)
+        self._preloaded = bool(lk.springs or lk.loads)
         self._init_solver(settings)
 
-    def _build(self, mech, links, angle, speed, gravity):
+    def _build(self, lk, angle, speed, gravity):
+        """The model of a linkage (:func:`tmm_core.linkage.as_linkage`): one cable chain per link
+        part, rigid bodies for a rigid crank, plates and slider blocks, joined joint by joint."""
         SC = exu.SystemContainer()
         mbs = SC.AddSystem()
         self._sc, self.mbs = SC, mbs
-        mo = mech.motion(np.array([angle]), speed, 0.0)
+        kin = lk.kinematics
+        mo = lk.motion(np.array([float(angle)]), speed, 0.0)
         ground = mbs.AddObject(ObjectGround())
         gnode = mbs.AddNode(NodePointGround())
         mg = mbs.AddMarker(MarkerNodeCoordinate(nodeNumber=gnode, coordinate=0))
-        A = mo.A[0]
-        self._angle0 = float(mo.crank.angle[0])
-        hub_node = mbs.AddNode(NodeRigidBody2D(referenceCoordinates=[A[0], A[1], self._angle0],
+        A = kin.reference_position(kin.pivot)
+        crank_global = float(mo.link(lk.crank.name).angle[0])
+        self._angle0 = float(angle)
+        hub_node = mbs.AddNode(NodeRigidBody2D(referenceCoordinates=[A[0], A[1], crank_global],
                                                initialVelocities=[0.0, 0.0, speed]))
         self._hub_node = hub_node
         hub = mbs.AddObject(ObjectRigidBody2D(nodeNumber=hub_node, mass=HUB_MASS_KG, inertia=self._hub_inertia))
@@ -119,17 +160,30 @@ class ExudynEngine:
             markerNumbers=[mg, hc[2]], offsetUserFunction=self._offset, offsetUserFunction_t=self._offset_t))
         self._torque_load = mbs.AddLoad(LoadCoordinate(markerNumber=hc[2], loadUserFunction=self._torque))
 
-        self.nodes, self.elements = {}, {}
-        # Per link: position markers at its start and end joint, and a rigid marker at its start
-        # (the crank is welded to the hub there); per link the sensors of its drawn stations.
-        ends, start_rigid, station_sensors = {}, {}, {}
-        for link in links:
-            if link.rigid:
-                ends[link.name], start_rigid[link.name], station_sensors[link.name] = \
-                    self._rigid_link(mbs, link, mo, gravity)
+        # What meets at every joint: (position marker, (body, local position) of a rigid marker,
+        # its frame angle, kind) with kind 'owner' (a body the welded link ends lock to: the hub,
+        # a slider block), 'weld' (a link end welded to the joint) or 'pin' (a revolute: link
+        # ends, plate vertices, ground).
+        at = {}
+
+        def attach(j, pos, rigid=None, frame=0.0, kind="pin"):
+            at.setdefault(j, []).append((pos, rigid, frame, kind))
+        attach(kin.pivot, mbs.AddMarker(MarkerBodyPosition(bodyNumber=hub, localPosition=[0, 0, 0])),
+               (hub, [0.0, 0.0, 0.0]), crank_global, "owner")
+
+        self.nodes, self.elements, station_sensors, node_markers = {}, {}, {}, {}
+        for link0, a, b, ca, cb in lk.members:
+            if link0.name in self._carriers:
                 continue
+            link = self.links[link0.name]
             lm = mo.link(link.name)
-            c, s = math.cos(lm.angle[0]), math.sin(lm.angle[0])
+            phi = float(lm.angle[0])
+            if link.rigid:
+                ends, start_rigid, station_sensors[link.name] = self._rigid_link(mbs, link, mo, gravity)
+                attach(a, ends[0], start_rigid, phi, "weld" if ca == "rigid" else "pin")
+                attach(b, ends[1], None, phi, "pin")
+                continue
+            c, s = math.cos(phi), math.sin(phi)
             pos, vel, _ = lm.point(link.stations)
             w = float(lm.omega[0])
             nodes = [mbs.AddNode(NodePoint2DSlope1(referenceCoordinates=[p[0], p[1], c, s],
@@ -144,7 +198,7 @@ class ExudynEngine:
                 nodeNumbers=[nodes[j], nodes[j + 1]])) for j, L in enumerate(member.segment_lengths)]
             for pm in link.point_masses:
                 j = int(np.argmin(np.abs(link.stations - pm.position_m)))
-                mp = mbs.AddObject(ObjectMassPoint2D(nodeNumber=nodes[j], mass=pm.mass_kg))
+                mbs.AddObject(ObjectMassPoint2D(nodeNumber=nodes[j], mass=pm.mass_kg))
                 if gravity is not None:
                     mbs.AddLoad(LoadForceVector(markerNumber=mbs.AddMarker(MarkerNodePosition(nodeNumber=nodes[j])),
                                                 loadVector=[pm.mass_kg * gravity[0], pm.mass_kg * gravity[1], 0.0]))
@@ -153,38 +207,109 @@ class ExudynEngine:
                     mbs.AddLoad(LoadMassProportional(markerNumber=mbs.AddMarker(MarkerBodyMass(bodyNumber=e)),
                                                      loadVector=[gravity[0], gravity[1], 0.0]))
             self.nodes[link.name], self.elements[link.name] = nodes, elems
-            ends[link.name] = (mbs.AddMarker(MarkerNodePosition(nodeNumber=nodes[0])),
-                               mbs.AddMarker(MarkerNodePosition(nodeNumber=nodes[-1])))
-            start_rigid[link.name] = mbs.AddMarker(MarkerBodyRigid(bodyNumber=elems[0], localPosition=[0, 0, 0]))
+            node_markers[link.name] = [mbs.AddMarker(MarkerNodePosition(nodeNumber=n)) for n in nodes]
+            rig = ((elems[0], [0.0, 0.0, 0.0]), (elems[-1], [member.segment_lengths[-1], 0.0, 0.0]))
+            attach(a, node_markers[link.name][0], rig[0], phi, "weld" if ca == "rigid" else "pin")
+            attach(b, node_markers[link.name][-1], rig[1], phi, "weld" if cb == "rigid" else "pin")
             station_sensors[link.name] = [mbs.AddSensor(SensorNode(nodeNumber=n, storeInternal=True, writeToFile=False,
                                                                    outputVariableType=OVT.Position)) for n in nodes]
 
-        mbs.AddObject(GenericJoint(markerNumbers=[mbs.AddMarker(MarkerBodyRigid(bodyNumber=hub, localPosition=[0, 0, 0])),
-                                                  start_rigid["crank"]],
-                                   constrainedAxes=[1, 1, 0, 0, 0, 1]))
-        mbs.AddObject(RevoluteJoint2D(markerNumbers=[ends["crank"][1], ends["coupler"][0]]))
-        if isinstance(mech, SliderCrankMechanism):
-            # A light block on a planar prismatic joint along the guide, pinned to the coupler's end
-            # (the block's mass is the coupler end's point mass, as in the other engines).
-            gam = mech.ground_angle
+        # Plates: one rigid body at the centre of mass (reference angle 0), pinned at its vertices.
+        for p in lk.plates:
+            pc, vc, _ = mo.joint(p.master)
+            om = float(mo.state.bodies[lk.frames[p.carrier]].omega[0])
+            node = mbs.AddNode(NodeRigidBody2D(referenceCoordinates=[pc[0, 0], pc[0, 1], 0.0],
+                                               initialVelocities=[vc[0, 0], vc[0, 1], om]))
+            body = mbs.AddObject(ObjectRigidBody2D(nodeNumber=node, mass=p.mass_kg, inertia=p.inertia_kg_m2))
+            if gravity is not None:
+                mbs.AddLoad(LoadMassProportional(markerNumber=mbs.AddMarker(MarkerBodyMass(bodyNumber=body)),
+                                                 loadVector=[gravity[0], gravity[1], 0.0]))
+            for v in p.vertices:
+                rel = mo.position(v)[0] - pc[0]
+                attach(v, mbs.AddMarker(MarkerBodyPosition(bodyNumber=body, localPosition=[rel[0], rel[1], 0.0])))
+            carrier = self.links[p.carrier]
+            lm = mo.link(p.carrier)
+            rel = lm.point(carrier.stations)[0][0] - pc[0]
+            station_sensors[p.carrier] = [mbs.AddSensor(SensorBody(bodyNumber=body, localPosition=[x, y, 0.0],
+                                                                   storeInternal=True, writeToFile=False,
+                                                                   outputVariableType=OVT.Position)) for x, y in rel]
+
+        # Ground slides: a light block on a planar prismatic joint along the guide; the block's mass
+        # is a point mass on the link end (as in the other engines).
+        for j, gam in kin.ground_slides.items():
             e = np.array([math.cos(gam), math.sin(gam)])
-            C, vC = mo.C[0], float(mo.slider_velocity[0]) * e
-            block = mbs.AddNode(NodeRigidBody2D(referenceCoordinates=[C[0], C[1], gam],
-                                                initialVelocities=[vC[0], vC[1], 0.0]))
-            body = mbs.AddObject(ObjectRigidBody2D(nodeNumber=block, mass=HUB_MASS_KG, inertia=HUB_INERTIA_KG_M2))
+            P, vP, _ = mo.joint(j)
+            body = self._block(mbs, P[0], vP[0], gam, 0.0)
             mbs.AddObject(ObjectJointPrismatic2D(
-                markerNumbers=[mbs.AddMarker(MarkerBodyRigid(bodyNumber=ground, localPosition=[C[0], C[1], 0.0])),
+                markerNumbers=[mbs.AddMarker(MarkerBodyRigid(bodyNumber=ground, localPosition=[P[0, 0], P[0, 1], 0.0])),
                                mbs.AddMarker(MarkerBodyRigid(bodyNumber=body, localPosition=[0.0, 0.0, 0.0]))],
                 axisMarker0=[e[0], e[1], 0.0], normalMarker1=[0.0, 1.0, 0.0], constrainRotation=True))
-            mbs.AddObject(RevoluteJoint2D(markerNumbers=[ends["coupler"][1],
-                                                         mbs.AddMarker(MarkerBodyPosition(bodyNumber=body,
-                                                                                          localPosition=[0, 0, 0]))]))
-        else:
-            mbs.AddObject(RevoluteJoint2D(markerNumbers=[ends["coupler"][1], ends["rocker"][1]]))
-            D = mo.D[0]
-            mbs.AddObject(RevoluteJoint2D(markerNumbers=[mbs.AddMarker(MarkerBodyPosition(bodyNumber=ground,
-                                                                                          localPosition=[D[0], D[1], 0.0])),
-                                                         ends["rocker"][0]]))
+            attach(j, mbs.AddMarker(MarkerBodyPosition(bodyNumber=body, localPosition=[0, 0, 0])),
+                   (body, [0.0, 0.0, 0.0]), gam, "owner")
+        # Blocks on a moving guide: a light block on a prismatic joint along the guide's tangent at
+        # its guide joint (the guide's cross-section there: the transfer-matrix model's sliding joint).
+        for sl in lk.sliders:
+            ga, gb, _, _ = lk.member_ends(sl.along)
+            guide = self.links[sl.along]
+            phi = float(mo.link(sl.along).angle[0])
+            elems = self.elements[sl.along]
+            m0 = (mbs.AddMarker(MarkerBodyRigid(bodyNumber=elems[0], localPosition=[0, 0, 0])) if sl.guide == ga else
+                  mbs.AddMarker(MarkerBodyRigid(bodyNumber=elems[-1],
+                                                localPosition=[guide.member("a", "b").segment_lengths[-1], 0, 0])))
+            P, vP, _ = mo.joint(sl.block)
+            body = self._block(mbs, P[0], vP[0], phi, float(mo.link(sl.along).omega[0]))
+            mbs.AddObject(ObjectJointPrismatic2D(
+                markerNumbers=[m0, mbs.AddMarker(MarkerBodyRigid(bodyNumber=body, localPosition=[0.0, 0.0, 0.0]))],
+                axisMarker0=[1.0, 0.0, 0.0], normalMarker1=[0.0, 1.0, 0.0], constrainRotation=True))
+            attach(sl.block, mbs.AddMarker(MarkerBodyPosition(bodyNumber=body, localPosition=[0, 0, 0])),
+                   (body, [0.0, 0.0, 0.0]), phi, "owner")
+
+        ground_marker = {}
+
+        def on_ground(j):
+            if j not in ground_marker:
+                P = kin.reference_position(j)
+                ground_marker[j] = mbs.AddMarker(MarkerBodyPosition(bodyNumber=ground, localPosition=[P[0], P[1], 0.0]))
+            return ground_marker[j]
+        for j in kin.ground:
+            if j != kin.pivot and j in at:            # the hub is pinned at the crank pivot already
+                attach(j, on_ground(j))
+        for j, items in at.items():
+            welds = [x for x in items if x[3] == "owner"] + [x for x in items if x[3] == "weld"]
+            pins = [x for x in items if x[3] == "pin"]
+            base = welds[0] if welds else pins.pop(0)
+            for x in welds[1:]:
+                # The second marker's frame is turned onto the first's: the weld keeps the angle
+                # the two ends make in the drawn linkage (a kink, an arm square to its block).
+                turn = _wrap(base[2] - x[2])
+                m1 = (MarkerBodyRigid(bodyNumber=x[1][0], localPosition=x[1][1]) if abs(turn) < 1e-15 else
+                      MarkerBodyRigid(bodyNumber=x[1][0], localHT=exu.HT(rotation=_rz(turn), translation=x[1][1])))
+                mbs.AddObject(GenericJoint(markerNumbers=[mbs.AddMarker(MarkerBodyRigid(bodyNumber=base[1][0],
+                                                                                        localPosition=base[1][1])),
+                                                          mbs.AddMarker(m1)], constrainedAxes=[1, 1, 0, 0, 0, 1]))
+            for x in pins:
+                mbs.AddObject(RevoluteJoint2D(markerNumbers=[base[0], x[0]]))
+
+        # Springs between joints, and the constant loads at the link nodes.
+        for sp in lk.springs:
+            ends = [at[j][0][0] if j in at else on_ground(j) for j in (sp.a, sp.b)]
+            mbs.AddObject(ObjectConnectorSpringDamper(markerNumbers=ends, referenceLength=sp.free_length,
+                                                      stiffness=sp.k))
+        for name, F in lk.loads.items():
+            tmm_stations = next(l for l in lk.links() if l.name == name).stations
+            own = self.links[name].stations
+            for k in np.flatnonzero(np.any(np.asarray(F) != 0, axis=-1)):
+                i = int(np.argmin(np.abs(own - tmm_stations[k])))
+                if abs(own[i] - tmm_stations[k]) > 1e-9 * own[-1]:
+                    raise EngineError(f"exudyn: the load on '{name}' at {tmm_stations[k]:.6g} m is at no node of its "
+                                      f"{len(own) - 1} elements")
+                mbs.AddLoad(LoadForceVector(markerNumber=node_markers[name][i], loadVector=[F[k][0], F[k][1], 0.0]))
+                if F[k][2]:
+                    e = min(i, len(self.elements[name]) - 1)
+                    x = own[i] - own[e]
+                    mbs.AddLoad(LoadTorqueVector(markerNumber=mbs.AddMarker(MarkerBodyRigid(
+                        bodyNumber=self.elements[name][e], localPosition=[x, 0, 0])), loadVector=[0.0, 0.0, F[k][2]]))
+
         # Gauge sensors: the element(s) around the gauge position.
         self._gauge_sensors = {}
         for g in self.gauges:
@@ -223,7 +348,7 @@ class ExudynEngine:
     def _rigid_link(self, mbs, link, mo, gravity):
         """A rigid link as one rigid body at its centre of mass (exact mass properties of the
         link, its end blocks and point masses). Returns its end position markers, the rigid marker
-        at its start, and position sensors at its stations (for drawing)."""
+        at its start as (body, local position), and position sensors at its stations (for drawing)."""
         m, xc, Jc = link.rigid_body()
         lm = mo.link(link.name)
         pos, vel, _ = lm.point(np.array([xc]))
@@ -239,7 +364,13 @@ class ExudynEngine:
         sensors = [mbs.AddSensor(SensorBody(bodyNumber=body, localPosition=[x - xc, 0.0, 0.0], storeInternal=True,
                                             writeToFile=False, outputVariableType=OVT.Position))
                    for x in link.stations]
-        return (at(0.0, MarkerBodyPosition), at(link.length_m, MarkerBodyPosition)), at(0.0, MarkerBodyRigid), sensors
+        return (at(0.0, MarkerBodyPosition), at(link.length_m, MarkerBodyPosition)), (body, [-xc, 0.0, 0.0]), sensors
+
+    def _block(self, mbs, position, velocity, angle, omega):
+        """A light rigid block (slider) at ``position`` turned by ``angle``."""
+        node = mbs.AddNode(NodeRigidBody2D(referenceCoordinates=[position[0], position[1], angle],
+                                           initialVelocities=[velocity[0], velocity[1], omega]))
+        return mbs.AddObject(ObjectRigidBody2D(nodeNumber=node, mass=HUB_MASS_KG, inertia=HUB_INERTIA_KG_M2))
 
     def _init_solver(self, settings):
         sims = exu.SimulationSettings()
@@ -258,6 +389,31 @@ class ExudynEngine:
         sims.linearSolver.solverType = exu.LinearSolverType.EigenSparse
         self.sims = sims
         self._drive = DriveInput(prescribed=lambda t: (np.asarray(self._angle0 + 0.0 * np.asarray(t)), 0.0, 0.0))
+        if self._preloaded:
+            self._static_start()
+
+    def _static_start(self):
+        """Start from the static equilibrium under the springs and constant loads (the crank held
+        at its start angle), with the rigid-body velocities: the analogue of the transfer-matrix
+        model's quasi-static start. Switched on suddenly on the undeformed linkage, a preload of
+        hundreds of newtons rings in the stiff modes hard enough to stop Newton at the first steps."""
+        sims = exu.SimulationSettings()
+        sims.solution.file.write = False
+        sims.solution.sensors.active = False
+        sims.staticSolver.verboseMode = 0
+        sims.staticSolver.newton.relativeTolerance = 1e-9
+        sims.staticSolver.numberOfLoadSteps = 1
+        sims.linearSolver.solverType = exu.LinearSolverType.EigenSparse
+        sd = self.mbs.systemData
+        init = exu.ConfigurationType.Initial
+        v0 = np.array(sd.GetODE2Coordinates_t(init), copy=True)
+        try:
+            exu.SolveStatic(self.mbs, sims, updateInitialValues=True)
+        except Exception as exc:   # exudyn raises its own SolverError after printing its diagnosis
+            raise EngineError(f"exudyn: the static start under the springs and loads did not converge "
+                              f"({exc})") from None
+        for config in (init, exu.ConfigurationType.Current):
+            sd.SetODE2Coordinates_t(v0, config)
 
     # -- user functions (called by exudyn; time is exudyn's local time from 0) -----------------
     def _offset(self, mbs, t, item, offset):
@@ -312,6 +468,12 @@ class ExudynEngine:
         ti = self.sims.timeIntegration
         ti.startTime, ti.endTime, ti.numberOfSteps = self.k * self._h, (self.k + n) * self._h, n
         ti.generalizedAlpha.computeInitialAccelerations = self.k == 0
+        if self._solution is not None:     # write_solution: each SolveDynamic appends its rows
+            f = self.sims.solution.file
+            f.write, (f.name, f.writePeriod) = True, self._solution
+            f.append, f.writeFooter = self.k > 0, False
+            f.writeHeader = f.writeInitialValues = self.k == 0
+            f.export.velocities = f.export.accelerations = f.export.algebraicCoordinates = 0
         try:
             exu.SolveDynamic(self.mbs, self.sims, updateInitialValues=True)
         except Exception as exc:   # exudyn raises its own SolverError after printing its diagnosis

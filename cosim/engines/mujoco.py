@@ -1,14 +1,23 @@
-"""MuJoCo engine: the rigid four-bar as a reference for the flexible engines.
+"""MuJoCo engine: the rigid linkage as a reference for the flexible engines.
 
-Model (MJCF generated from the scenario's :class:`tmm_core.FourBarMechanism`): three bodies on
-hinges about z -- crank at A, coupler on the crank at B, rocker at D -- and the loop closed at C
-by an equality ``connect`` between a site at the coupler's end and one at the rocker's end
-(solref = solref_factor * dt, dampratio 1; MuJoCo's refsafe raises a time constant below 2 dt to
-2 dt; solimp = (s, s, 0.001, 0.5, 2)). Each body's frame sits at its link's start joint with
-local x along the link (crank A->B, coupler B->C, rocker D->C), turned by the ground angle so
-the crank hinge angle *is* the crank angle from the ground line. Mass, centre of mass and z
-inertia of every link are the exact rigid-body values of the link data (:func:`link_inertia`).
-Sites sit at every mesh node of every link. Contacts are off (there are no geoms).
+Model (MJCF generated from the scenario's mechanism through :func:`tmm_core.linkage.as_linkage`,
+one builder for the four-bar, the slider-crank and every ``type = "linkage"`` mechanism): one
+body per kinematic body of the linkage (a link, the parts of a link with interior joints, a
+plate, a slider block with the links welded to it), arranged as a tree by the linkage's
+closed-form modules. The crank hangs from the world on a hinge at its pivot; each dyad (rrr)
+hangs its two links from the bodies that carry their known joints on hinges there and closes
+its loop at the new joint with an equality ``connect``; each rrp hangs its link on a hinge and
+closes the loop on a block (a light block body on a slide joint along the ground line, or the
+kinematic block body on a slide joint along its guide body). ``connect``: solref =
+solref_factor * dt, dampratio 1 (MuJoCo's refsafe raises a time constant below 2 dt to 2 dt);
+solimp = (s, s, 0.001, 0.5, 2). Each body's frame sits at the start joint of its first link with
+local x along it (a plate: at its centre of mass, x towards its first vertex); the crank's frame
+is turned by the crank's zero direction (the ground angle), so the crank hinge angle *is* the
+crank angle. Mass, centre of mass and z inertia of every body are the exact rigid-body values
+of its links (:func:`link_inertia`) and plates. Sites sit at every mesh node of every link.
+Springs are spatial tendons (stiffness, spring length); constant loads are ``general``
+actuators on the loaded node's site with a world reference site (world-frame force and
+moment), their control held at 1. Contacts are off (there are no geoms).
 
 Drive:
 
@@ -27,11 +36,16 @@ the forward pass at that sample's state, which precedes the step from it; so one
 rolled out per macro step to get the sensors at t_next, and its end state is discarded.
 
 Outputs, one sample per internal step: crank angle and speed (hinge sensors), drive torque,
-node positions (node sites), extras ``coupler_angle_rad`` / ``rocker_angle_rad`` (global angle
-of the link's local x axis, CCW from global X, not wrapped, as :attr:`tmm_core.LinkMotion.angle`)
-and ``loop_closure_m`` (distance between the two connect sites: the soft constraint's own
-error), and the rigid ("quasi-static") gauge strains: D'Alembert loads from MuJoCo's own node
-accelerations on the instantaneous structure, solved linearly by :func:`tmm_core.solve_static`.
+node positions (node sites), extras ``<link>_angle_rad`` for every link but the crank (global
+angle of the link's local x axis, CCW from global X, not wrapped, as
+:attr:`tmm_core.LinkMotion.angle`), ``slider_position_m`` (a single ground slide: the block's
+position along it from the foot of the crank pivot) and ``loop_closure_m`` (the largest distance
+between the two sites of a ``connect``: the soft constraints' own error), and the rigid
+("quasi-static") gauge strains: D'Alembert loads from MuJoCo's own node accelerations (plus the
+constant loads and the springs) on the instantaneous structure, solved linearly by
+:func:`tmm_core.solve_static`, with the joints where the closed-form kinematics puts them at
+MuJoCo's crank angle (the structure needs exact link lengths; they differ from MuJoCo's own
+joint positions by the size of ``loop_closure_m``).
 """
 from __future__ import annotations
 
@@ -41,15 +55,16 @@ import mujoco
 import numpy as np
 from mujoco import rollout
 
-from tmm_core import InputError, LoadCase, SliderCrankMechanism, gauge_strains, solve_static
+from tmm_core import InputError, LoadCase, gauge_strains, solve_static
+from tmm_core.linkage import as_linkage
 
 from ..scenario import Scenario
 from .base import DriveInput, EngineError, EngineOutput, steps_in
 
-SLIDER_BODY_KG = 1e-6     # the slide joint's block body; the block's mass sits on the coupler's end
+SLIDER_BODY_KG = 1e-6     # a ground slide's block body; the block's mass sits on the link's end
 ARMATURE_RATIO = 10.0      # armature / largest reflected linkage inertia at the crank
 SERVO_STEPS = 20.0         # default servo period in internal steps: f_servo = 1 / (20 dt)
-SERVO_GROUP, MOTOR_GROUP = 1, 2
+SERVO_GROUP, MOTOR_GROUP, LOAD_GROUP = 1, 2, 3
 
 
 def link_inertia(link):
@@ -75,12 +90,119 @@ def _f(*v):
     return " ".join(f"{x:.17g}" for x in v)
 
 
+def _rot2(angle):
+    c, s = math.cos(angle), math.sin(angle)
+    return np.array([[c, -s], [s, c]])
+
+
+class _Tree:
+    """The MuJoCo body tree of a linkage: bodies (frames at the reference configuration, mass
+    properties, parent, joint), the loop closures and the node sites, from its modules."""
+
+    def __init__(self, lk):
+        kin = self.kin = lk.kinematics
+        self.lk = lk
+        ref = kin.reference_position
+        members = {}
+        for link, a, b, _, _ in lk.members:
+            members.setdefault(lk.frames[link.name], []).append((link, a, b))
+        plates = {p.name: p for p in lk.plates}
+        # Body frames: origin at the first link's start, x along it (a plate's first link is its
+        # carrier, from the centre of mass to its first vertex).
+        self.frame = {}
+        for body in kin.bodies:
+            link, a, b = members[body][0]
+            d = ref(b) - ref(a)
+            self.frame[body] = (ref(a), math.atan2(d[1], d[0]))
+        # Mass properties in the body frame.
+        self.mass = {}
+        for body, links in members.items():
+            O, phi = self.frame[body]
+            R = _rot2(-phi)
+            items = []
+            for link, a, b in links:
+                if body in plates and link.name == plates[body].carrier:
+                    p = plates[body]
+                    items.append((p.mass_kg, R @ (ref(p.master) - O), p.inertia_kg_m2))
+                    continue
+                m, xc, Jc = link_inertia(link)
+                d = ref(b) - ref(a)
+                items.append((m, R @ (ref(a) + xc * d / np.hypot(*d) - O), Jc))
+            m = sum(x[0] for x in items)
+            c = sum(x[0] * x[1] for x in items) / m
+            J = sum(x[2] + x[0] * float((x[1] - c) @ (x[1] - c)) for x in items)
+            self.mass[body] = (m, c, J)
+        # The tree: parent, joint type and anchor, from the modules. A ground slide's block is a
+        # light body on a slide joint from the world, and its link hangs from it (the loop closes
+        # at the link's other joint, between massive bodies: a soft connect to a nearly massless
+        # block would yield under the loads it carries).
+        self.parent, self.joint, self.order, self.closures, self.slider_blocks = {}, {}, [], [], {}
+
+        def carrier_of(j):
+            if j in kin.ground:
+                return None
+            return next(b for b in self.order if j in kin.bodies.get(b, ()))
+
+        def hang(body, anchor, parent="auto"):
+            self.parent[body] = carrier_of(anchor) if parent == "auto" else parent
+            self.joint[body] = ("hinge", anchor)
+            self.order.append(body)
+        for i in range(len(kin.modules)):
+            st = kin.step(i)
+            if st["kind"] == "crank":
+                hang(st["body"], kin.pivot, None)
+            elif st["kind"] == "rrr":
+                hang(st["b1"], st["P"])
+                hang(st["b2"], st["Q"])
+                self.closures.append((st["b1"], st["b2"], st["C"]))
+            elif st["block"] is None:
+                name = f"slider_{st['C']}"
+                gam = math.atan2(st["e_ref"][1], st["e_ref"][0])
+                self.slider_blocks[name] = st["C"]
+                self.frame[name] = (ref(st["C"]), gam)
+                self.mass[name] = (SLIDER_BODY_KG, np.zeros(2), 1e-9)
+                self.parent[name], self.joint[name] = None, ("slide", st["C"], st["e_ref"])
+                self.order.append(name)
+                other = carrier_of(st["P"])
+                hang(st["b1"], st["C"], name)
+                self.closures.append((st["b1"], other, st["P"]))
+            else:
+                hang(st["b1"], st["P"])
+                self.parent[st["block"]] = st["guide"]
+                self.joint[st["block"]] = ("slide", st["C"], st["e_ref"])
+                self.order.append(st["block"])
+                self.closures.append((st["b1"], st["block"], st["C"]))
+
+    def local(self, body, point) -> np.ndarray:
+        """A reference-configuration point in a body's frame (the world's for None)."""
+        if body is None:
+            return np.asarray(point, float)
+        O, phi = self.frame[body]
+        return _rot2(-phi) @ (np.asarray(point, float) - O)
+
+
 class MujocoEngine:
     name = "mujoco"
     kinematic = False
 
     def __init__(self):
         self._dt = None
+
+    def export_model(self, path) -> None:
+        """Write the MJCF this engine simulates (after ``reset``) to ``path``, with a thin capsule
+        between consecutive node sites of every body so MuJoCo's viewer shows the linkage
+        (``python -m mujoco.viewer --mjcf=model.xml``). The capsules are visual only: no contact,
+        no mass (each body keeps its explicit ``<inertial>``); every other value is the text
+        simulated, digit for digit."""
+        import xml.etree.ElementTree as ET
+        root = ET.fromstring(self.xml)
+        for body in root.iter("body"):
+            pos = [np.array(s.get("pos", "0 0 0").split(), dtype=float) for s in body.findall("site")]
+            for a, b in zip(pos, pos[1:]):
+                if np.linalg.norm(a - b) > 1e-9:       # a capsule needs a length
+                    ET.SubElement(body, "geom", type="capsule", fromto=_f(*a, *b), size="0.003", contype="0",
+                                  conaffinity="0", mass="0", group="1")
+        ET.ElementTree(root).write(path, encoding="utf-8", xml_declaration=False)
 
     @property
     def internal_step_s(self) -> float:
@@ -90,73 +212,123 @@ class MujocoEngine:
 
     # -- model --------------------------------------------------------------------------------
     def _mjcf(self, scenario: Scenario) -> str:
-        mech, s, dt = scenario.mechanism, scenario.mujoco, self._dt
+        lk, tree, s, dt = self.lk, self.tree, scenario.mujoco, self._dt
+        kin = lk.kinematics
         g = scenario.gravity or (0.0, 0.0)
-        gam = mech.ground_angle
-        A = np.asarray(mech.pivot, dtype=float)
+        children = {}
+        for body in tree.order:
+            children.setdefault(tree.parent[body], []).append(body)
+        self.member_sites = {}
+        sites_of = {}
+        for i, (link, a, b, _, _) in enumerate(lk.members):
+            body = lk.frames[link.name]
+            d = kin.reference_position(b) - kin.reference_position(a)
+            e = d / np.hypot(*d)
+            names = []
+            for k, x in enumerate(link.stations):
+                name = f"m{i}_n{k}"
+                sites_of.setdefault(body, []).append((name, tree.local(body, kin.reference_position(a) + x * e)))
+                names.append(name)
+            self.member_sites[link.name] = names
+        # A site at each closure joint and spring end on the bodies that hold it.
+        self.joint_sites = {}
 
-        def body(link, pos, euler_z, joint_extra="", inner=""):
-            m, xc, Jc = link_inertia(link)
-            sites = "".join(f'<site name="{link.name}_n{i}" pos="{_f(x, 0, 0)}"/>' for i, x in enumerate(link.stations))
+        def joint_site(body, j):
+            key = (body, j)
+            if key not in self.joint_sites:
+                name = f"j{len(self.joint_sites)}"
+                self.joint_sites[key] = name
+                sites_of.setdefault(body, []).append((name, tree.local(body, kin.reference_position(j))))
+            return self.joint_sites[key]
+        self.closure_sites = [(joint_site(b1, j), joint_site(b2, j)) for b1, b2, j in tree.closures]
+        world_sites = ['<site name="world_ref" pos="0 0 0"/>'] + [
+            f'<site name="{n}" pos="{_f(*p, 0)}"/>' for n, p in sites_of.get(None, [])]
+        tendons = []
+        for sp in lk.springs:
+            ends = []
+            for j in (sp.a, sp.b):
+                if j in kin.ground:
+                    name = f"g_{len(world_sites)}"
+                    world_sites.append(f'<site name="{name}" pos="{_f(*kin.reference_position(j), 0)}"/>')
+                    ends.append(name)
+                else:
+                    ends.append(joint_site(next(b for b in tree.order if j in kin.bodies[b]), j))
+            tendons.append(f'<spatial name="spring_{sp.name}" stiffness="{sp.k:.17g}" '
+                           f'springlength="{sp.free_length:.17g}"><site site="{ends[0]}"/><site site="{ends[1]}"/>'
+                           '</spatial>')
+        loads = []
+        for name, F in lk.loads.items():
+            for k in np.flatnonzero(np.any(np.asarray(F) != 0, axis=-1)):
+                site = self.member_sites[name][k]
+                loads.append(f'<general name="load_{len(loads)}" site="{site}" refsite="world_ref" '
+                             f'group="{LOAD_GROUP}" gear="{_f(F[k][0], F[k][1], 0, 0, 0, F[k][2])}"/>')
+        self.n_loads = len(loads)
+
+        def body_xml(body, parent):
+            O, phi = tree.frame[body]
+            if parent is None:
+                pos, euler = O, (kin.crank_zero if body == kin.crank else phi)
+            else:
+                Op, php = tree.frame[parent]
+                pos, euler = _rot2(-php) @ (O - Op), phi - php
+            kind = tree.joint[body]
+            if body == kin.crank:
+                # The crank's frame is turned by its zero direction: its hinge angle is the crank angle.
+                anchor = np.zeros(2)
+                jxml = f'<joint name="{body}_hinge" type="hinge" axis="0 0 1" armature="{self.armature:.17g}"/>'
+            elif kind[0] == "hinge":
+                anchor = tree.local(body, kin.reference_position(kind[1]))
+                jxml = f'<joint name="{body}_hinge" type="hinge" axis="0 0 1" pos="{_f(*anchor, 0)}"/>'
+            else:
+                axis = _rot2(-phi) @ kind[2]
+                jxml = f'<joint name="{body}_slide" type="slide" axis="{_f(axis[0], axis[1], 0)}"/>'
+            m, c, J = tree.mass[body]
+            sites = sites_of.get(body, [])
             # Planar: only the z inertia acts; x/y values only have to pass the triangle inequality.
-            return (f'<body name="{link.name}" pos="{_f(*pos, 0)}" euler="{_f(0, 0, euler_z)}">'
-                    f'<joint name="{link.name}" type="hinge" axis="0 0 1"{joint_extra}/>'
-                    f'<inertial pos="{_f(xc, 0, 0)}" mass="{m:.17g}" diaginertia="{_f(1e-6 * Jc, Jc, Jc)}"/>'
-                    f'{sites}{inner}</body>')
-
-        links = mech.links()
-        crank, coupler = links[0], links[1]
-        tree = body(crank, A, gam, f' armature="{self.armature:.17g}"',
-                    body(coupler, (crank.length_m, 0.0), 0.0))
-        last = {l.name: f"{l.name}_n{l.n_nodes - 1}" for l in links}
-        if self.slider:
-            # A light block on a slide joint along the guide, at the foot of the offset line; the
-            # block's own mass is the coupler's end point mass (mech.links()).
-            foot = A + mech.offset_m * np.array([-math.sin(gam), math.cos(gam)])
-            tree += (f'<body name="slider" pos="{_f(*foot, 0)}" euler="{_f(0, 0, gam)}">'
-                     f'<joint name="slider" type="slide" axis="1 0 0"/>'
-                     f'<inertial pos="0 0 0" mass="{SLIDER_BODY_KG:.17g}" diaginertia="1e-9 1e-9 1e-9"/>'
-                     f'<site name="slider_pin" pos="0 0 0"/></body>')
-            closure = (last["coupler"], "slider_pin")
-        else:
-            D = A + mech.ground_m * np.array([math.cos(gam), math.sin(gam)])
-            tree += body(links[2], D, gam)
-            closure = (last["coupler"], last["rocker"])
+            return (f'<body name="{body}" pos="{_f(*pos, 0)}" euler="{_f(0, 0, euler)}">{jxml}'
+                    f'<inertial pos="{_f(*c, 0)}" mass="{m:.17g}" diaginertia="{_f(1e-6 * J, J, J)}"/>'
+                    + "".join(f'<site name="{n}" pos="{_f(*p, 0)}"/>' for n, p in sites)
+                    + "".join(body_xml(ch, body) for ch in children.get(body, []))
+                    + '</body>')
+        tree_xml = "".join(body_xml(b, None) for b in children.get(None, []))
         kp, kd = self.gains
         sensors = []
-        for link in mech.links():
-            sensors.append(f'<jointpos name="q_{link.name}" joint="{link.name}"/>')
-            sensors.append(f'<frameangacc name="alpha_{link.name}" objtype="xbody" objname="{link.name}"/>')
-            for i in range(link.n_nodes):
-                site = f"{link.name}_n{i}"
+        self.hinges = [b for b in tree.order if tree.joint[b][0] == "hinge"]
+        for body in tree.order:
+            jn = f"{body}_{tree.joint[body][0]}"
+            sensors.append(f'<jointpos name="q_{body}" joint="{jn}"/>')
+            sensors.append(f'<frameangacc name="alpha_{body}" objtype="xbody" objname="{body}"/>')
+        for names in self.member_sites.values():
+            for site in names:
                 sensors.append(f'<framepos name="p_{site}" objtype="site" objname="{site}"/>')
                 sensors.append(f'<framelinacc name="a_{site}" objtype="site" objname="{site}"/>')
-        sensors += ['<jointvel name="w_crank" joint="crank"/>', '<actuatorfrc name="f_servo" actuator="servo"/>',
-                    '<actuatorfrc name="f_motor" actuator="motor"/>']
-        if self.slider:
-            sensors += ['<jointpos name="q_slider" joint="slider"/>',
-                        '<framepos name="p_slider_pin" objtype="site" objname="slider_pin"/>']
-        return f"""<mujoco model="{'slidercrank' if self.slider else 'fourbar'}">
+        for a, b in self.closure_sites:
+            for site in (a, b):
+                sensors.append(f'<framepos name="p_{site}" objtype="site" objname="{site}"/>')
+        sensors += [f'<jointvel name="w_crank" joint="{kin.crank}_hinge"/>',
+                    '<actuatorfrc name="f_servo" actuator="servo"/>', '<actuatorfrc name="f_motor" actuator="motor"/>']
+        equality = "".join(f'<connect site1="{a}" site2="{b}" solref="{_f(s.solref_factor * dt, 1)}" '
+                           f'solimp="{_f(s.solimp, s.solimp, 0.001, 0.5, 2)}"/>' for a, b in self.closure_sites)
+        return f"""<mujoco model="{lk.name.split(' ')[0]}">
   <compiler angle="radian"/>
   <option timestep="{dt:.17g}" integrator="Euler" gravity="{_f(g[0], g[1], 0)}">
     <flag contact="disable"/>
   </option>
-  <worldbody>{tree}</worldbody>
-  <equality>
-    <connect site1="{closure[0]}" site2="{closure[1]}" solref="{_f(s.solref_factor * dt, 1)}"
-             solimp="{_f(s.solimp, s.solimp, 0.001, 0.5, 2)}"/>
-  </equality>
+  <worldbody>{''.join(world_sites)}{tree_xml}</worldbody>
+  <tendon>{''.join(tendons)}</tendon>
+  <equality>{equality}</equality>
   <actuator>
-    <general name="servo" joint="crank" group="{SERVO_GROUP}" gainprm="{kp:.17g}" biastype="affine"
+    <general name="servo" joint="{kin.crank}_hinge" group="{SERVO_GROUP}" gainprm="{kp:.17g}" biastype="affine"
              biasprm="{_f(0, -kp, -kd)}"/>
-    <motor name="motor" joint="crank" group="{MOTOR_GROUP}"/>
+    <motor name="motor" joint="{kin.crank}_hinge" group="{MOTOR_GROUP}"/>
+    {''.join(loads)}
   </actuator>
   <sensor>{''.join(sensors)}</sensor>
 </mujoco>"""
 
     def reset(self, scenario: Scenario, t0: float, angle: float, speed: float, drive_inertia_kg_m2: float = 0.0) -> None:
         """Build the model and put the linkage at crank ``angle`` [rad] turning at ``speed`` [rad/s]
-        (coupler and rocker from the closed-form kinematics), at time ``t0`` [s].
+        (every body from the closed-form kinematics), at time ``t0`` [s].
         ``drive_inertia_kg_m2``: a motor's rotor and flywheel inertia at the crank, carried as the
         crank's armature when driven by a torque."""
         if not (np.isfinite(drive_inertia_kg_m2) and drive_inertia_kg_m2 >= 0):
@@ -164,7 +336,11 @@ class MujocoEngine:
         self.drive_inertia = float(drive_inertia_kg_m2)
         s = scenario.mujoco
         mech = self.mech = scenario.mechanism
-        self.slider = isinstance(mech, SliderCrankMechanism)
+        try:
+            lk = self.lk = as_linkage(mech)
+        except InputError as exc:
+            raise EngineError(f"mujoco: {exc}") from None
+        self.tree = _Tree(lk)
         self.link_names = tuple(l.name for l in mech.links())
         self.scenario, self._dt, self.t0, self.k = scenario, s.step_s, t0, 0
         J = reflected_inertia(mech)
@@ -182,17 +358,24 @@ class MujocoEngine:
         self.slices = {self.model.sensor(i).name: slice(self.model.sensor_adr[i],
                                                         self.model.sensor_adr[i] + self.model.sensor_dim[i])
                        for i in range(self.model.nsensor)}
-        self.node_masses = {link.name: link.node_masses() for link in mech.links()}
+        self.node_masses = {link.name: link.node_masses() for link in mech.elastic_links()}
 
-        mo = mech.motion(angle, speed)
-        gam = mech.ground_angle
+        st = lk.kinematics.solve(angle, speed)
         d = self.data
-        if self.slider:
-            third, third_rate = float(mo.slider_position), float(mo.slider_velocity)
-        else:
-            third, third_rate = _wrap(float(mo.rocker.angle) - gam), float(mo.rocker.omega)
-        d.qpos[:] = [angle, _wrap(float(mo.coupler.angle - mo.crank.angle)), third]
-        d.qvel[:] = [speed, float(mo.coupler.omega - mo.crank.omega), third_rate]
+        tree, kin = self.tree, lk.kinematics
+        for body in tree.order:
+            kind = tree.joint[body]
+            jid = self.model.joint(f"{body}_{kind[0]}").id
+            adr, vadr = self.model.jnt_qposadr[jid], self.model.jnt_dofadr[jid]
+            if body == kin.crank:
+                d.qpos[adr], d.qvel[vadr] = angle, speed
+            elif kind[0] == "slide":
+                d.qpos[adr], d.qvel[vadr] = float(st.slides[kind[1]][0]), float(st.slides[kind[1]][1])
+            else:
+                bm, parent = st.bodies[body], tree.parent[body]
+                pm = st.bodies.get(parent) if parent is not None else None     # a slider block does not turn
+                d.qpos[adr] = _wrap(float(bm.rotation - (pm.rotation if pm else 0.0)))
+                d.qvel[vadr] = float(bm.omega - (pm.omega if pm else 0.0))
         d.time = t0
         self._set_drive(prescribed=True)
         self.state = np.empty(mujoco.mj_stateSize(self.model, mujoco.mjtState.mjSTATE_FULLPHYSICS))
@@ -224,7 +407,8 @@ class MujocoEngine:
         n = steps_in(t_start, t_next, self._dt, "mujoco")
         ks = self.k + np.arange(n + 1)
         t = self.t0 + ks * self._dt           # step starts t_k .. t_next: integer step count
-        ctrl = np.zeros((n + 1, 2))
+        ctrl = np.zeros((n + 1, 2 + self.n_loads))
+        ctrl[:, 2:] = 1.0                     # the constant loads
         if drive.prescribed is not None:
             self._set_drive(prescribed=True)
             q, w, a = (np.broadcast_to(np.asarray(x, dtype=float), t.shape) for x in drive.prescribed(t))
@@ -248,81 +432,64 @@ class MujocoEngine:
 
     def _outputs(self, t, sens) -> EngineOutput:
         S = lambda name: sens[:, self.slices[name]]          # noqa: E731
-        mech, gam = self.mech, self.mech.ground_angle
-        q = {l: S(f"q_{l}")[:, 0] for l in self.link_names}
-        alpha = {l: S(f"alpha_{l}")[:, 2] for l in self.link_names}   # absolute angular accelerations about z
-        torque = S("f_servo")[:, 0] + S("f_motor")[:, 0] - self.model.dof_armature[0] * alpha["crank"]
+        lk, tree, kin = self.lk, self.tree, self.lk.kinematics
+        q_crank = S(f"q_{kin.crank}")[:, 0]
+        # Each body's rotation from the reference configuration: the crank's, plus the hinges down
+        # the tree (slides do not turn).
+        rotation = {}
+        for body in tree.order:
+            parent = tree.parent[body]
+            if body == kin.crank:
+                rotation[body] = q_crank - kin.reference_crank_angle
+            else:
+                base = rotation[parent] if parent is not None else 0.0
+                rotation[body] = base + (S(f"q_{body}")[:, 0] if tree.joint[body][0] == "hinge" else 0.0)
+        alpha = {body: S(f"alpha_{body}")[:, 2] for body in tree.order}   # absolute angular accelerations about z
+        torque = S("f_servo")[:, 0] + S("f_motor")[:, 0] - self.model.dof_armature[0] * alpha[kin.crank]
         nodes, acc = {}, {}
-        for link in mech.links():
-            idx = range(link.n_nodes)
-            nodes[link.name] = np.stack([S(f"p_{link.name}_n{i}")[:, :2] for i in idx], 1)
-            acc[link.name] = np.stack([S(f"a_{link.name}_n{i}")[:, :2] for i in idx], 1)
-        c_coupler = nodes["coupler"][:, -1]
-        extras = {"coupler_angle_rad": ("rad", gam + q["crank"] + q["coupler"])}
-        if self.slider:
-            extras["slider_position_m"] = ("m", S("q_slider")[:, 0])
-            c_other = S("p_slider_pin")[:, :2]
-        else:
-            extras["rocker_angle_rad"] = ("rad", gam + q["rocker"])
-            c_other = nodes["rocker"][:, -1]
-        extras["loop_closure_m"] = ("m", np.linalg.norm(c_coupler - c_other, axis=-1))
-        self._closure_point = c_other
-        gauges = self._rigid_strains(nodes, acc, alpha)
-        return EngineOutput(t, q["crank"], S("w_crank")[:, 0], torque, gauges, nodes, extras)
+        for link in self.mech.links():
+            sites = self.member_sites[link.name]
+            nodes[link.name] = np.stack([S(f"p_{site}")[:, :2] for site in sites], 1)
+            acc[link.name] = np.stack([S(f"a_{site}")[:, :2] for site in sites], 1)
+        extras = {}
+        for link, a, b, _, _ in lk.members:
+            if lk.frames[link.name] == kin.crank:
+                continue
+            d = kin.reference_position(b) - kin.reference_position(a)
+            extras[f"{link.name}_angle_rad"] = ("rad", math.atan2(d[1], d[0]) + rotation[lk.frames[link.name]])
+        if len(tree.slider_blocks) == 1:
+            body, j = next(iter(tree.slider_blocks.items()))
+            gam = tree.frame[body][1]
+            e = np.array([math.cos(gam), math.sin(gam)])
+            foot = float((kin.reference_position(j) - kin.reference_position(kin.pivot)) @ e)
+            extras["slider_position_m"] = ("m", foot + S(f"q_{body}")[:, 0])
+        if self.closure_sites:
+            extras["loop_closure_m"] = ("m", np.max([np.linalg.norm(S(f"p_{a}")[:, :2] - S(f"p_{b}")[:, :2], axis=-1)
+                                                     for a, b in self.closure_sites], axis=0))
+        link_alpha = {link.name: alpha[lk.frames[link.name]] for link in self.mech.links()}
+        gauges = self._rigid_strains(q_crank, acc, link_alpha)
+        return EngineOutput(t, q_crank, S("w_crank")[:, 0], torque, gauges, nodes, extras)
 
-    def _rigid_strains(self, nodes, acc, alpha) -> dict:
+    def _rigid_strains(self, q_crank, acc, alpha) -> dict:
         """Quasi-static gauge strains of the rigid motion, all samples in one linear solve.
 
         MuJoCo's ``framelinacc`` is a proper acceleration (a - g, as an accelerometer reads), so
         the D'Alembert-plus-gravity node force m (g - a) is -m times the sensor reading; the
-        node moment is -J alpha."""
+        node moment is -J alpha. The constant loads are added; the springs act through the
+        instantaneous structure (preload from its geometry)."""
         if not self.scenario.gauges:
             return {}
         mech = self.mech
+        motion = mech.motion(q_crank)
+        applied = mech.external_loads(motion)
         loads = {}
-        for link in mech.links():
+        for link in mech.elastic_links():
             m, J = self.node_masses[link.name]
             F = np.empty(acc[link.name].shape[:-1] + (3,))
             F[..., :2] = -m[:, None] * acc[link.name]
             F[..., 2] = -J * alpha[link.name][:, None]
+            if link.name in applied:
+                F = F + applied[link.name]
             loads[link.name] = F
-        # The instantaneous structure needs lengths exact to 1e-9: close the loop at C by
-        # intersecting the circle about B with the rocker's circle about D or with the slide line
-        # (a shift of the size of loop_closure_m).
-        A, B = nodes["crank"][:, 0], nodes["coupler"][:, 0]
-        near = 0.5 * (nodes["coupler"][:, -1] + self._closure_point)
-        if self.slider:
-            gam = mech.ground_angle
-            e = np.array([math.cos(gam), math.sin(gam)])
-            foot = np.asarray(mech.pivot, float) + mech.offset_m * np.array([-math.sin(gam), math.cos(gam)])
-            C = _line_point(B, mech.coupler.length_m, foot, e, near)
-            joints = {"A": A, "B": B, "C": C}
-        else:
-            D = nodes["rocker"][:, 0]
-            C = _circle_point(B, mech.coupler.length_m, D, mech.rocker.length_m, near)
-            joints = {"A": A, "B": B, "C": C, "D": D}
-        sol = solve_static(self.structure, LoadCase(joints, loads))
+        sol = solve_static(self.structure, LoadCase(mech.joint_positions(motion), loads))
         return {g.name: gauge_strains(sol.members[g.link], g) for g in self.scenario.gauges}
-
-
-def _circle_point(P, r, Q, s, near) -> np.ndarray:
-    """The intersection of circles (P, r) and (Q, s) nearest to ``near``, arrays (k, 2) [m]."""
-    d = Q - P
-    L = np.linalg.norm(d, axis=-1, keepdims=True)
-    u = d / L
-    x = (L**2 + r**2 - s**2) / (2 * L)
-    y = np.sqrt(np.maximum(r**2 - x**2, 0.0))
-    n = np.stack([-u[:, 1], u[:, 0]], -1)
-    side = np.sign(np.sum((near - P) * n, -1, keepdims=True))
-    return P + x * u + side * y * n
-
-
-def _line_point(P, r, foot, e, near) -> np.ndarray:
-    """The point of the line foot + s e at distance r from P nearest to ``near`` (k, 2) [m]."""
-    rel = P - foot
-    s0 = rel @ e
-    h2 = np.sum(rel * rel, -1) - s0**2
-    half = np.sqrt(np.maximum(r**2 - h2, 0.0))
-    s_near = (near - foot) @ e
-    s = np.where(np.abs(s0 + half - s_near) <= np.abs(s0 - half - s_near), s0 + half, s0 - half)
-    return foot + s[:, None] * e

@@ -1,0 +1,457 @@
+"""The ``type = "linkage"`` scenario format: any planar linkage in motion, no code per mechanism.
+
+A linkage is drawn once, assembled, at a *reference* position (joint coordinates, as Shin's
+CASDAM takes them); link lengths, plate shapes, slide lines and assembly branches all follow from
+that drawing. Its motion comes from an ordered list of closed-form modules (Shin's component-module
+approach, :mod:`tmm_core.linkage`), each placing one joint from joints already placed::
+
+    [linkage]
+    type = "linkage"
+    crank = "crank"                 # the driven link; its path starts at its ground pivot
+    crank_zero = "0 deg"            # the crank angle is measured from this global direction (default 0)
+
+    [joints.1]   position = ["0 in", "0 in"], support = "pinned"      # ground pivots are pinned
+    [joints.13]  position = [...], support = "slider", direction = "90 deg", weight = "0.2 lbf"
+                                    # a pin on a block sliding along a ground line (optional block mass)
+    [joints.2]   position = ["1.294 in", "4.830 in"]                  # moving joints: where they are drawn
+
+    [links.coupler]  path = ["2", "3", "4"], section = "bar", material = "steel",
+                     segments = 4,          # per part of the path (default solver.tmm.segments)
+                     welded_at = ["5b"],    # ends welded to the joint (default: revolutes)
+                     rigid = false,         # only the crank may be rigid
+                     damping = {ratio, frequency}, point_masses = [{position (along the path), mass | weight}]
+    [plates.plate]   vertices = ["3", "10", "11"], thickness = "0.5 in", material = "steel",
+                     centroid = "9"         # optional: a joint at the plate's centre of mass
+    [sliders.block5] block = "5b", guide = "5", along = "follower"    # a block sliding along a moving link
+    [springs.s]      between = ["4", "11"], stiffness = "100 lbf/in", free_length = "5 in"
+    [loads.p]        joint = "13", force = ["0 lbf", "-100 lbf"], moment = "0 lbf*in"
+
+    [[modules]]                     # in order; each places one joint (and fixes the links that meet there)
+    type = "crank"                  # Shin type 1: the input link
+    link = "crank"
+    [[modules]]
+    type = "rrr"                    # Shin type 2: the dyad, two links meeting at `joint`
+    joint = "4"
+    links = ["coupler", "follower"]
+    [[modules]]
+    type = "rrp"                    # Shin types 3, 5, 6: `joint` of `link` on a slide line: a ground
+    joint = "13"                    # slider support, or a block sliding along a guide link
+    link = "link_13_11"
+    branch = 1                      # optional: +1 / -1; default: the drawn configuration's
+
+**Loops and branches.** Every module closes one loop: a dyad joins two links to joints already
+placed (the main loop first, each sub-loop after the joints it hangs from: Shin's branch
+points), an rrp closes a loop through a slide. A link placed by a module has exactly one joint
+placed before it; its other joints (a ternary link's or a plate's branch points, Shin's type 4
+"solid link") follow from its pose. The branch of each module is the side on which the drawn
+configuration assembles (rrr: the side of the line from the first link's known joint to the
+second's; rrp: the sign of the link's component along the slide), so the linkage moves on the
+branch it is drawn in. Links welded to one another, or to a slider block, move as one body.
+
+The loader turns the crank through a revolution from the drawn position (CCW, 1440 positions) and
+refuses a linkage that cannot assemble there, or whose module comes within 0.5 deg of a toggle
+(it locks), naming the module and the crank angle. The instantaneous structure of
+the transfer-matrix model clamps the crank at its pivot (Shin); a straight link with interior
+joints is split into parts ``name[a-b]`` (gauges, point masses and loads are placed along the
+whole path and land on the part).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from tmm_core import Damping, Link, PointMass, TMMError
+from tmm_core.linkage import (GuidedSlider, LinkageKinematics, LinkageMechanism, Module, Plate, carrier_link,
+                              polygon_properties)
+from tmm_core.structure import Spring
+
+G0 = 9.80665
+SUPPORTS = ("free", "pinned", "slider")
+REVOLUTION_CHECK = 1440
+#: A module whose links come this close to a toggle [deg] somewhere in a revolution locks there
+#: (its joint forces grow without bound): the loader refuses it.
+LOCK_ANGLE_DEG = 0.5
+
+
+def build_mechanism(r, top: dict, materials: dict, sections: dict, viscos: dict, segments: int):
+    """Build the :class:`LinkageMechanism` of a ``type = "linkage"`` scenario. Returns the
+    mechanism and ``gauge_link(key, table) -> (member, position_m)``, which places a gauge given
+    along a link's path on the part that holds it."""
+    from .scenario import _damping as damping_reader
+
+    def mass_reader(d, key):
+        if ("mass" in d) == ("weight" in d):
+            raise r.fail(key, "give exactly one of mass and weight")
+        return (r.quantity(d["mass"], f"{key}.mass", "kg", nonnegative=True) if "mass" in d
+                else r.quantity(d["weight"], f"{key}.weight", "N", nonnegative=True) / G0)
+
+    lk = r.table(top["linkage"], "linkage", {"type", "crank", "crank_zero"}, {"type", "crank"})
+    crank_name = r.text(lk["crank"], "linkage.crank")
+    crank_zero = r.quantity(lk.get("crank_zero", "0 deg"), "linkage.crank_zero", "rad")
+
+    # -- joints ---------------------------------------------------------------------------------
+    joints_raw = r.table(top.get("joints", {}), "joints", set(top.get("joints", {})))
+    if not joints_raw:
+        raise r.fail("joints", "a linkage needs [joints.<name>] tables (positions in the drawn configuration)")
+    positions, support, slide_dir, block_mass = {}, {}, {}, {}
+    for name, d in joints_raw.items():
+        key = f"joints.{name}"
+        d = r.table(d, key, {"position", "support", "direction", "mass", "weight"}, {"position"})
+        pos = r._unwrap(d["position"], f"{key}.position")
+        if not isinstance(pos, list) or len(pos) != 2:
+            raise r.fail(f"{key}.position", "must be a list of two coordinates", pos)
+        positions[name] = np.array([r.quantity(p, f"{key}.position[{i}]", "m") for i, p in enumerate(pos)])
+        support[name] = r.number(d.get("support", "free"), f"{key}.support", choices=SUPPORTS)
+        if support[name] == "slider":
+            slide_dir[name] = r.quantity(d.get("direction", "0 deg"), f"{key}.direction", "rad")
+        elif "direction" in d:
+            raise r.fail(f"{key}.direction", "only a joint with support = 'slider' has a slide direction")
+        if "mass" in d or "weight" in d:
+            if support[name] != "slider":
+                raise r.fail(f"{key}.mass", "only a slider joint carries a block mass (put other masses on links)")
+            block_mass[name] = mass_reader(d, key)
+    jnames = set(positions)
+
+    def joint_ref(value, key):
+        value = r._unwrap(value, key)
+        if not isinstance(value, str) or value not in jnames:
+            raise r.fail(key, f"unknown joint (joints: {', '.join(sorted(jnames))})", value)
+        return value
+
+    ground = {j for j, s in support.items() if s == "pinned"}
+
+    # -- links ----------------------------------------------------------------------------------
+    links_raw = r.table(top["links"], "links", set(top["links"]))
+    if crank_name not in links_raw:
+        raise r.fail("linkage.crank", f"unknown link (links: {', '.join(sorted(links_raw))})", crank_name)
+    paths, welded, link_data = {}, {}, {}
+    for name, d in links_raw.items():
+        key = f"links.{name}"
+        d = r.table(d, key, {"path", "section", "material", "segments", "welded_at", "rigid", "damping",
+                             "point_masses"}, {"path", "section", "material"})
+        route = r._unwrap(d["path"], f"{key}.path")
+        if not isinstance(route, list) or len(route) < 2:
+            raise r.fail(f"{key}.path", "must list at least two joints", route)
+        route = [joint_ref(j, f"{key}.path") for j in route]
+        if len(set(route)) != len(route):
+            raise r.fail(f"{key}.path", "lists a joint twice", route)
+        paths[name] = route
+        welds = r._unwrap(d.get("welded_at", []), f"{key}.welded_at")
+        if not isinstance(welds, list):
+            raise r.fail(f"{key}.welded_at", "must be a list of joints", welds)
+        welded[name] = {joint_ref(j, f"{key}.welded_at") for j in welds}
+        for j in welded[name]:
+            if j not in (route[0], route[-1]):
+                raise r.fail(f"{key}.welded_at", f"joint '{j}' is not an end of the link (interior joints of a path "
+                                                 "are continuous already)", j)
+            if j in ground:
+                raise r.fail(f"{key}.welded_at", f"joint '{j}' is a ground joint: a link welded to the ground does not "
+                                                 "move", j)
+        link_data[name] = d
+    crank_path = paths[crank_name]
+    if support[crank_path[0]] != "pinned":
+        raise r.fail(f"links.{crank_name}.path", "the crank's path must start at its ground pivot (a joint with "
+                                                 f"support 'pinned'); '{crank_path[0]}' is {support[crank_path[0]]}",
+                     crank_path)
+
+    # -- slider blocks on moving guides ------------------------------------------------------------
+    sliders_raw = r.table(top.get("sliders", {}), "sliders", set(top.get("sliders", {})))
+    guided_specs = []
+    for name, d in sliders_raw.items():
+        key = f"sliders.{name}"
+        d = r.table(d, key, {"block", "guide", "along", "mass", "weight"}, {"block", "guide", "along"})
+        along = r.text(d["along"], f"{key}.along")
+        if along not in paths:
+            raise r.fail(f"{key}.along", f"unknown link (links: {', '.join(sorted(paths))})", along)
+        guide = joint_ref(d["guide"], f"{key}.guide")
+        if guide not in paths[along]:
+            raise r.fail(f"{key}.guide", f"joint '{guide}' is not on link '{along}'", guide)
+        block = joint_ref(d["block"], f"{key}.block")
+        if block in paths[along] or support[block] != "free":
+            raise r.fail(f"{key}.block", "the block must be a free joint of its own (not on the guide link)", block)
+        if np.hypot(*(positions[block] - positions[guide])) > 1e-9 * max(1.0, float(np.hypot(*positions[guide]))):
+            raise r.fail(f"{key}.block", f"the block must be drawn at its guide joint '{guide}'", block)
+        mass = mass_reader(d, key) if ("mass" in d or "weight" in d) else 0.0
+        guided_specs.append((name, block, guide, along, mass))
+    blocks = {b: name for name, b, *_ in guided_specs}
+
+    # -- kinematic bodies: links welded together (or to a block) move as one --------------------
+    parent = {n: n for n in list(paths) + [f"slider:{s[0]}" for s in guided_specs]}
+
+    def find(x):
+        while parent[x] != x:
+            x = parent[x]
+        return x
+
+    weld_at = {}
+    for name, js in welded.items():
+        for j in js:
+            weld_at.setdefault(j, []).append(name)
+    for j, names in weld_at.items():
+        group = names + ([f"slider:{blocks[j]}"] if j in blocks else [])
+        for other in group[1:]:
+            ra, rb = find(group[0]), find(other)
+            if ra != rb:
+                parent[rb] = ra
+    groups = {}
+    for n in parent:
+        groups.setdefault(find(n), []).append(n)
+    body_name, bodies = {}, {}
+    for members in groups.values():
+        block = next((m for m in members if m.startswith("slider:")), None)
+        bname = block.split(":", 1)[1] if block else members[0]
+        js = []
+        for m in members:
+            for j in (paths[m] if m in paths else [next(s[1] for s in guided_specs if f"slider:{s[0]}" == m)]):
+                if j not in js:
+                    js.append(j)
+            body_name[m] = bname
+        bodies[bname] = tuple(js)
+
+    # -- plates ---------------------------------------------------------------------------------
+    plates_raw = r.table(top.get("plates", {}), "plates", set(top.get("plates", {})))
+    plate_specs = []
+    for name, d in plates_raw.items():
+        key = f"plates.{name}"
+        if name in bodies or name in paths:
+            raise r.fail(key, "a plate needs a name of its own (a link has it)")
+        d = r.table(d, key, {"vertices", "thickness", "material", "centroid"}, {"vertices", "thickness", "material"})
+        verts = r._unwrap(d["vertices"], f"{key}.vertices")
+        if not isinstance(verts, list) or len(verts) < 3:
+            raise r.fail(f"{key}.vertices", "must list at least three vertex joints, in order around the plate", verts)
+        verts = [joint_ref(v, f"{key}.vertices") for v in verts]
+        mat = materials.get(r.text(d["material"], f"{key}.material"))
+        if mat is None:
+            raise r.fail(f"{key}.material", f"unknown material (defined: {', '.join(sorted(materials)) or 'none'})",
+                         d["material"])
+        thick = r.quantity(d["thickness"], f"{key}.thickness", "m", positive=True)
+        try:
+            mass, centre, inertia = polygon_properties([positions[v] for v in verts], thick, mat.density_kg_m3)
+        except TMMError as exc:
+            raise r.fail(f"{key}.vertices", str(exc), verts) from None
+        if not mass > 0:
+            raise r.fail(f"{key}.material", "the plate has no mass (a material with density is needed)", d["material"])
+        if "centroid" in d:
+            master = joint_ref(d["centroid"], f"{key}.centroid")
+            off = float(np.hypot(*(positions[master] - centre)))
+            if off > 1e-3 * max(float(np.hypot(*(positions[v] - centre))) for v in verts):
+                raise r.fail(f"{key}.centroid", f"joint '{master}' is {off:.4g} m from the plate's centre of mass "
+                                                f"({centre[0]:.6g}, {centre[1]:.6g}) m", master)
+            centre = positions[master]
+        else:
+            master = f"{name}_cm"
+            if master in positions:
+                raise r.fail(key, f"joint name '{master}' is taken; give the plate a centroid joint")
+            positions[master] = centre
+        plate_specs.append((name, verts, master, mass, inertia, mat))
+        bodies[name] = tuple(verts) + (master,)
+
+    # -- modules --------------------------------------------------------------------------------
+    mods_raw = r._unwrap(top.get("modules", []), "modules")
+    if not isinstance(mods_raw, list) or not mods_raw:
+        raise r.fail("modules", "a linkage needs [[modules]]: the ordered closed-form steps that place its joints")
+    link_body = dict(body_name)
+    link_body.update({p[0]: p[0] for p in plate_specs})
+    modules = []
+    for i, m in enumerate(mods_raw):
+        key = f"modules[{i}]"
+        m = r.table(m, key, {"type", "joint", "link", "links", "branch"}, {"type"})
+        kind = r.number(m["type"], f"{key}.type", choices=("crank", "rrr", "rrp"))
+        names = ([r.text(m["link"], f"{key}.link")] if "link" in m else
+                 list(r._unwrap(m.get("links", []), f"{key}.links")))
+        want = 2 if kind == "rrr" else 1
+        if len(names) != want:
+            raise r.fail(f"{key}.{'links' if kind == 'rrr' else 'link'}",
+                         f"a '{kind}' module names {want} link{'s' if want > 1 else ''}", names)
+        for n in names:
+            if n not in link_body:
+                raise r.fail(key, f"unknown link '{n}' (links and plates: {', '.join(sorted(link_body))})", n)
+        bnames = tuple(link_body[n] for n in names)
+        if kind == "crank":
+            if names[0] != crank_name:
+                raise r.fail(f"{key}.link", f"the crank module drives linkage.crank ('{crank_name}')", names[0])
+            joint = crank_path[1]
+        else:
+            if "joint" not in m:
+                raise r.fail(f"{key}.joint", "is required (the joint the module places)")
+            joint = joint_ref(m["joint"], f"{key}.joint")
+        branch = r.number(m.get("branch", 0), f"{key}.branch", int)
+        if branch not in (-1, 0, 1):
+            raise r.fail(f"{key}.branch", "must be 1 or -1 (or left out: the drawn configuration's)", branch)
+        try:
+            modules.append(Module(kind, joint, bnames, branch))
+        except TMMError as exc:
+            raise r.fail(key, str(exc)) from None
+    if modules[0].kind != "crank":
+        raise r.fail("modules[0].type", "the first module is the crank", mods_raw[0].get("type"))
+
+    guided = {}
+    for name, block, guide, along, mass in guided_specs:
+        a, b = _part_ends(paths[along], guide)
+        d = positions[b] - positions[a]
+        guided[body_name[f"slider:{name}"]] = (body_name[along], math.atan2(d[1], d[0]))
+    try:
+        kin = LinkageKinematics({k: tuple(v) for k, v in positions.items()}, bodies, tuple(sorted(ground)),
+                                body_name[crank_name], crank_path[0], crank_path[1], tuple(modules), crank_zero,
+                                slide_dir, guided, name=f"linkage '{r.path}'")
+    except TMMError as exc:
+        raise r.fail("modules", str(exc)) from None
+    try:
+        # Turned CCW from the drawn position: the first position that fails is where it locks.
+        kin.solve(kin.reference_crank_angle + np.linspace(0.0, 2 * math.pi, REVOLUTION_CHECK, endpoint=False),
+                  lock_tolerance=math.sin(math.radians(LOCK_ANGLE_DEG)))
+    except TMMError as exc:
+        raise r.fail("modules", f"the crank cannot turn a full revolution: {exc}") from None
+
+    # -- members (link parts) -------------------------------------------------------------------
+    members, frames, part_of = [], {}, {}
+    for name, route in paths.items():
+        d, key = link_data[name], f"links.{name}"
+        sec = sections.get(r.text(d["section"], f"{key}.section"))
+        if sec is None:
+            raise r.fail(f"{key}.section", f"unknown section (defined: {', '.join(sorted(sections)) or 'none'})",
+                         d["section"])
+        mat_name = r.text(d["material"], f"{key}.material")
+        mat = materials.get(mat_name)
+        if mat is None:
+            raise r.fail(f"{key}.material", f"unknown material (defined: {', '.join(sorted(materials)) or 'none'})",
+                         mat_name)
+        n = r.number(d.get("segments", segments), f"{key}.segments", int, positive=True)
+        rigid = r.number(d.get("rigid", False), f"{key}.rigid", bool)
+        if rigid and (name != crank_name or len(route) != 2):
+            raise r.fail(f"{key}.rigid", "only a binary crank can be rigid (the transfer-matrix model welds it to its "
+                                         "clamped pivot, so its far joint becomes a fixed pin)", True)
+        if rigid and "damping" in d:
+            raise r.fail(f"{key}.damping", "a rigid link has no elastic motion to damp; remove it", d["damping"])
+        damping = damping_reader(r, d["damping"], f"{key}.damping") if "damping" in d else Damping()
+        lengths = [float(np.hypot(*(positions[b] - positions[a]))) for a, b in zip(route[:-1], route[1:])]
+        for (a, b), L in zip(zip(route[:-1], route[1:]), lengths):
+            if L <= 0:
+                raise r.fail(f"{key}.path", f"joints '{a}' and '{b}' coincide", route)
+        starts = np.concatenate([[0.0], np.cumsum(lengths)])
+        pms = r._unwrap(d.get("point_masses", []), f"{key}.point_masses")
+        if not isinstance(pms, list):
+            raise r.fail(f"{key}.point_masses", "must be a list of tables", pms)
+        masses = [[] for _ in lengths]
+        for i, pm in enumerate(pms):
+            pk = f"{key}.point_masses[{i}]"
+            p = r.table(pm, pk, {"position", "mass", "weight", "label"}, {"position"})
+            x = r.quantity(p["position"], f"{pk}.position", "m", nonnegative=True)
+            k = _part_index(starts, x)
+            if k is None:
+                raise r.fail(f"{pk}.position", f"lies beyond the end of link '{name}' ({starts[-1]:.6g} m)",
+                             p["position"])
+            masses[k].append(PointMass(float(np.clip(x - starts[k], 0.0, lengths[k])), mass_reader(p, pk), 0.0,
+                                       str(p.get("label", f"{name} mass {i}"))))
+        names = []
+        for k, (a, b) in enumerate(zip(route[:-1], route[1:])):
+            mname = name if len(route) == 2 else f"{name}[{a}-{b}]"
+            extra = []
+            for j in (a, b):          # a slider block's mass sits on the first link end at the block
+                if j in block_mass and not any(j in (mm[1], mm[2]) for mm in members):
+                    extra.append(PointMass(0.0 if j == a else lengths[k], block_mass.pop(j), 0.0, f"slider block {j}"))
+                for sname, blk, _, _, smass in guided_specs:
+                    if blk == j and smass > 0 and not any(j in (mm[1], mm[2]) for mm in members):
+                        extra.append(PointMass(0.0 if j == a else lengths[k], smass, 0.0, f"slider block {sname}"))
+            try:
+                link = Link(mname, lengths[k], sec, mat, n, tuple(masses[k]) + tuple(extra), damping,
+                            None if rigid else viscos.get(mat_name), rigid=rigid)
+            except TMMError as exc:
+                raise r.fail(key, str(exc)) from None
+            ca = "rigid" if (k > 0 or a in welded[name] or (name == crank_name and k == 0)) else "pin"
+            cb = "rigid" if (k < len(route) - 2 or b in welded[name]) else "pin"
+            members.append((link, a, b, ca, cb))
+            frames[mname] = body_name[name]
+            names.append(mname)
+        part_of[name] = (names, starts)
+    for j in block_mass:
+        raise r.fail(f"joints.{j}.mass", "no link ends at this slider joint")
+
+    stiffest = max((m[0] for m in members), key=lambda l: l.material.E_Pa * l.section.inertia_m4)
+    plates = []
+    for name, verts, master, mass, inertia, mat in plate_specs:
+        L = float(np.hypot(*(positions[verts[0]] - positions[master])))
+        members.append((carrier_link(name, L, stiffest.section, mass, inertia, mat.E_Pa), master, verts[0], "rigid",
+                        "pin"))
+        frames[name] = name
+        plates.append(Plate(name, tuple(verts), master, mass, inertia, name))
+    sliders = []
+    for name, block, guide, along, _ in guided_specs:
+        names, _ = part_of[along]
+        a, b = _part_ends(paths[along], guide)
+        part = names[0] if len(names) == 1 else f"{along}[{a}-{b}]"
+        sliders.append(GuidedSlider(name, block, guide, part))
+
+    # -- springs and loads ------------------------------------------------------------------------
+    springs = []
+    for name, d in r.table(top.get("springs", {}), "springs", set(top.get("springs", {}))).items():
+        key = f"springs.{name}"
+        d = r.table(d, key, {"between", "stiffness", "free_length"}, {"between", "stiffness", "free_length"})
+        ends = r._unwrap(d["between"], f"{key}.between")
+        if not isinstance(ends, list) or len(ends) != 2:
+            raise r.fail(f"{key}.between", "must list two joints", ends)
+        a, b = joint_ref(ends[0], f"{key}.between"), joint_ref(ends[1], f"{key}.between")
+        if a == b:
+            raise r.fail(f"{key}.between", "a spring needs two different joints", ends)
+        springs.append(Spring(name, a, b, r.quantity(d["stiffness"], f"{key}.stiffness", "N/m", positive=True),
+                              r.quantity(d["free_length"], f"{key}.free_length", "m", nonnegative=True)))
+    loads = {}
+    for name, d in r.table(top.get("loads", {}), "loads", set(top.get("loads", {}))).items():
+        key = f"loads.{name}"
+        d = r.table(d, key, {"joint", "force", "moment"}, {"joint"})
+        f = r._unwrap(d.get("force", ["0 N", "0 N"]), f"{key}.force")
+        if not isinstance(f, list) or len(f) != 2:
+            raise r.fail(f"{key}.force", "must be a list of two force components", f)
+        vec = np.array([r.quantity(f[0], f"{key}.force[0]", "N"), r.quantity(f[1], f"{key}.force[1]", "N"),
+                        r.quantity(d.get("moment", "0 N*m"), f"{key}.moment", "N*m")])
+        j = joint_ref(d["joint"], f"{key}.joint")
+        target = next(((m[0], 0 if m[1] == j else m[0].total_segments) for m in members
+                       if j in (m[1], m[2]) and not m[0].rigid and m[0].name not in plates_named(plates)), None)
+        if target is None:
+            raise r.fail(f"{key}.joint", "no flexible link ends at this joint", j)
+        link, node = target
+        loads.setdefault(link.name, np.zeros((link.n_nodes, 3)))[node] += vec
+
+    try:
+        mech = LinkageMechanism(kin, tuple(members), frames,
+                                {j: s for j, s in support.items() if s != "free"}, tuple(plates), tuple(sliders),
+                                tuple(springs), loads, name=f"linkage '{r.path}'")
+        mech.structure()
+    except TMMError as exc:
+        raise r.fail("linkage", str(exc)) from None
+
+    def gauge_link(key, gd):
+        link = r.text(gd["link"], f"{key}.link")
+        if link not in part_of:
+            raise r.fail(f"{key}.link", f"unknown link (links: {', '.join(sorted(part_of))})", link)
+        if any(m[0].rigid for m in members if m[0].name in part_of[link][0]):
+            raise r.fail(f"{key}.link", f"the {link} is rigid (links.{link}.rigid = true): a rigid link has no strain",
+                         link)
+        x = r.quantity(gd["position"], f"{key}.position", "m", nonnegative=True)
+        names, starts = part_of[link]
+        k = _part_index(starts, x)
+        if k is None:
+            raise r.fail(f"{key}.position", f"lies beyond the end of the {link} ({starts[-1]:.6g} m)", gd["position"])
+        return names[k], float(np.clip(x - starts[k], 0.0, starts[k + 1] - starts[k]))
+    return mech, gauge_link
+
+
+def plates_named(plates) -> set:
+    return {p.name for p in plates}
+
+
+def _part_index(starts, x):
+    """Index of the part of a path (part k from starts[k] to starts[k+1]) that holds ``x``; a
+    joint between two parts belongs to the part that ends there."""
+    tol = 1e-6 * float(starts[-1])          # joint coordinates are written to a few significant digits
+    if x > starts[-1] + tol:
+        return None
+    return int(min(len(starts) - 2, max(0, np.searchsorted(starts, x - tol, side="left") - 1)))
+
+
+def _part_ends(route, guide):
+    """The part of a path that a slider runs along at joint ``guide``: the first part with an end
+    there (as in :mod:`cosim.structure_scenario`)."""
+    i = route.index(guide)
+    return (route[i - 1], route[i]) if i > 0 else (route[0], route[1])
