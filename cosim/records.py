@@ -51,14 +51,21 @@ import numpy as np
 
 from tmm_core import InputError
 
+from .units import UnitError, factor, to_si
+
 RECORD_DIR = Path(__file__).resolve().parent.parent / "scenarios" / "records"
 KINDS = ("measurement", "published_model", "published_comparison", "synthetic")
 FORMATS = ("history", "peaks", "values")
 QUANTITIES = ("bending", "axial", "surface", "deflection", "raw", "trigger")
-STRAIN_UNITS = {"microstrain": 1.0, "ue": 1.0, "µε": 1.0, "uin/in": 1.0, "µin/in": 1.0, "um/m": 1.0,
-                "strain": 1e6, "in/in": 1e6, "m/m": 1e6, "mm/mm": 1e6}
-LENGTH_UNITS = {"m": 1.0, "mm": 1e-3, "um": 1e-6, "in": 0.0254, "mil": 2.54e-5, "ft": 0.3048}
 RAW_UNITS = ("V", "mV", "counts")
+
+
+def _is_unit(unit: str, kind: str) -> bool:
+    try:
+        factor(unit, kind)
+        return True
+    except UnitError:
+        return False
 
 
 class RecordError(InputError):
@@ -128,11 +135,9 @@ def _fail(path, msg, line=None, column=None) -> RecordError:
 
 def _quantity_value(text, path, key, unit_kind):
     """'373 rpm' -> rpm; '2751 Hz' -> Hz; '0 deg' -> deg (simple, strict)."""
-    from .scenario import UREG
     try:
-        q = UREG.Quantity(str(text).replace("^", "**"))
-        return float(q.to(unit_kind).magnitude)
-    except Exception:
+        return to_si(text, unit_kind)
+    except UnitError:
         raise _fail(path, f"key '{key}' = {text!r}: expected a quantity in {unit_kind}") from None
 
 
@@ -175,17 +180,17 @@ def _check_unit(path, key, ch_unit, quantity, calibration):
     if quantity == "trigger":
         return
     if quantity == "raw":
-        if ch_unit not in RAW_UNITS and ch_unit not in STRAIN_UNITS and ch_unit not in LENGTH_UNITS:
+        if ch_unit not in RAW_UNITS and not _is_unit(ch_unit, "microstrain") and not _is_unit(ch_unit, "m"):
             raise _fail(path, f"key '{key}.unit' = {ch_unit!r}: a raw channel is in V, mV or counts")
         if calibration is None:
             raise _fail(path, f"key '{key}.calibration' is required for a raw channel (physical units per {ch_unit})")
         return
     if quantity == "deflection":
-        if ch_unit not in LENGTH_UNITS:
-            raise _fail(path, f"key '{key}.unit' = {ch_unit!r}: not a length unit ({', '.join(LENGTH_UNITS)})")
+        if not _is_unit(ch_unit, "m"):
+            raise _fail(path, f"key '{key}.unit' = {ch_unit!r}: not a length unit (e.g. m, mm, in, mil)")
         return
-    if ch_unit not in STRAIN_UNITS:
-        raise _fail(path, f"key '{key}.unit' = {ch_unit!r}: not a strain unit ({', '.join(STRAIN_UNITS)})")
+    if not _is_unit(ch_unit, "microstrain"):
+        raise _fail(path, f"key '{key}.unit' = {ch_unit!r}: not a strain unit (e.g. microstrain, ue, µε, in/in)")
 
 
 def load_record(path) -> Record:
@@ -232,9 +237,9 @@ def load_record(path) -> Record:
             if d["quantity"] not in ("bending", "axial"):
                 raise _fail(data_path, f"quantity must be bending or axial, got {d['quantity']!r}", line=line,
                             column="quantity")
-            if d["unit"] not in STRAIN_UNITS:
+            if not _is_unit(d["unit"], "microstrain"):
                 raise _fail(data_path, f"{d['unit']!r} is not a strain unit", line=line, column="unit")
-            d["value_ue"] = d["value"] * STRAIN_UNITS[d["unit"]]
+            d["value_ue"] = d["value"] * factor(d["unit"], "microstrain")
         out.append(d)
     return Record(**common, rows=tuple(out))
 
@@ -338,10 +343,10 @@ def history_over_angle(record: Record) -> dict:
             continue
         v = record.data[c.column]
         if c.quantity == "deflection":
-            v = v * LENGTH_UNITS[c.unit]
+            v = v * factor(c.unit, "m")
             key = "deflection_m"
         else:
-            v = v * STRAIN_UNITS[c.unit]
+            v = v * factor(c.unit, "microstrain")
             key = f"{c.quantity}_ue"
         out.setdefault(c.gauge or c.column, {})[key] = v
     return out
@@ -466,10 +471,10 @@ def ingest(record: Record, cutoff_Hz: float | None = None, n_bins: int = 360, dr
             continue
         x = record.data[c.column]
         if c.quantity == "raw":
-            x = x * c.calibration * STRAIN_UNITS.get(c.calibration_unit or "microstrain", 1.0)
+            x = x * c.calibration * factor(c.calibration_unit or "microstrain", "microstrain")
             q = "surface"
         else:
-            x = x * STRAIN_UNITS.get(c.unit, 1.0)
+            x = x * factor(c.unit, "microstrain")
             q = c.quantity
         x = remove_drift(t, x, marks, drift_order)
         if cutoff_Hz:

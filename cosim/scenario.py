@@ -59,7 +59,6 @@ of every engine's step.
 from __future__ import annotations
 
 import math
-import re
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -71,8 +70,7 @@ from tmm_core import (Coupling, Damping, FourBarMechanism, Gauge, InputError, Li
                       SliderCrankMechanism, StandardLinearSolid, TMMError)
 from tmm_core.mechanism import EndBlock
 
-UREG = pint.UnitRegistry()
-_NUMBER = re.compile(r"^\s*\(*\s*[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?")
+from .units import UREG, has_number, quantity as _parse_quantity  # noqa: E402  the one unit system
 G0 = 9.80665
 SCENARIO_DIR = Path(__file__).resolve().parent.parent / "scenarios"
 
@@ -264,15 +262,13 @@ class _Reader:
             else:
                 raise self.fail(key, f"has no unit; write it with one, e.g. '{raw} {_example_unit(unit)}'", raw)
         elif isinstance(raw, str):
-            if not _NUMBER.match(raw):
+            if not has_number(raw):
                 # pint reads a bare unit ("rpm", "psi") as one of it: a number is required.
                 raise self.fail(key, f"has no number; write a number and a unit, e.g. '1 {_example_unit(unit)}'", raw)
             try:
-                parsed = UREG.Quantity(raw.replace("^", "**"))
-            except Exception:
+                parsed = _parse_quantity(raw)
+            except ValueError:
                 raise self.fail(key, "is not a quantity with a unit", raw) from None
-            if not isinstance(parsed, pint.Quantity):
-                parsed = UREG.Quantity(parsed, "")
             target = UREG.Quantity(1, unit)
             if parsed.dimensionless and not target.dimensionless:
                 raise self.fail(key, f"has no unit; write it with one, e.g. '{raw} {_example_unit(unit)}'", raw)
@@ -633,7 +629,7 @@ def _step(r: _Reader, value, key: str) -> float:
     """A time step in seconds, or a crank angle converted with the drive speed."""
     raw = r._unwrap(value, key)
     try:
-        q = UREG.Quantity(str(raw).replace("^", "**")) if isinstance(raw, str) else None
+        q = _parse_quantity(raw) if isinstance(raw, str) else None
     except Exception:
         q = None
     if isinstance(q, pint.Quantity) and q.dimensionality == UREG.Quantity(1, "rad").dimensionality and \
@@ -701,7 +697,7 @@ def _motor(r: _Reader, data, drive: DriveSpec, mech):
     if "supply_voltage" in d:
         values["supply_voltage_V"] = r.quantity(d["supply_voltage"], "motor.supply_voltage", "V", positive=True)
     elif "rated_voltage" in d:
-        values["supply_voltage_V"] = UREG.Quantity(str(r._unwrap(d["rated_voltage"], "")).replace("^", "**")).to("V").m
+        values["supply_voltage_V"] = r.quantity(d["rated_voltage"], "motor.rated_voltage", "V", positive=True)
     else:
         raise r.fail("motor.supply_voltage", "is required (or give rated_voltage)")
     values["gear_ratio"] = r.number(d.get("gear_ratio", 1.0), "motor.gear_ratio", positive=True)
@@ -777,7 +773,7 @@ def _tmm_settings(r: _Reader, data) -> TMMSettings:
     if "step" in d:
         raw = r._unwrap(d["step"], "solver.tmm.step")
         try:
-            q = UREG.Quantity(str(raw).replace("^", "**")) if isinstance(raw, str) and _NUMBER.match(raw) else None
+            q = _parse_quantity(raw) if isinstance(raw, str) else None
         except Exception:
             q = None              # r.quantity below names the key and the value
         if q is not None and isinstance(q, pint.Quantity) and q.dimensionality == UREG.Quantity(1, "s").dimensionality:

@@ -297,10 +297,10 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
 
 def _quantity(option: str, text: str, kind: str):
     """``text`` as a pint quantity of kind 'length' or 'angle'; a bare number is refused."""
-    from .scenario import UREG
+    from .units import UREG, quantity
     example = {"length": "in", "angle": "deg"}[kind]
     try:
-        q = UREG.Quantity(text.replace("^", "**"))
+        q = quantity(text)
     except Exception:
         raise InputError(f"option {option} = {text!r}: not a quantity with a unit, e.g. '11 {example}'") from None
     if not hasattr(q, "units") or q.units == UREG.dimensionless:      # "81 %" has a unit: refused below
@@ -328,10 +328,10 @@ def _case_inputs(args) -> dict:
 
 def _scaled(value, ratio: float):
     """A position along a link written with a unit (string or {value = ...}), times ``ratio``."""
-    from .scenario import UREG
+    from .units import quantity
     if isinstance(value, dict):
         return value | {"value": _scaled(value["value"], ratio)}
-    q = UREG.Quantity(value.replace("^", "**")) * ratio if isinstance(value, str) else None
+    q = quantity(value) * ratio if isinstance(value, str) else None
     return value if q is None else f"{q.magnitude:.6g} {q.units:~}"     # a bare number is left to the loader
 
 
@@ -341,7 +341,8 @@ def write_scenario(result: FourBarSynthesis, path: Path, like: str, unit) -> Pat
     mid-span gauge stays mid-span); ``scenario.rig`` is dropped, its records are of another linkage."""
     import tomli_w
 
-    from .scenario import UREG, from_dict, load
+    from .scenario import from_dict, load
+    from .units import UREG
     base = load(like)
     if base.raw.get("linkage", {}).get("type") != "four-bar":
         raise InputError(f"option --like = {like!r}: is not a four-bar scenario")
@@ -368,7 +369,7 @@ def write_scenario(result: FourBarSynthesis, path: Path, like: str, unit) -> Pat
 
 def run_command(args) -> int:
     """``cosim synthesize``: solve, print (table or one JSON object), optionally write a scenario."""
-    from .scenario import UREG
+    from .units import UREG
     ground = _quantity("--ground", args.ground, "length")
     oscillation = float(_quantity("--oscillation", args.oscillation, "angle").to("rad").magnitude)
     inputs = _case_inputs(args)
