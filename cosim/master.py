@@ -376,6 +376,8 @@ class CoSimulation:
             raise InputError(f"drive mode must be one of {MODES}, got {self.mode!r}")
         if self.mode == "motor" and scenario.motor is None:
             raise InputError(f"scenario '{scenario.name}' has no [motor] table; run it in 'prescribed' mode or add one")
+        if self.mode == "motor":
+            scenario.motor.check_setpoint()
         if not scenario.drive.speed_rad_s:
             raise InputError(f"scenario '{scenario.name}': drive.speed (the crank speed or set-point) must not be zero")
         self.coupling = coupling or scenario.coupling

@@ -118,6 +118,10 @@ class MotorParameters:
             raise InputError(f"motor shaft_stiffness_Nm_rad must be positive, got {self.shaft_stiffness_Nm_rad!r}")
         if self.rotor_inertia_kg_m2 + self.flywheel_inertia_kg_m2 <= 0:
             raise InputError("motor rotor_inertia_kg_m2 and flywheel_inertia_kg_m2 cannot both be zero")
+
+    def check_setpoint(self) -> None:
+        """Refuse a set-point the supply cannot reach. Checked when the motor drives a run (a
+        scenario run at a prescribed speed keeps its [motor] table for later without it)."""
         top = self.no_load_crank_speed()
         if self.setpoint.peak > top:
             raise InputError(f"motor setpoint {self.setpoint.peak:.6g} rad/s ({self.setpoint.peak * 30 / math.pi:.5g} "

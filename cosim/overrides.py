@@ -5,8 +5,10 @@ sets each key path in the scenario's TOML tree (a copy) and loads it again, so e
 validated by the loader with its usual messages (which name the key). A path names tables with
 dots and list items with ``[i]`` (``links.coupler.point_masses[0].weight``). A ``{value = ...,
 assumption = ...}`` table keeps its provenance and takes the new value. A path whose parent table
-does not exist is refused, naming the path; a new key in an existing table is allowed (the loader
-then refuses it if the table does not know it).
+does not exist is refused, naming the path, except a top-level table or one table below it
+(``solver.exudyn``), which the loader then validates; a new key in an existing table is allowed
+(the loader refuses it if the table does not know it). The value ``None`` removes the key, so
+its default applies again (``{"motor": None}`` drops the motor table).
 
 Owns: key-path editing of scenario trees. Used by sweeps, uncertainty bands, the rigs of the
 scripts and tests; nothing else edits ``Scenario.raw``.
@@ -42,14 +44,16 @@ def set_key(raw: dict, key: str, value) -> None:
         if not isinstance(node, dict):
             raise OverrideError(f"key '{key}': '{'.'.join(parts[:i])}' is not a table")
         if last:
-            if isinstance(node.get(part), dict) and "value" in node[part]:
+            if value is None:
+                node.pop(part, None)
+            elif isinstance(node.get(part), dict) and "value" in node[part]:
                 node[part] = dict(node[part], value=value)
             else:
                 node[part] = value
             return
         if part not in node:
-            if i == 0:
-                node[part] = {}          # a top-level table the file does not have yet
+            if i <= 1:
+                node[part] = {}          # a table the file does not have yet (e.g. solver.exudyn)
             else:
                 raise OverrideError(f"key '{key}': there is no table '{'.'.join(parts[:i + 1])}'")
         node = node[part]

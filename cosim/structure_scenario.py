@@ -79,7 +79,7 @@ def build(r, top: dict, path: str, default_name: str, materials: dict, sections:
     jnames = set(positions)
 
     def joint_ref(value, key):
-        value = r._unwrap(value, key)
+        value = r.unwrap(value, key)
         if not isinstance(value, str) or value not in jnames:
             raise r.fail(key, f"unknown joint (joints: {', '.join(sorted(jnames))})", value)
         return value
@@ -90,7 +90,7 @@ def build(r, top: dict, path: str, default_name: str, materials: dict, sections:
     for name, d in links_raw.items():
         key = f"links.{name}"
         d = r.table(d, key, {"path", "section", "material", "segments", "welded_at"}, {"path", "section", "material"})
-        route = r._unwrap(d["path"], f"{key}.path")
+        route = r.unwrap(d["path"], f"{key}.path")
         if not isinstance(route, list) or len(route) < 2:
             raise r.fail(f"{key}.path", "must list at least two joints", route)
         route = [joint_ref(j, f"{key}.path") for j in route]
@@ -103,7 +103,7 @@ def build(r, top: dict, path: str, default_name: str, materials: dict, sections:
             raise r.fail(f"{key}.material", f"unknown material (defined: {', '.join(sorted(materials)) or 'none'})",
                          d["material"])
         n = r.number(d.get("segments", 4), f"{key}.segments", int, positive=True)
-        welded = {joint_ref(j, f"{key}.welded_at") for j in r._unwrap(d.get("welded_at", []), f"{key}.welded_at")}
+        welded = {joint_ref(j, f"{key}.welded_at") for j in r.unwrap(d.get("welded_at", []), f"{key}.welded_at")}
         names = []
         for i, (a, b) in enumerate(zip(route[:-1], route[1:])):
             L = float(np.linalg.norm(positions[b] - positions[a]))
@@ -121,7 +121,7 @@ def build(r, top: dict, path: str, default_name: str, materials: dict, sections:
     for name, d in r.table(top.get("plates", {}), "plates", set(top.get("plates", {}))).items():
         key = f"plates.{name}"
         d = r.table(d, key, {"centroid", "vertices"}, {"centroid", "vertices"})
-        verts = r._unwrap(d["vertices"], f"{key}.vertices")
+        verts = r.unwrap(d["vertices"], f"{key}.vertices")
         if not isinstance(verts, list) or not verts:
             raise r.fail(f"{key}.vertices", "must list the plate's vertex joints", verts)
         for v in verts:
@@ -134,7 +134,7 @@ def build(r, top: dict, path: str, default_name: str, materials: dict, sections:
     for name, d in r.table(top.get("springs", {}), "springs", set(top.get("springs", {}))).items():
         key = f"springs.{name}"
         d = r.table(d, key, {"between", "stiffness", "free_length"}, {"between", "stiffness", "free_length"})
-        ends = r._unwrap(d["between"], f"{key}.between")
+        ends = r.unwrap(d["between"], f"{key}.between")
         if not isinstance(ends, list) or len(ends) != 2:
             raise r.fail(f"{key}.between", "must list two joints", ends)
         springs.append(Spring(name, joint_ref(ends[0], f"{key}.between"), joint_ref(ends[1], f"{key}.between"),

@@ -7,13 +7,12 @@ local cores, or, given a scheduler address, a Dask distributed cluster (``Client
 so a sweep that outgrows one machine needs an address, not new code.
 
 Output folder ``logs/<scenario>-sweep-<timestamp>/``: ``sweep.csv`` (one row per speed, engine
-and gauge), ``summary.json`` and ``sweep.rrd`` (peaks against speed; the sequence timeline
-``crank_speed_rpm`` carries the speed). Rows are appended as points finish, so an interrupted
-sweep keeps what it computed.
+and gauge), ``summary.json`` and ``sweep.rrd`` (peaks, Floquet multipliers and natural frequencies
+against speed as 2D charts, :mod:`cosim.recording.summaries`). Rows are appended as points
+finish, so an interrupted sweep keeps what it computed.
 """
 from __future__ import annotations
 
-import copy
 import logging
 import math
 import re
@@ -25,6 +24,7 @@ import numpy as np
 
 from .parallel import describe, executor
 from .runlog import run_folder, write_csv, write_json
+from .overrides import apply_overrides
 from .scenario import ScenarioError, from_dict, load
 
 log = logging.getLogger(__name__)
@@ -60,11 +60,7 @@ def sweep_point(raw: dict, path: str, rpm: float, engines: tuple, revolutions: f
     from .master import CoSimulation
     from .run import last_revolution_stats
 
-    data = copy.deepcopy(raw)
-    data.setdefault("drive", {})["speed"] = f"{rpm} rpm"
-    data["drive"]["mode"] = "prescribed"
-    data.pop("motor", None)         # prescribed speed: the drive's limits do not apply
-    sc = from_dict(data, path)
+    sc = from_dict(apply_overrides(raw, {"drive.speed": f"{rpm} rpm", "drive.mode": "prescribed"}), path)
     out = {"rpm": rpm, "engines": {}}
     tic = time.perf_counter()
     marched = tuple(e for e in engines if not (e == "tmm" and method == "periodic"))
@@ -221,51 +217,13 @@ def run_sweep(scenario: str, rpm, engines=("tmm",), revolutions: float | None = 
                                                                 record_peaks=record_peaks)]
     write_json(folder / "summary.json", summary)
     if record and points:
-        _record(folder / "sweep.rrd", sc.name, summary["points"], fmap, (float(rpms.min()), float(rpms.max())))
+        _record(folder / "sweep.rrd", sc.name, summary["points"], fmap, (float(rpms.min()), float(rpms.max())),
+                record_peaks)
     return folder, summary
 
 
-def _record(path: Path, name: str, points: list, fmap=None, rpm_range=None) -> None:
-    """Peaks against speed in rerun (one multi-series entity per engine and gauge)."""
-    import rerun as rr
-    import rerun.blueprint as rrb
-
-    rec = rr.RecordingStream("flexlink-bench-sweep", recording_id=f"{name}-sweep")
-    rec.save(str(path))
-    points = [p for p in points if p.get("rpm") is not None]
-    views = []
-    series = {}
-    for p in points:
-        for engine, e in p["engines"].items():
-            for g, s in (e.get("gauges") or {}).items():
-                series.setdefault((engine, g), []).append((p["rpm"], s["bending_max_ue"], s["bending_min_ue"]))
-    for (engine, g), values in sorted(series.items()):
-        values = np.array(sorted(values))
-        entity = f"/{engine}/peaks/{g}"
-        rec.log(entity, rr.SeriesLines(names=[f"{engine} +peak bending [µε]", f"{engine} -peak bending [µε]"]),
-                static=True)
-        rec.send_columns(entity, indexes=[rr.TimeColumn("crank_speed_rpm", sequence=np.rint(values[:, 0]).astype(int))],
-                         columns=rr.Scalars.columns(scalars=values[:, 1:]))
-    floq = [(p["rpm"], p["engines"]["tmm"]["floquet_max"]) for p in points
-            if (p["engines"].get("tmm") or {}).get("floquet_max") is not None]
-    if floq:
-        floq = np.array(sorted(floq))
-        rec.log("/tmm/floquet", rr.SeriesLines(names=["tmm largest |Floquet multiplier| (>1: parametric resonance)"]),
-                static=True)
-        rec.send_columns("/tmm/floquet", indexes=[rr.TimeColumn("crank_speed_rpm", sequence=np.rint(floq[:, 0]).astype(int))],
-                         columns=rr.Scalars.columns(scalars=floq[:, 1]))
-    for g in sorted({g for _, g in series}):
-        views.append(rrb.TimeSeriesView(name=f"{g}: peak bending vs speed [rpm]",
-                                        contents=[f"/{e}/peaks/{g}" for e, gg in series if gg == g]))
-    if floq is not None and len(floq):
-        views.append(rrb.TimeSeriesView(name="largest Floquet multiplier vs speed [rpm]", contents=["/tmm/floquet"]))
-    if fmap is not None:
-        from .resonance import record_map
-        record_map(rec, fmap, rpm_range)
-        views.append(rrb.TimeSeriesView(name="Campbell: harmonics and mode bands [Hz] vs speed [rpm]",
-                                        contents=["/tmm/campbell/**"]))
-        views.append(rrb.TimeSeriesView(name="natural frequencies [Hz] vs crank angle [mdeg]",
-                                        contents=["/tmm/frequencies"]))
-    if views:
-        rec.send_blueprint(rrb.Blueprint(rrb.Vertical(*views), collapse_panels=True))
-    rec.flush()
+def _record(path: Path, name: str, points: list, fmap=None, rpm_range=None, record_peaks=()) -> None:
+    """Peaks, Floquet multipliers and natural frequencies against speed as 2D charts in rerun
+    (:func:`cosim.recording.summaries.sweep_recording`)."""
+    from .recording.summaries import sweep_recording
+    sweep_recording(path, name, points, fmap, rpm_range, record_peaks)

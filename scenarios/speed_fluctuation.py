@@ -11,7 +11,6 @@ revolution, with and without the flywheels. Writes ``fluctuation.csv`` and ``sum
 from __future__ import annotations
 
 import argparse
-import copy
 import dataclasses
 import math
 import sys
@@ -45,10 +44,7 @@ def main(argv=None) -> int:
         if s.motor is None:
             print(f"{name}: no [motor] table, skipped", file=sys.stderr)
             continue
-        raw = copy.deepcopy(s.raw)
-        raw["motor"].pop("flywheels", None)
-        raw["motor"].pop("flywheel_inertia", None)
-        bare = sc.from_dict(raw, f"{name} without flywheels")
+        bare = s.with_overrides({"motor.flywheels": []})
         for label, scen in (("with flywheels", s), ("without flywheels", bare)):
             r = fluctuation(scen, args.engine, args.revolutions)
             rows.append({"scenario": name, "flywheels": label, "setpoint_rpm": abs(s.drive.speed_rad_s) * 30 / math.pi,

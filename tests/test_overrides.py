@@ -34,3 +34,12 @@ def test_bad_overrides_are_refused_naming_the_key(key, value, named):
 def test_a_bare_unit_or_text_without_a_number_is_refused(key, value):
     with pytest.raises(ScenarioError, match=rf"key '{key}'.*(no number|not a quantity)"):
         load("crank_rocker_373rpm").with_overrides({key: value})
+
+
+def test_none_removes_a_key_and_a_solver_table_can_be_added():
+    base = load("crank_rocker_373rpm")
+    assert base.motor is not None
+    bare = base.with_overrides({"motor": None, "drive.mode": "prescribed"})
+    assert bare.motor is None
+    v = base.with_overrides({"solver.exudyn.elements": 6})
+    assert v.raw["solver"]["exudyn"]["elements"] == 6

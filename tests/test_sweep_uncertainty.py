@@ -83,28 +83,28 @@ def test_sweep_peaks_match_time_marching_at_five_speeds(sweep):
             assert stats["bending_min_ue"] == pytest.approx(b.min(), rel=0.01, abs=1e-3)
 
 
+def _with_unknowns(tmp_path, name, parameters, samples):
+    """The light rig with only these declared unknowns (the base file declares more)."""
+    return load(_light(tmp_path, name)).with_overrides(
+        {"uncertainty": {"samples": samples, "seed": 1, "parameters": parameters}})
+
+
+# The three unknowns of the first band (issue 9): damping, bearing weight per end or total, modulus.
+FIRST_UNKNOWNS = {
+    "damping": {"keys": ["links.coupler.damping.ratio", "links.rocker.damping.ratio"], "distribution": "uniform",
+                "low": "1 %", "high": "5 %", "unit": "%"},
+    "bearing_weight": {"keys": ["links.coupler.point_masses[0].weight", "links.coupler.point_masses[1].weight"],
+                       "distribution": "choice", "values": ["0.13128 lbf", "0.06564 lbf"]},
+    "modulus": {"keys": ["materials.aluminium.E"], "distribution": "uniform", "low": "9.9e6 psi",
+                "high": "10.7e6 psi", "unit": "psi"},
+}
+
+
 def test_uncertainty_with_zero_spread_reproduces_the_deterministic_run(tmp_path):
-    extra = '''
-[uncertainty]
-samples = 3
-[uncertainty.parameters.damping]
-keys = ["links.coupler.damping.ratio", "links.rocker.damping.ratio"]
-distribution = "uniform"
-low = "2 %"
-high = "2 %"
-unit = "%"
-[uncertainty.parameters.bearing_weight]
-keys = ["links.coupler.point_masses[0].weight", "links.coupler.point_masses[1].weight"]
-distribution = "choice"
-values = ["0.13128 lbf"]
-[uncertainty.parameters.modulus]
-keys = ["materials.aluminium.E"]
-distribution = "uniform"
-low = "10.3e6 psi"
-high = "10.3e6 psi"
-unit = "psi"
-'''
-    folder, summary = run_uncertainty(str(_light(tmp_path, "crank_rocker_241rpm", extra)), workers=2,
+    zero = {"damping": dict(FIRST_UNKNOWNS["damping"], low="2 %", high="2 %"),
+            "bearing_weight": dict(FIRST_UNKNOWNS["bearing_weight"], values=["0.13128 lbf"]),
+            "modulus": dict(FIRST_UNKNOWNS["modulus"], low="10.3e6 psi", high="10.3e6 psi")}
+    folder, summary = run_uncertainty(_with_unknowns(tmp_path, "crank_rocker_241rpm", zero, 3), workers=2,
                                       out=tmp_path / "u0", record=False, sensitivity=False)
     assert summary["status"] == "completed"
     import csv
@@ -119,8 +119,8 @@ def test_uncertainty_band_contains_the_deterministic_history(tmp_path):
     """The FE rig at 241 rpm with its declared uncertain parameters (damping 1-5 %, bearing weight
     per end or total, modulus +/- 4 %): the envelope of 12 samples (the nominal run excluded)
     contains the nominal history."""
-    folder, summary = run_uncertainty(str(_light(tmp_path, "crank_rocker_241rpm")), samples=12, workers=2,
-                                      out=tmp_path / "u1")
+    folder, summary = run_uncertainty(_with_unknowns(tmp_path, "crank_rocker_241rpm", FIRST_UNKNOWNS, 12),
+                                      samples=12, workers=2, out=tmp_path / "u1")
     assert summary["status"] == "completed"
     for g, b in summary["band"].items():
         assert b["nominal_inside_envelope"] >= 0.99, (g, b)

@@ -23,7 +23,6 @@ steps of 1, 4 and 16 engine steps) and the TMM's scaling with segments per link 
 from __future__ import annotations
 
 import argparse
-import copy
 import json
 import multiprocessing as mp
 import os
@@ -86,12 +85,13 @@ def cheapest_setting(results: list, reference: dict, tol: float = 0.01):
 
 # -- one measured run in a fresh process -----------------------------------------------------------
 def _scenario(rig: str, engine: str, setting: dict):
-    from cosim.scenario import from_dict, load
-    raw = copy.deepcopy(load(rig).raw)
-    raw.pop("motor", None)
-    solver = raw.setdefault("solver", {}).setdefault(engine, {})
-    solver.update({k: v for k, v in setting.items()})
-    return from_dict(raw, f"{rig} ({engine} {setting})")
+    """The rig with one engine's solver setting; the macro step is that engine's own step (one
+    engine alone exchanges nothing, and the step must divide the macro step)."""
+    from cosim.scenario import load
+    overrides = {f"solver.{engine}.{k}": v for k, v in setting.items()}
+    if "step" in setting:
+        overrides["coupling.macro_step"] = setting["step"]
+    return load(rig).with_overrides(overrides)
 
 
 def _measure(rig, engine, setting, revolutions):
@@ -204,11 +204,7 @@ def _bench_overhead(rig, macro_multiples, revolutions):
     sc = load(rig)
     out = {}
     for m in macro_multiples:
-        raw = copy.deepcopy(sc.raw)
-        raw.pop("motor", None)
-        raw.setdefault("coupling", {})["macro_step"] = f"{m} deg"      # TMM step 1 deg
-        from cosim.scenario import from_dict
-        s = from_dict(raw, f"{rig} macro {m}")
+        s = sc.with_overrides({"coupling.macro_step": f"{m} deg"})      # TMM step 1 deg
         from cosim.engines import make_engine
         eng = make_engine("tmm")
         inner = [0.0]

@@ -1,0 +1,124 @@
+"""The ``[motor]`` table of a scenario: the drive train written from its rating (the constants the
+sources do not give are derived by :func:`cosim.motor.derive_pm_dc_motor` and listed as
+assumptions), flywheels, shaft, controller and set-point, as :class:`cosim.motor.MotorParameters`.
+
+Owns: the motor design from a scenario file. The motor's physics is :mod:`cosim.motor`.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from tmm_core import InputError
+
+from .scenario_reader import Reader
+from .scenario_types import Assumption, DriveSpec
+
+
+MOTOR_CONSTANTS = {"resistance": ("resistance_ohm", "ohm"), "inductance": ("inductance_H", "H"),
+                   "torque_constant": ("torque_constant_Nm_A", "N*m/A"),
+                   "back_emf": ("back_emf_V_s_rad", "V*s/rad"), "rotor_inertia": ("rotor_inertia_kg_m2", "kg*m**2"),
+                   "viscous_friction": ("viscous_friction_Nm_s_rad", "N*m*s/rad"),
+                   "coulomb_friction": ("coulomb_friction_Nm", "N*m")}
+
+
+def motor(r: Reader, data, drive: DriveSpec, mech):
+    from .motor import MotorParameters, SetPoint, derive_pm_dc_motor
+
+    knobs = {"efficiency": ("efficiency", ""), "copper_loss_share": ("copper_loss_share", ""),
+             "coulomb_share": ("coulomb_share", ""), "electrical_time_constant": ("electrical_time_constant_s", "s"),
+             "rotor_inertia_per_power": ("rotor_inertia_per_W", "kg*m**2/W")}
+    d = r.table(data, "motor", set(MOTOR_CONSTANTS) | set(knobs) | {
+        "rated_power", "rated_speed", "rated_voltage", "supply_voltage", "gear_ratio", "flywheel_inertia", "flywheels",
+        "shaft_stiffness", "shaft_damping", "controller", "setpoint", "reversible"})
+    values = {}
+    for key, (name, unit) in MOTOR_CONSTANTS.items():
+        if key in d:
+            strict = key in ("resistance", "inductance", "torque_constant", "back_emf")
+            values[name] = r.quantity(d[key], f"motor.{key}", unit, positive=strict, nonnegative=not strict)
+    rating = [k for k in ("rated_power", "rated_speed", "rated_voltage") if k in d]
+    missing = [k for k in MOTOR_CONSTANTS if MOTOR_CONSTANTS[k][0] not in values]
+    if missing:
+        if len(rating) < 3:
+            need = sorted({"rated_power", "rated_speed", "rated_voltage"} - set(rating))
+            raise r.fail(f"motor.{need[0]}", f"is required to derive the motor constants not given "
+                                             f"({', '.join(missing)})")
+        P = r.quantity(d["rated_power"], "motor.rated_power", "W", positive=True)
+        w = r.quantity(d["rated_speed"], "motor.rated_speed", "rad/s", positive=True)
+        V = r.quantity(d["rated_voltage"], "motor.rated_voltage", "V", positive=True)
+        kw = {name: r.quantity(d[k], f"motor.{k}", unit, positive=True) for k, (name, unit) in knobs.items() if k in d}
+        try:
+            derived, why = derive_pm_dc_motor(P, w, V, **kw)
+        except InputError as exc:
+            raise r.fail("motor.rated_power", str(exc)) from None
+        for key in missing:
+            name, unit = MOTOR_CONSTANTS[key]
+            values[name] = derived[name]
+            r.assumptions.append(Assumption(f"motor.{key}", f"{derived[name]:.6g} {unit.replace('**', '^')}", why))
+    if "supply_voltage" in d:
+        values["supply_voltage_V"] = r.quantity(d["supply_voltage"], "motor.supply_voltage", "V", positive=True)
+    elif "rated_voltage" in d:
+        values["supply_voltage_V"] = r.quantity(d["rated_voltage"], "motor.rated_voltage", "V", positive=True)
+    else:
+        raise r.fail("motor.supply_voltage", "is required (or give rated_voltage)")
+    values["gear_ratio"] = r.number(d.get("gear_ratio", 1.0), "motor.gear_ratio", positive=True)
+    if "flywheel_inertia" in d and "flywheels" in d:
+        raise r.fail("motor.flywheels", "give either flywheel_inertia or flywheels, not both")
+    J_fw = r.quantity(d.get("flywheel_inertia", "0 kg*m^2"), "motor.flywheel_inertia", "kg*m**2", nonnegative=True)
+    fws = d.get("flywheels", [])
+    if not isinstance(fws, list):
+        raise r.fail("motor.flywheels", "must be a list of tables", fws)
+    for i, fw in enumerate(fws):
+        fk = f"motor.flywheels[{i}]"
+        f = r.table(fw, fk, {"diameter", "thickness", "density", "count"}, {"diameter", "thickness", "density"})
+        radius = 0.5 * r.quantity(f["diameter"], f"{fk}.diameter", "m", positive=True)
+        mass = (r.quantity(f["density"], f"{fk}.density", "kg/m**3", positive=True) * math.pi * radius**2 *
+                r.quantity(f["thickness"], f"{fk}.thickness", "m", positive=True))
+        J_fw += r.number(f.get("count", 1), f"{fk}.count", int, positive=True) * 0.5 * mass * radius**2   # solid disk
+    values["flywheel_inertia_kg_m2"] = J_fw
+    if "shaft_stiffness" in d:
+        values["shaft_stiffness_Nm_rad"] = r.quantity(d["shaft_stiffness"], "motor.shaft_stiffness", "N*m/rad",
+                                                      positive=True)
+    values["shaft_damping_Nm_s_rad"] = r.quantity(d.get("shaft_damping", "0 N*m*s/rad"), "motor.shaft_damping",
+                                                  "N*m*s/rad", nonnegative=True)
+    values["reversible"] = r.number(d.get("reversible", False), "motor.reversible", bool)
+
+    sp = r.table(d.get("setpoint", {}), "motor.setpoint", {"profile", "start", "t0", "duration"})
+    speed = drive.speed_rad_s
+    sign = -1.0 if speed < 0 else 1.0
+    setpoint = SetPoint(r.number(sp.get("profile", "constant"), "motor.setpoint.profile",
+                                 choices=("constant", "ramp", "step")), speed,
+                        sign * r.quantity(sp.get("start", "0 rpm"), "motor.setpoint.start", "rad/s", nonnegative=True),
+                        r.quantity(sp.get("t0", "0 s"), "motor.setpoint.t0", "s", nonnegative=True),
+                        r.quantity(sp.get("duration", "0 s"), "motor.setpoint.duration", "s", nonnegative=True))
+    values["setpoint"] = setpoint
+    ctrl = r.table(d.get("controller", {}), "motor.controller", {"bandwidth", "kp", "ki", "current_bandwidth",
+                                                                 "current_limit"})
+    if "current_limit" in ctrl:
+        values["current_limit_A"] = r.quantity(ctrl["current_limit"], "motor.controller.current_limit", "A",
+                                               positive=True)
+    if "bandwidth" in ctrl and ("kp" in ctrl or "ki" in ctrl):
+        raise r.fail("motor.controller", "give either bandwidth or kp and ki")
+    if "kp" in ctrl or "ki" in ctrl:
+        values["kp_V_s_rad"] = r.quantity(ctrl.get("kp", "0 V*s/rad"), "motor.controller.kp", "V*s/rad",
+                                          nonnegative=True)
+        values["ki_V_rad"] = r.quantity(ctrl.get("ki", "0 V/rad"), "motor.controller.ki", "V/rad", nonnegative=True)
+    try:
+        params = MotorParameters(**values)
+        if "kp" not in ctrl and "ki" not in ctrl:
+            bw = r.quantity(ctrl.get("bandwidth", "2 Hz"), "motor.controller.bandwidth", "Hz", positive=True)
+            bwi = (r.quantity(ctrl["current_bandwidth"], "motor.controller.current_bandwidth", "Hz", positive=True)
+                   if "current_bandwidth" in ctrl else None)
+            params = params.with_gains_for(bw, float(np.mean(mech.crank_inertia(np.linspace(0, 2 * math.pi, 72,
+                                                                                            endpoint=False))[0])), bwi)
+        elif "current_bandwidth" in ctrl:
+            raise r.fail("motor.controller.current_bandwidth", "needs bandwidth (the gains are designed from both)")
+    except InputError as exc:
+        raise r.fail("motor", str(exc)) from None
+    if drive.mode == "motor":
+        try:
+            params.check_setpoint()
+        except InputError as exc:
+            raise r.fail("drive.speed", str(exc)) from None
+    return params

@@ -1,0 +1,319 @@
+"""Reading a scenario's TOML tree: values with units, tables, and the per-table builders.
+
+Owns: :class:`Reader` (walks the tree, converts every value to SI through :mod:`cosim.units`,
+records assumptions, and words every error with the file, the key and the value) and the
+builders of materials, sections, damping, links, steps, the drive, the coupling and the
+transfer-matrix settings. The loader (:mod:`cosim.scenario`) orchestrates them; the structure,
+linkage and motor-design readers use the same Reader.
+"""
+from __future__ import annotations
+
+import math
+
+import pint
+
+from tmm_core import (Coupling, Damping, Link, Material, PointMass, Section, StandardLinearSolid, TMMError)
+from tmm_core.mechanism import EndBlock
+
+from .scenario_types import (Assumption, CouplingSettings, DriveSpec, ScenarioError, TMMSettings)
+from .units import UREG, has_number, quantity as parse_quantity
+
+G0 = 9.80665           # standard gravity [m/s^2], for weights written in force units
+
+
+class Reader:
+    """Walks the TOML tree, converts values and records assumptions and unknown keys."""
+
+    def __init__(self, path: str):
+        self.path = path
+        self.speed = 0.0          # drive speed [rad/s], for steps written as crank angles
+        self.assumptions: list[Assumption] = []
+
+    def fail(self, key: str, msg: str, value=None) -> ScenarioError:
+        shown = "" if value is None else f" = {value!r}"
+        return ScenarioError(f"scenario '{self.path}': key '{key}'{shown}: {msg}")
+
+    def table(self, data, key: str, allowed: set[str], required: set[str] = frozenset()) -> dict:
+        if not isinstance(data, dict):
+            raise self.fail(key, "must be a table", data)
+        unknown = set(data) - allowed - {"assumption", "source"}
+        if unknown:
+            bad = sorted(unknown)[0]
+            raise self.fail(f"{key}.{bad}" if key else bad, f"unknown key (allowed: {', '.join(sorted(allowed))})",
+                            data[bad])
+        missing = required - set(data)
+        if missing:
+            raise self.fail(f"{key}.{sorted(missing)[0]}" if key else sorted(missing)[0], "is required")
+        if "assumption" in data:
+            self.assumptions.append(Assumption(key, short({k: v for k, v in data.items() if k != "assumption"}),
+                                               str(data["assumption"])))
+        return data
+
+    def unwrap(self, value, key):
+        if isinstance(value, dict) and "value" in value:
+            extra = set(value) - {"value", "assumption", "source"}
+            if extra:
+                raise self.fail(f"{key}.{sorted(extra)[0]}", "unknown key (allowed: value, assumption, source)")
+            if "assumption" in value:
+                self.assumptions.append(Assumption(key, str(value["value"]), str(value["assumption"])))
+            return value["value"]
+        return value
+
+    def quantity(self, value, key: str, unit: str, positive: bool = False, nonnegative: bool = False) -> float:
+        """A physical value converted to ``unit`` (an SI unit); plain numbers are refused unless
+        the unit is dimensionless."""
+        raw = self.unwrap(value, key)
+        if isinstance(raw, bool):
+            raise self.fail(key, f"must be a quantity in {unit}", raw)
+        if isinstance(raw, (int, float)):
+            if UREG.Quantity(1, unit).dimensionless:
+                q = float(raw)
+            else:
+                raise self.fail(key, f"has no unit; write it with one, e.g. '{raw} {example_unit(unit)}'", raw)
+        elif isinstance(raw, str):
+            if not has_number(raw):
+                # pint reads a bare unit ("rpm", "psi") as one of it: a number is required.
+                raise self.fail(key, f"has no number; write a number and a unit, e.g. '1 {example_unit(unit)}'", raw)
+            try:
+                parsed = parse_quantity(raw)
+            except ValueError:
+                raise self.fail(key, "is not a quantity with a unit", raw) from None
+            target = UREG.Quantity(1, unit)
+            if parsed.dimensionless and not target.dimensionless:
+                raise self.fail(key, f"has no unit; write it with one, e.g. '{raw} {example_unit(unit)}'", raw)
+            try:
+                q = float(parsed.to(unit).magnitude)
+            except pint.DimensionalityError:
+                raise self.fail(key, f"has the wrong dimension: expected {target.dimensionality}, got "
+                                     f"{parsed.dimensionality}", raw) from None
+        else:
+            raise self.fail(key, f"must be a quantity in {unit}", raw)
+        if not math.isfinite(q):
+            raise self.fail(key, "must be finite", raw)
+        if positive and q <= 0:
+            raise self.fail(key, "must be positive", raw)
+        if nonnegative and q < 0:
+            raise self.fail(key, "must not be negative", raw)
+        return q
+
+    def number(self, value, key, kind=float, positive=False, choices=None):
+        raw = self.unwrap(value, key)
+        if choices is not None:
+            if raw not in choices:
+                raise self.fail(key, f"must be one of {list(choices)}", raw)
+            return raw
+        if kind is int:
+            if isinstance(raw, bool) or not isinstance(raw, int):
+                raise self.fail(key, "must be an integer", raw)
+        elif kind is bool:
+            if not isinstance(raw, bool):
+                raise self.fail(key, "must be true or false", raw)
+            return raw
+        elif isinstance(raw, bool) or not isinstance(raw, (int, float)):
+            raise self.fail(key, "must be a number", raw)
+        if positive and raw <= 0:
+            raise self.fail(key, "must be positive", raw)
+        return kind(raw)
+
+    def text(self, value, key):
+        raw = self.unwrap(value, key)
+        if not isinstance(raw, str):
+            raise self.fail(key, "must be a string", raw)
+        return raw
+
+
+def peek(value):
+    """The value of a ``{value = ..., assumption = ...}`` table (or the plain value), unrecorded."""
+    return value["value"] if isinstance(value, dict) and "value" in value else value
+
+
+def short(d) -> str:
+    return ", ".join(f"{k} = {v}" for k, v in d.items())
+
+
+def example_unit(unit: str) -> str:
+    return {"m": "in", "Pa": "psi", "kg/m**3": "slug/ft^3", "kg": "lb", "s": "s", "rad/s": "rpm",
+            "rad": "deg", "Hz": "Hz", "N": "lbf"}.get(unit, unit)
+
+
+# --------------------------------------------------------------------------------------------
+def material(r: Reader, name, data) -> Material:
+    key = f"materials.{name}"
+    d = r.table(data, key, {"E", "density", "yield_strength", "endurance_limit", "poisson", "viscoelastic"},
+                {"E", "density"})
+    opt = {}
+    if "yield_strength" in d:
+        opt["yield_strength_Pa"] = r.quantity(d["yield_strength"], f"{key}.yield_strength", "Pa", positive=True)
+    if "endurance_limit" in d:
+        opt["endurance_limit_Pa"] = r.quantity(d["endurance_limit"], f"{key}.endurance_limit", "Pa", positive=True)
+    if "poisson" in d:
+        opt["poisson"] = r.number(d["poisson"], f"{key}.poisson")
+    return Material(name, r.quantity(d["E"], f"{key}.E", "Pa", positive=True),
+                    r.quantity(d["density"], f"{key}.density", "kg/m**3", nonnegative=True), **opt)
+
+
+def viscoelastic(r: Reader, name, data):
+    if "viscoelastic" not in data:
+        return None
+    key = f"materials.{name}.viscoelastic"
+    d = r.table(data["viscoelastic"], key, {"instantaneous_modulus", "relaxed_modulus", "relaxation_time"},
+                {"instantaneous_modulus", "relaxed_modulus", "relaxation_time"})
+    return StandardLinearSolid(r.quantity(d["instantaneous_modulus"], f"{key}.instantaneous_modulus", "Pa", True),
+                               r.quantity(d["relaxed_modulus"], f"{key}.relaxed_modulus", "Pa", True),
+                               r.quantity(d["relaxation_time"], f"{key}.relaxation_time", "s", True))
+
+
+def section(r: Reader, name, data) -> Section:
+    key = f"sections.{name}"
+    d = r.table(data, key, {"width", "depth", "area", "inertia"}, {"depth"})
+    depth = r.quantity(d["depth"], f"{key}.depth", "m", positive=True)
+    if "width" in d:
+        if "area" in d or "inertia" in d:
+            raise r.fail(key, "give either width or area and inertia, not both")
+        return Section.rectangle(r.quantity(d["width"], f"{key}.width", "m", positive=True), depth)
+    if "area" not in d or "inertia" not in d:
+        raise r.fail(f"{key}.width", "is required (or give both area and inertia)")
+    return Section(r.quantity(d["area"], f"{key}.area", "m**2", positive=True),
+                   r.quantity(d["inertia"], f"{key}.inertia", "m**4", positive=True), depth)
+
+
+def lookup(r, table, name, key, what):
+    if name not in table:
+        raise r.fail(key, f"unknown {what} (defined: {', '.join(sorted(table)) or 'none'})", name)
+    return table[name]
+
+
+def damping(r: Reader, data, key) -> Damping:
+    d = r.table(data, key, {"ratio", "frequency", "stiffness", "mass"})
+    if "ratio" in d:
+        if "stiffness" in d or "mass" in d:
+            raise r.fail(key, "give either ratio and frequency or Rayleigh stiffness/mass coefficients")
+        if "frequency" not in d:
+            raise r.fail(f"{key}.frequency", "is required with a damping ratio (the frequency it holds at)")
+        ratio = r.quantity(d["ratio"], f"{key}.ratio", "", nonnegative=True)
+        return Damping.modal(ratio, r.quantity(d["frequency"], f"{key}.frequency", "Hz", positive=True))
+    return Damping(r.quantity(d.get("stiffness", "0 s"), f"{key}.stiffness", "s", nonnegative=True),
+                   r.quantity(d.get("mass", "0 1/s"), f"{key}.mass", "1/s", nonnegative=True))
+
+
+def link(r: Reader, name, data, sections, materials, viscos, segments) -> Link:
+    key = f"links.{name}"
+    d = r.table(data, key, {"length", "section", "material", "segments", "point_masses", "damping", "start_block",
+                            "end_block", "rigid"}, {"length", "section", "material"})
+    rigid = r.number(d.get("rigid", False), f"{key}.rigid", bool)
+    if rigid and name != "crank":
+        raise r.fail(f"{key}.rigid", "only the crank can be rigid (the transfer-matrix model welds it to its clamped "
+                                     "pivot, so its far joint becomes a fixed pin)", True)
+    if rigid and "damping" in d:
+        raise r.fail(f"{key}.damping", "a rigid link has no elastic motion to damp; remove it", d["damping"])
+    length = r.quantity(d["length"], f"{key}.length", "m", positive=True)
+    sec = lookup(r, sections, r.text(d["section"], f"{key}.section"), f"{key}.section", "section")
+    mat_name = r.text(d["material"], f"{key}.material")
+    mat = lookup(r, materials, mat_name, f"{key}.material", "material")
+    n = r.number(d.get("segments", segments), f"{key}.segments", int, positive=True)
+    masses = []
+    pms = d.get("point_masses", [])
+    if not isinstance(pms, list):
+        raise r.fail(f"{key}.point_masses", "must be a list of tables", pms)
+    for i, pm in enumerate(pms):
+        pk = f"{key}.point_masses[{i}]"
+        p = r.table(pm, pk, {"position", "mass", "weight", "inertia", "label"}, {"position"})
+        if ("mass" in p) == ("weight" in p):
+            raise r.fail(pk, "give exactly one of mass and weight")
+        mass = (r.quantity(p["mass"], f"{pk}.mass", "kg", nonnegative=True) if "mass" in p
+                else r.quantity(p["weight"], f"{pk}.weight", "N", nonnegative=True) / G0)
+        masses.append(PointMass(r.quantity(p["position"], f"{pk}.position", "m"), mass,
+                                r.quantity(p.get("inertia", "0 kg*m^2"), f"{pk}.inertia", "kg*m**2", nonnegative=True),
+                                str(p.get("label", f"{name} mass {i}"))))
+    blocks = {}
+    for end in ("start_block", "end_block"):
+        if end in d:
+            bk = f"{key}.{end}"
+            b = r.table(d[end], bk, {"length", "section", "material"}, {"length", "section", "material"})
+            blocks[end] = EndBlock(r.quantity(b["length"], f"{bk}.length", "m", positive=True),
+                                   lookup(r, sections, r.text(b["section"], f"{bk}.section"), f"{bk}.section", "section"),
+                                   lookup(r, materials, r.text(b["material"], f"{bk}.material"), f"{bk}.material",
+                                           "material"))
+    link_damping = damping(r, d["damping"], f"{key}.damping") if "damping" in d else Damping()
+    try:
+        return Link(name, length, sec, mat, n, tuple(masses), link_damping, None if rigid else viscos.get(mat_name), **blocks,
+                    rigid=rigid)
+    except TMMError as exc:
+        raise r.fail(key, str(exc)) from None
+
+
+def step(r: Reader, value, key: str) -> float:
+    """A time step in seconds, or a crank angle converted with the drive speed."""
+    raw = r.unwrap(value, key)
+    try:
+        q = parse_quantity(raw) if isinstance(raw, str) else None
+    except Exception:
+        q = None
+    if isinstance(q, pint.Quantity) and q.dimensionality == UREG.Quantity(1, "rad").dimensionality and \
+            str(q.units) != "dimensionless":
+        if not r.speed:
+            raise r.fail(key, "a crank-angle step needs a non-zero drive.speed", raw)
+        return r.quantity(raw, key, "rad", positive=True) / abs(r.speed)
+    return r.quantity(raw, key, "s", positive=True)
+
+
+def coupling(r: Reader, data) -> CouplingSettings:
+    d = r.table(data, "coupling", {"macro_step", "scheme", "extrapolation", "interface_jacobian", "tolerance",
+                                   "max_iterations", "start"})
+    c = CouplingSettings(
+        step(r, d["macro_step"], "coupling.macro_step") if "macro_step" in d else None,
+        r.number(d.get("scheme", "gauss_seidel"), "coupling.scheme", choices=("jacobi", "gauss_seidel", "iterated")),
+        r.number(d.get("extrapolation", "linear"), "coupling.extrapolation", choices=("constant", "linear")),
+        r.number(d.get("interface_jacobian", True), "coupling.interface_jacobian", bool),
+        r.number(d.get("tolerance", 1e-6), "coupling.tolerance", positive=True),
+        r.number(d.get("max_iterations", 20), "coupling.max_iterations", int, positive=True),
+        r.number(d.get("start", "steady"), "coupling.start", choices=("steady", "rest")))
+    return c
+
+
+def drive(r: Reader, data) -> DriveSpec:
+    d = r.table(data, "drive", {"mode", "speed", "rotation", "start_angle"})
+    mode = r.number(d.get("mode", "prescribed"), "drive.mode", choices=("prescribed", "motor"))
+    speed = r.quantity(d.get("speed", "0 rpm"), "drive.speed", "rad/s", nonnegative=True)
+    rotation = r.number(d.get("rotation", "ccw"), "drive.rotation", choices=("ccw", "cw"))
+    return DriveSpec(mode, speed if rotation == "ccw" else -speed,
+                     r.quantity(d.get("start_angle", "0 deg"), "drive.start_angle", "rad"))
+
+
+def tmm_settings(r: Reader, data) -> TMMSettings:
+    d = r.table(data, "solver.tmm", {"segments", "integrator", "step", "beam_column", "start", "coupling",
+                                     "axial_force"})
+    step_s = step_rad = None
+    if "step" in d:
+        raw = r.unwrap(d["step"], "solver.tmm.step")
+        try:
+            q = parse_quantity(raw) if isinstance(raw, str) else None
+        except Exception:
+            q = None              # r.quantity below names the key and the value
+        if q is not None and isinstance(q, pint.Quantity) and q.dimensionality == UREG.Quantity(1, "s").dimensionality:
+            step_s = r.quantity(raw, "solver.tmm.step", "s", positive=True)
+        else:
+            step_rad = r.quantity(raw, "solver.tmm.step", "rad", positive=True)
+    else:
+        step_rad = math.radians(1.0)
+    cp = r.table(d.get("coupling", {}), "solver.tmm.coupling", {"coriolis", "centrifugal", "angular_acceleration"})
+    # The rotating-frame terms are on by default: at 373 rpm on the FE rig they move the peaks by
+    # 2-4 % and the geometrically exact exudyn model has them (README, "engines agree").
+    coupling = Coupling(*(r.number(cp.get(k, True), f"solver.tmm.coupling.{k}", bool)
+                          for k in ("coriolis", "centrifugal", "angular_acceleration")))
+    if peek(d.get("beam_column", True)) is False and peek(d.get("axial_force", "none")) != "none":
+        raise r.fail("solver.tmm.axial_force", "has no effect with beam_column = false (linear theory, no axial "
+                                               "force in the bending equations); remove one of them", d["axial_force"])
+    if peek(d.get("axial_force")) == "iterated":
+        raise r.fail("solver.tmm.axial_force", "'iterated' was replaced by 'dynamic' (the step's own axial force "
+                                               "together with the axial shortening from bending)", "iterated")
+    return TMMSettings(
+        r.number(d.get("segments", 8), "solver.tmm.segments", int, positive=True),
+        r.number(d.get("integrator", "generalized_alpha"), "solver.tmm.integrator",
+                 choices=("generalized_alpha", "newmark", "houbolt")),
+        step_s, step_rad,
+        r.number(d.get("beam_column", True), "solver.tmm.beam_column", bool),
+        r.number(d.get("start", "quasi_static"), "solver.tmm.start", choices=("quasi_static", "rest")),
+        coupling,
+        r.number(d.get("axial_force", "dynamic"), "solver.tmm.axial_force",
+                 choices=("dynamic", "quasi_static", "none")))

@@ -1,0 +1,151 @@
+"""The scenario's data types: the resolved settings of every table, in SI (frozen dataclasses).
+
+Owns: :class:`Scenario` (a moving linkage: four-bar, slider-crank or general linkage; a static
+structure is :class:`cosim.structure_scenario.StaticScenario`), the settings per engine, the
+drive, the output and coupling settings, :class:`Assumption` and :class:`ScenarioError`. The
+reader (:mod:`cosim.scenario_reader`) fills them; :mod:`cosim.scenario` loads files.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from tmm_core import Coupling, FourBarMechanism, InputError, SliderCrankMechanism
+
+
+class ScenarioError(InputError):
+    """A scenario file is malformed; the message names the file, the key and the value."""
+
+
+@dataclass(frozen=True)
+class Assumption:
+    """A value the sources do not give, with the reason it was chosen."""
+
+    key: str
+    value: str
+    rationale: str
+
+
+@dataclass(frozen=True)
+class DriveSpec:
+    """Crank drive. ``speed_rad_s`` is signed (CCW positive); ``mode`` 'prescribed' or 'motor'."""
+
+    mode: str = "prescribed"
+    speed_rad_s: float = 0.0
+    start_angle_rad: float = 0.0
+
+
+@dataclass(frozen=True)
+class TMMSettings:
+    segments: int = 8
+    integrator: str = "generalized_alpha"
+    step_s: float | None = None
+    step_rad: float | None = math.radians(1.0)
+    beam_column: bool = True
+    start: str = "quasi_static"
+    coupling: Coupling = Coupling.all()
+    axial_force: str = "dynamic"
+
+
+@dataclass(frozen=True)
+class ExudynSettings:
+    elements: int = 8
+    step_s: float = 1e-4
+    spectral_radius: float = 0.9
+    newton_tolerance: float = 1e-6
+
+
+@dataclass(frozen=True)
+class MujocoSettings:
+    step_s: float = 1e-4
+    servo_frequency_Hz: float | None = None
+    solref_factor: float = 2.0
+    solimp: float = 0.9999
+
+
+@dataclass(frozen=True)
+class CouplingSettings:
+    """Co-simulation coupling (see :mod:`cosim.master`). ``macro_step_s`` None: the largest engine
+    step, if the others divide it."""
+
+    macro_step_s: float | None = None
+    scheme: str = "gauss_seidel"
+    extrapolation: str = "linear"
+    interface_jacobian: bool = True
+    tolerance: float = 1e-6
+    max_iterations: int = 20
+    start: str = "steady"
+
+
+@dataclass(frozen=True)
+class OutputSettings:
+    """``revolutions``: a fixed run length; None (default) runs until every engine is steady
+    (its last two revolutions agree to ``steady_tolerance``, :mod:`cosim.metrics`) or until
+    ``max_revolutions``."""
+
+    revolutions: float | None = None
+    engines: tuple = ("tmm", "exudyn", "mujoco")     # the engines `cosim run` uses by default
+    max_revolutions: float = 30.0
+    steady_tolerance: float = 0.005
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """A resolved scenario, SI throughout."""
+
+    name: str
+    description: str
+    path: Path | None
+    sources: tuple
+    mechanism: FourBarMechanism | SliderCrankMechanism | object   # or a tmm_core.linkage mechanism
+    drive: DriveSpec
+    gauges: tuple
+    gravity: tuple | None
+    tmm: TMMSettings
+    exudyn: ExudynSettings
+    mujoco: MujocoSettings
+    output: OutputSettings
+    assumptions: tuple
+    raw: dict = field(repr=False, default_factory=dict)
+    motor: object = None                  # cosim.motor.MotorParameters, or None without a [motor] table
+    coupling: CouplingSettings = CouplingSettings()
+    rig: str | None = None                # the physical rig (records of it are matched by this name)
+
+    def engine_step_s(self, engine: str) -> float:
+        """Internal step of an engine [s]."""
+        if engine == "tmm":
+            if self.tmm.step_s is not None:
+                return self.tmm.step_s
+            if not self.drive.speed_rad_s:
+                raise ScenarioError(f"scenario '{self.path}': key 'solver.tmm.step': a crank-angle step needs a "
+                                    "non-zero drive.speed")
+            return self.tmm.step_rad / abs(self.drive.speed_rad_s)
+        return {"exudyn": self.exudyn.step_s, "mujoco": self.mujoco.step_s}[engine]
+
+    @property
+    def kind(self) -> str:
+        """The linkage type of the file: 'four-bar', 'slider-crank' or 'linkage'."""
+        t = self.raw.get("linkage", {}).get("type") if isinstance(self.raw.get("linkage"), dict) else None
+        return t if t in ("four-bar", "slider-crank", "linkage") else "four-bar"
+
+    @property
+    def crank_speed_rad_s(self) -> float:
+        return self.drive.speed_rad_s
+
+    def with_overrides(self, overrides: dict) -> "Scenario":
+        """A variant of this scenario with key paths of its file set to new values, e.g.
+        ``{"drive.speed": "300 rpm", "links.coupler.damping.ratio": "3 %"}``, validated by the
+        loader (its errors name the key). See :mod:`cosim.overrides`."""
+        from .overrides import OverrideError, apply_overrides
+        label = f"{self.path or self.name} (with {', '.join(f'{k} = {v!r}' for k, v in overrides.items())})"
+        try:
+            data = apply_overrides(self.raw, overrides)
+        except OverrideError as exc:
+            raise ScenarioError(f"scenario '{self.path or self.name}': {exc}") from None
+        from .scenario import from_dict
+        return from_dict(data, label, default_name=self.name)
+
+    @property
+    def revolution_period_s(self) -> float:
+        return 2 * math.pi / abs(self.drive.speed_rad_s)
