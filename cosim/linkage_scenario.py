@@ -3,7 +3,7 @@
 A linkage is drawn once, assembled, at a *reference* position (joint coordinates, as Shin's
 CASDAM takes them); link lengths, plate shapes, slide lines and assembly branches all follow from
 that drawing. Its motion comes from an ordered list of closed-form modules (Shin's component-module
-approach, :mod:`tmm_core.linkage`), each placing one joint from joints already placed::
+approach, :mod:`tmm_core.linkage`), each placing joints from joints already placed::
 
     [linkage]
     type = "linkage"
@@ -12,7 +12,8 @@ approach, :mod:`tmm_core.linkage`), each placing one joint from joints already p
 
     [joints.1]   position = ["0 in", "0 in"], support = "pinned"      # ground pivots are pinned
     [joints.13]  position = [...], support = "slider", direction = "90 deg", weight = "0.2 lbf"
-                                    # a pin on a block sliding along a ground line (optional block mass)
+                                    # a pin on a block sliding along a ground line (optional block mass;
+                                    # links welded here slide with the block without turning)
     [joints.2]   position = ["1.294 in", "4.830 in"]                  # moving joints: where they are drawn
 
     [links.coupler]  path = ["2", "3", "4"], section = "bar", material = "steel",
@@ -26,33 +27,69 @@ approach, :mod:`tmm_core.linkage`), each placing one joint from joints already p
     [springs.s]      between = ["4", "11"], stiffness = "100 lbf/in", free_length = "5 in"
     [loads.p]        joint = "13", force = ["0 lbf", "-100 lbf"], moment = "0 lbf*in"
 
-    [[modules]]                     # in order; each places one joint (and fixes the links that meet there)
+    [[modules]]                     # in order; each closes one loop (and fixes the links that meet there)
     type = "crank"                  # Shin type 1: the input link
     link = "crank"
     [[modules]]
-    type = "rrr"                    # Shin type 2: the dyad, two links meeting at `joint`
+    type = "rrr"                    # Shin type 2, the RRR dyad: two links meeting at `joint`
     joint = "4"
     links = ["coupler", "follower"]
     [[modules]]
-    type = "rrp"                    # Shin types 3, 5, 6: `joint` of `link` on a slide line: a ground
-    joint = "13"                    # slider support, or a block sliding along a guide link
-    link = "link_13_11"
+    type = "rrp"                    # Shin types 3, 5, 6, the RRP dyad: `joint` of `link` on a slide: a
+    joint = "13"                    # ground slider support, or a block sliding along a guide link
+    link = "link_13_11"             # placed before (at the block: type 6; on an arm of it: type 5)
     branch = 1                      # optional: +1 / -1; default: the drawn configuration's
+    [[modules]]
+    type = "rpr"                    # Shin types 7, 8, the RPR dyad (inverted slider-crank): the block
+    joint = "B"                     # pinned at `joint` (placed before; type 8), or carrying a link welded
+    link = "follower"               # to it that ends there (type 7), slides along `link`, which turns
+                                    # about its one joint placed before (its pivot); optional branch
+    [[modules]]
+    type = "prp"                    # the PRP dyad: `joint` on two slides (its slider support, and
+    joint = "S"                     # [sliders] blocks holding it along guides placed before); no link
+    [[modules]]
+    type = "rpp"                    # the RPP dyad (Scotch yoke): the block pinned at `joint` (placed
+    joint = "B"                     # before) slides along `link`, which slides along the ground (links
+    link = "yoke"                   # welded at a slider joint) or along a guide placed before
+
+**Shin's eight component types** (Ch. 2, Fig. 2.1; App. A) map to modules: 1 ``crank``; 2
+``rrr``; 3 ``rrp`` on a ground slide; 4 none (a "solid link": every joint of a placed link or plate
+follows from its pose); 5 ``rrp`` at the end of an arm welded to a block sliding along a moving
+guide (Table 2.1's block 5 and arm 5-7); 6 ``rrp`` at the block itself; 8 ``rpr`` with the block
+pinned at the known joint (Shin's "slider input": that joint placed by an earlier module, e.g. the
+slider of an ``rrp``); 7 ``rpr`` with the block carrying a link to the known joint, the follower's
+slide line off its pivot (an eccentric follower: links welded at a kink): type 8 on the line the
+known joint traces in the follower, then type 4 for the block (``tmm_core.linkage.SHIN_TYPES``).
+With ``prp`` and ``rpp`` every planar dyad of lower pairs has its module.
+
+**Slides.** A block along a moving guide is a ``[sliders.*]`` table: the block joint drawn at a
+guide joint of the guide link (a joint where the guide carries a rotation: interior to its path
+or welded), the links welded at the block joint moving with the block; the block turns with the
+guide. A ground slide is a joint with ``support = "slider"`` and a ``direction``: a pin sliding on
+the ground line; links welded at a slider joint are welded to its block, so they slide along the
+line without turning (a yoke; ``sliding_clamp`` in the instantaneous structure). The transfer-
+matrix structure holds one slide per joint: a joint on two slides (``prp``) is a slider joint
+held by a block's arm, or the end of arms of two blocks.
 
 **Loops and branches.** Every module closes one loop: a dyad joins two links to joints already
 placed (the main loop first, each sub-loop after the joints it hangs from: Shin's branch
-points), an rrp closes a loop through a slide. A link placed by a module has exactly one joint
-placed before it; its other joints (a ternary link's or a plate's branch points, Shin's type 4
-"solid link") follow from its pose. The branch of each module is the side on which the drawn
+points), an rrp closes a loop through a slide, an rpr through a slide along a guide that turns
+about a known pivot, a prp through two slides, an rpp through a slide along a sliding link. A
+link placed by a module has one joint placed before it (none for the blocks of a prp and the
+sliding link of an rpp); its other joints (a ternary link's or a plate's branch points, Shin's
+type 4 "solid link") follow from its pose. The branch of each module is the side on which the drawn
 configuration assembles (rrr: the side of the line from the first link's known joint to the
-second's; rrp: the sign of the link's component along the slide), so the linkage moves on the
-branch it is drawn in. Links welded to one another, or to a slider block, move as one body.
+second's; rrp: the sign of the link's component along the slide; rpr: the sign of the component
+of pivot -> joint along the slide), so the linkage moves on the branch it is drawn in; prp and rpp
+have one assembly (no branch). Links welded to one another, or to a slider block, move as one
+body.
 
 The loader turns the crank through a revolution from the drawn position (CCW, 1440 positions) and
 refuses a linkage that cannot assemble there, or whose module comes within 0.5 deg of a toggle
-(it locks), naming the module and the crank angle. The instantaneous structure of
-the transfer-matrix model clamps the crank at its pivot (Shin); a straight link with interior
-joints is split into parts ``name[a-b]`` (gauges, point masses and loads are placed along the
+(it locks: two dyad links collinear, a link square to its slide, the line pivot -> joint square
+to an rpr's slide, two slides parallel), naming the module and the crank angle. The
+instantaneous structure of the transfer-matrix model clamps the crank at its pivot (Shin); a
+straight link with interior joints is split into parts ``name[a-b]`` (gauges, point masses and loads are placed along the
 whole path and land on the part).
 """
 from __future__ import annotations
@@ -62,11 +99,12 @@ import math
 import numpy as np
 
 from tmm_core import Damping, Link, PointMass, TMMError
-from tmm_core.linkage import (GuidedSlider, LinkageKinematics, LinkageMechanism, Module, Plate, carrier_link,
-                              polygon_properties)
+from tmm_core.linkage import (MODULE_KINDS, GuidedSlider, LinkageKinematics, LinkageMechanism, Module, Plate,
+                              carrier_link, polygon_properties)
 from tmm_core.structure import Spring
 
-G0 = 9.80665
+from .scenario_reader import G0
+
 SUPPORTS = ("free", "pinned", "slider")
 REVOLUTION_CHECK = 1440
 #: A module whose links come this close to a toggle [deg] somewhere in a revolution locks there
@@ -78,7 +116,7 @@ def build_mechanism(r, top: dict, materials: dict, sections: dict, viscos: dict,
     """Build the :class:`LinkageMechanism` of a ``type = "linkage"`` scenario. Returns the
     mechanism and ``gauge_link(key, table) -> (member, position_m)``, which places a gauge given
     along a link's path on the part that holds it."""
-    from .scenario import _damping as damping_reader
+    from .scenario_reader import damping as damping_reader
 
     def mass_reader(d, key):
         if ("mass" in d) == ("weight" in d):
@@ -98,7 +136,7 @@ def build_mechanism(r, top: dict, materials: dict, sections: dict, viscos: dict,
     for name, d in joints_raw.items():
         key = f"joints.{name}"
         d = r.table(d, key, {"position", "support", "direction", "mass", "weight"}, {"position"})
-        pos = r._unwrap(d["position"], f"{key}.position")
+        pos = r.unwrap(d["position"], f"{key}.position")
         if not isinstance(pos, list) or len(pos) != 2:
             raise r.fail(f"{key}.position", "must be a list of two coordinates", pos)
         positions[name] = np.array([r.quantity(p, f"{key}.position[{i}]", "m") for i, p in enumerate(pos)])
@@ -114,7 +152,7 @@ def build_mechanism(r, top: dict, materials: dict, sections: dict, viscos: dict,
     jnames = set(positions)
 
     def joint_ref(value, key):
-        value = r._unwrap(value, key)
+        value = r.unwrap(value, key)
         if not isinstance(value, str) or value not in jnames:
             raise r.fail(key, f"unknown joint (joints: {', '.join(sorted(jnames))})", value)
         return value
@@ -130,14 +168,14 @@ def build_mechanism(r, top: dict, materials: dict, sections: dict, viscos: dict,
         key = f"links.{name}"
         d = r.table(d, key, {"path", "section", "material", "segments", "welded_at", "rigid", "damping",
                              "point_masses"}, {"path", "section", "material"})
-        route = r._unwrap(d["path"], f"{key}.path")
+        route = r.unwrap(d["path"], f"{key}.path")
         if not isinstance(route, list) or len(route) < 2:
             raise r.fail(f"{key}.path", "must list at least two joints", route)
         route = [joint_ref(j, f"{key}.path") for j in route]
         if len(set(route)) != len(route):
             raise r.fail(f"{key}.path", "lists a joint twice", route)
         paths[name] = route
-        welds = r._unwrap(d.get("welded_at", []), f"{key}.welded_at")
+        welds = r.unwrap(d.get("welded_at", []), f"{key}.welded_at")
         if not isinstance(welds, list):
             raise r.fail(f"{key}.welded_at", "must be a list of joints", welds)
         welded[name] = {joint_ref(j, f"{key}.welded_at") for j in welds}
@@ -217,7 +255,7 @@ def build_mechanism(r, top: dict, materials: dict, sections: dict, viscos: dict,
         if name in bodies or name in paths:
             raise r.fail(key, "a plate needs a name of its own (a link has it)")
         d = r.table(d, key, {"vertices", "thickness", "material", "centroid"}, {"vertices", "thickness", "material"})
-        verts = r._unwrap(d["vertices"], f"{key}.vertices")
+        verts = r.unwrap(d["vertices"], f"{key}.vertices")
         if not isinstance(verts, list) or len(verts) < 3:
             raise r.fail(f"{key}.vertices", "must list at least three vertex joints, in order around the plate", verts)
         verts = [joint_ref(v, f"{key}.vertices") for v in verts]
@@ -247,8 +285,27 @@ def build_mechanism(r, top: dict, materials: dict, sections: dict, viscos: dict,
         plate_specs.append((name, verts, master, mass, inertia, mat))
         bodies[name] = tuple(verts) + (master,)
 
+    # -- slides: blocks along moving guides, and ground slider blocks carrying welded links --------
+    guided = {}
+    for name, block, guide, along, mass in guided_specs:
+        a, b = _part_ends(paths[along], guide)
+        d = positions[b] - positions[a]
+        guided[body_name[f"slider:{name}"]] = (body_name[along], math.atan2(d[1], d[0]))
+    for j, names in weld_at.items():
+        if support[j] != "slider":
+            continue
+        # Links welded at a ground slider joint are welded to its block: they slide without turning.
+        b = body_name[names[0]]
+        if b in guided:
+            other = ("the ground slider joint '" + next(k for k, ns in weld_at.items() if k != j and support[k] ==
+                                                        "slider" and body_name[ns[0]] == b) + "'"
+                     if guided[b][0] is None else f"a block along link '{guided[b][0]}'")
+            raise r.fail(f"links.{names[0]}.welded_at", f"the links welded at the slider joint '{j}' are welded to "
+                                                       f"{other} too: a body slides along one guide", j)
+        guided[b] = (None, slide_dir[j])
+
     # -- modules --------------------------------------------------------------------------------
-    mods_raw = r._unwrap(top.get("modules", []), "modules")
+    mods_raw = r.unwrap(top.get("modules", []), "modules")
     if not isinstance(mods_raw, list) or not mods_raw:
         raise r.fail("modules", "a linkage needs [[modules]]: the ordered closed-form steps that place its joints")
     link_body = dict(body_name)
@@ -257,13 +314,15 @@ def build_mechanism(r, top: dict, materials: dict, sections: dict, viscos: dict,
     for i, m in enumerate(mods_raw):
         key = f"modules[{i}]"
         m = r.table(m, key, {"type", "joint", "link", "links", "branch"}, {"type"})
-        kind = r.number(m["type"], f"{key}.type", choices=("crank", "rrr", "rrp"))
+        kind = r.number(m["type"], f"{key}.type", choices=MODULE_KINDS)
         names = ([r.text(m["link"], f"{key}.link")] if "link" in m else
-                 list(r._unwrap(m.get("links", []), f"{key}.links")))
-        want = 2 if kind == "rrr" else 1
+                 list(r.unwrap(m.get("links", []), f"{key}.links")))
+        want = {"rrr": 2, "prp": 0}.get(kind, 1)
         if len(names) != want:
             raise r.fail(f"{key}.{'links' if kind == 'rrr' else 'link'}",
-                         f"a '{kind}' module names {want} link{'s' if want > 1 else ''}", names)
+                         f"a '{kind}' module names {want} link{'s' if want != 1 else ''}"
+                         + (" (its slides are its joint's: a slider support, [sliders] blocks at the joint)"
+                            if kind == "prp" else ""), names)
         for n in names:
             if n not in link_body:
                 raise r.fail(key, f"unknown link '{n}' (links and plates: {', '.join(sorted(link_body))})", n)
@@ -274,8 +333,18 @@ def build_mechanism(r, top: dict, materials: dict, sections: dict, viscos: dict,
             joint = crank_path[1]
         else:
             if "joint" not in m:
-                raise r.fail(f"{key}.joint", "is required (the joint the module places)")
+                raise r.fail(f"{key}.joint", "is required (the joint the module places)" if kind not in ("rpr", "rpp")
+                             else "is required (the joint placed before at which the block is pinned, or where a "
+                                  "link welded to the block ends)")
             joint = joint_ref(m["joint"], f"{key}.joint")
+        if kind in ("rpr", "rpp"):
+            # The block: the body sliding along the named link that holds the joint.
+            held = [b for b, (g, _) in guided.items() if g == bnames[0] and joint in bodies[b]]
+            if len(held) != 1:
+                raise r.fail(f"{key}.joint", f"{'no' if not held else 'more than one'} [sliders] block along link "
+                                             f"'{names[0]}' holds joint '{joint}' (pin the block at '{joint}', or "
+                                             f"weld to the block a link that ends there)", joint)
+            bnames = (held[0], bnames[0])
         branch = r.number(m.get("branch", 0), f"{key}.branch", int)
         if branch not in (-1, 0, 1):
             raise r.fail(f"{key}.branch", "must be 1 or -1 (or left out: the drawn configuration's)", branch)
@@ -286,11 +355,6 @@ def build_mechanism(r, top: dict, materials: dict, sections: dict, viscos: dict,
     if modules[0].kind != "crank":
         raise r.fail("modules[0].type", "the first module is the crank", mods_raw[0].get("type"))
 
-    guided = {}
-    for name, block, guide, along, mass in guided_specs:
-        a, b = _part_ends(paths[along], guide)
-        d = positions[b] - positions[a]
-        guided[body_name[f"slider:{name}"]] = (body_name[along], math.atan2(d[1], d[0]))
     try:
         kin = LinkageKinematics({k: tuple(v) for k, v in positions.items()}, bodies, tuple(sorted(ground)),
                                 body_name[crank_name], crank_path[0], crank_path[1], tuple(modules), crank_zero,
@@ -330,7 +394,7 @@ def build_mechanism(r, top: dict, materials: dict, sections: dict, viscos: dict,
             if L <= 0:
                 raise r.fail(f"{key}.path", f"joints '{a}' and '{b}' coincide", route)
         starts = np.concatenate([[0.0], np.cumsum(lengths)])
-        pms = r._unwrap(d.get("point_masses", []), f"{key}.point_masses")
+        pms = r.unwrap(d.get("point_masses", []), f"{key}.point_masses")
         if not isinstance(pms, list):
             raise r.fail(f"{key}.point_masses", "must be a list of tables", pms)
         masses = [[] for _ in lengths]
@@ -388,7 +452,7 @@ def build_mechanism(r, top: dict, materials: dict, sections: dict, viscos: dict,
     for name, d in r.table(top.get("springs", {}), "springs", set(top.get("springs", {}))).items():
         key = f"springs.{name}"
         d = r.table(d, key, {"between", "stiffness", "free_length"}, {"between", "stiffness", "free_length"})
-        ends = r._unwrap(d["between"], f"{key}.between")
+        ends = r.unwrap(d["between"], f"{key}.between")
         if not isinstance(ends, list) or len(ends) != 2:
             raise r.fail(f"{key}.between", "must list two joints", ends)
         a, b = joint_ref(ends[0], f"{key}.between"), joint_ref(ends[1], f"{key}.between")
@@ -400,7 +464,7 @@ def build_mechanism(r, top: dict, materials: dict, sections: dict, viscos: dict,
     for name, d in r.table(top.get("loads", {}), "loads", set(top.get("loads", {}))).items():
         key = f"loads.{name}"
         d = r.table(d, key, {"joint", "force", "moment"}, {"joint"})
-        f = r._unwrap(d.get("force", ["0 N", "0 N"]), f"{key}.force")
+        f = r.unwrap(d.get("force", ["0 N", "0 N"]), f"{key}.force")
         if not isinstance(f, list) or len(f) != 2:
             raise r.fail(f"{key}.force", "must be a list of two force components", f)
         vec = np.array([r.quantity(f[0], f"{key}.force[0]", "N"), r.quantity(f[1], f"{key}.force[1]", "N"),

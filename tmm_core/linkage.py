@@ -1,33 +1,54 @@
 """General planar linkages: closed-form kinematics by modules, and the mechanism behind every engine.
 
-Kinematics (Shin 1986, Ch. 2, the component-module approach; notes seed000 §4). A linkage is a
-set of rigid *bodies* (each a list of joints that keep their relative positions: a straight link
-through its path of joints, a plate through its vertices, a slider block with the links welded to
-it), joined at joints, and described at one assembled *reference* configuration (joint
-coordinates). Its motion is solved, for any crank angle, by an ordered list of closed-form
-modules; each places one new joint from joints already known and fixes the bodies that meet
-there:
+Kinematics (Shin 1986, Ch. 2 and App. A, the component-module approach; notes seed000 §4). A
+linkage is a set of rigid *bodies* (each a list of joints that keep their relative positions: a
+straight link through its path of joints, a plate through its vertices, a slider block with the
+links welded to it), joined at joints, and described at one assembled *reference* configuration
+(joint coordinates). Its motion is solved, for any crank angle, by an ordered list of closed-form
+modules; each closes one loop from joints already known and fixes the bodies that meet there. The
+modules are the five planar dyads with lower pairs (R revolute, P prismatic: RRR, RRP, RPR, PRP,
+RPP; PPR is RPP seen from its other end, PPP does not fix a position) behind the input link:
 
 =========  =========================================================================================
 ``crank``  Shin type 1, the input link: the driven body turns about its ground pivot by the crank
            angle (measured from the global direction ``crank_zero``).
-``rrr``    Shin type 2, the dyad: joint C shared by two bodies, each with one known joint (P, Q):
-           the intersection of two circles; branch = the side of P->Q on which C lies.
-``rrp``    Shin types 3, 5, 6: joint C of a body with one known joint P, sliding on a line, either
-           fixed to the ground (a joint with a ``slider`` support) or carried by a guide body (C
-           belongs to a block body that slides along the guide and turns with it); branch = the
-           sign of (C - P) along the slide.
+``rrr``    Shin type 2, the RRR dyad: joint C shared by two bodies, each with one known joint (P,
+           Q): the intersection of two circles; branch = the side of P->Q on which C lies.
+``rrp``    Shin types 3, 5, 6, the RRP dyad: joint C of a body with one known joint P, sliding on
+           a line, either fixed to the ground (a joint with a ``slider`` support, or a block
+           sliding along the ground with links welded to it) or carried by a guide body placed
+           before (C belongs to a block body that slides along the guide and turns with it; type 5
+           with C on an arm of the block, type 6 with C at the block); branch = the sign of
+           (C - P) along the slide.
+``rpr``    Shin types 7 and 8, the RPR dyad (inverted slider-crank): a block body with one known
+           joint P slides along a guide body that turns about its one known joint Q; the two turn
+           together. With u = P - Q and the slide direction e in the reference, P - Q = R(phi)
+           (u + s e): s from |u + s e| = |P - Q| (a quadratic: two branches, the sign of the
+           component of P - Q along the slide), phi from the directions. Type 8: the block pinned
+           at P (Shin's "slider input": P placed by an earlier module, e.g. an rrp's slider).
+           Type 7: the block carries a link that ends at P (and the slide line may pass off the
+           pivot): P moves in the guide's frame along the line through its reference position
+           parallel to the slide, so type 7 is type 8 on that line followed by type 4 for the
+           block's other joints; the module solves both at once.
+``prp``    The PRP dyad: joint C on two slides (its ``slider`` support, and blocks through C
+           sliding along the ground or along guides placed before): the intersection of two lines,
+           one assembly. The blocks are posed by the module (they turn with their guides).
+``rpp``    The RPP dyad (Scotch yoke): a block body with one known joint P slides along a body
+           ``mid`` that itself slides along the ground or a placed guide; both keep the guide's
+           rotation, and the two slides follow from a linear 2x2 system (one assembly).
 =========  =========================================================================================
 
 Shin's type 4 (a further point of a body whose pose is known: "solid link") is applied
 automatically: a module fixes whole bodies, and every joint of a body follows from its pose.
-Branches default to the reference configuration's, so a linkage drawn assembled moves on the
-branch it is drawn in. Velocities and accelerations come from the differentiated closure
-relations of each module (linear 2x2 systems), exactly; the tests check them against finite
-differences. A module that cannot assemble (a dyad beyond its stretched or folded limit, a link
-too short to reach its slide line) or that locks (the two links of a dyad collinear, a link
-perpendicular to its slide) raises :class:`tmm_core.errors.AssemblyError` naming the module and
-the crank angle.
+:data:`SHIN_TYPES` maps each of Shin's eight types to its module. Branches default to the
+reference configuration's, so a linkage drawn assembled moves on the branch it is drawn in.
+Velocities and accelerations come from the differentiated closure relations of each module
+(linear 2x2 systems), exactly; the tests check them against finite differences. A module that
+cannot assemble (a dyad beyond its stretched or folded limit, a link too short to reach its slide
+line, a joint closer to a guide's pivot than the guide's slide line passes) or that locks (the two
+links of a dyad collinear, a link perpendicular to its slide, the line from a guide's pivot square
+to its slide, two slides parallel) raises :class:`tmm_core.errors.AssemblyError` naming the module
+and the crank angle.
 
 Mechanism (:class:`LinkageMechanism`): the flexible links (members, each a straight part of a
 link between two joints), rigid plates, slider blocks, springs and constant loads, with the
@@ -35,8 +56,9 @@ protocol the transfer-matrix time domain uses (``links``, ``elastic_links``, ``s
 ``motion``, ``joint_positions``, ``drive_torque_terms``, ``external_loads``, ``crank_inertia``).
 Its instantaneous structure is Shin's: the crank clamped at its ground pivot (a rigid crank is
 welded there, so its far joint is a fixed pin), revolutes elsewhere unless a link is welded, ground
-pivots pinned, ground slides as ``slider`` supports, plates as :class:`RigidBody`, blocks on a
-moving guide as :class:`SliderJoint`. A plate's mass and rotary inertia sit on a strain-free
+pivots pinned, ground slides as ``slider`` supports (``sliding_clamp`` where links are welded to
+the block: they slide without turning), plates as :class:`RigidBody`, blocks on a moving guide as
+:class:`SliderJoint`. A plate's mass and rotary inertia sit on a strain-free
 *carrier* member from its centre of mass (the plate's master joint) to its first vertex, welded to
 the master: Shin's rigid element 9->3 carrying the plate's lumped mass, so the plate's inertia
 enters the time domain exactly.
@@ -60,9 +82,30 @@ from .mechanism import (FourBarMechanism, Link, PointMass, SliderCrankMechanism,
 from .sections import Material, Section
 from .structure import Joint, LoadCase, RigidBody, SliderJoint, Structure
 
-MODULE_KINDS = ("crank", "rrr", "rrp")
-#: A dyad is reported locked where |sin| of the angle between its two links (rrr) or between the
-#: link and its slide's normal (rrp) falls below this.
+MODULE_KINDS = ("crank", "rrr", "rrp", "rpr", "prp", "rpp")
+#: The number of links each kind of module names (a prp names none: its slides are its joint's).
+MODULE_LINKS = {"crank": 1, "rrr": 2, "rrp": 1, "rpr": 2, "prp": 0, "rpp": 2}
+#: Kinds with one assembly (a closure linear in its unknowns, or the crank): no branch.
+SINGLE_ASSEMBLY = ("crank", "prp", "rpp")
+#: Shin's eight component types (1986, Fig. 2.1 and App. A) and the module that solves each;
+#: type 4 needs none (every joint of a posed body follows from its pose).
+SHIN_TYPES = {
+    1: ("crank", "input link: the crank's tip from its pivot and the crank angle"),
+    2: ("rrr", "dyad: two links meeting at a revolute, each with one known joint"),
+    3: ("rrp", "sliding end: a link's joint on a ground slide"),
+    4: (None, "solid link: further joints of a posed body (automatic)"),
+    5: ("rrp", "slider dyad / oscillating slider: a link's joint on an arm of a block sliding along a moving guide"),
+    6: ("rrp", "sliding revolute: a link pinned at a block sliding along a moving guide"),
+    7: ("rpr", "slider and follower: a block carrying a link to a known joint, sliding along a follower turning "
+               "about a known pivot (the slide line offset from the pivot): type 8 on the line the known joint "
+               "traces in the follower, then type 4"),
+    8: ("rpr", "sliding revolute and follower: a block pinned at a known joint (Shin's slider input) sliding along "
+               "a follower turning about a known pivot"),
+}
+#: A module is reported locked where the sine of the angle of its toggle falls below this: between
+#: a dyad's two links (rrr), between a link and its slide's normal (rrp), between the line from
+#: the known joint to the pivot and the guide's normal (rpr), between two slides (prp, rpp); an rpr
+#: also locks where its joint comes within this fraction of its reference distance of the pivot.
 LOCK_TOLERANCE = 1e-9
 
 
@@ -88,34 +131,51 @@ def _angle(v):
 
 
 def _asin_deg(x) -> float:
-    return math.degrees(math.asin(min(1.0, abs(float(x)))))
+    x = float(x)
+    return math.degrees(math.asin(min(1.0, abs(x)))) if math.isfinite(x) else 0.0
+
+
+def _unit(angle: float) -> np.ndarray:
+    return np.array([math.cos(angle), math.sin(angle)])
 
 
 @dataclass(frozen=True)
 class Module:
-    """One closed-form step: ``kind`` ('crank', 'rrr', 'rrp'), the ``joint`` it places (the
-    crank's tip for 'crank'), the bodies it poses (``links``: the crank; the dyad's two bodies;
-    the rrp's link with its known joint), and the assembly ``branch`` (+1/-1; 0 = the
-    reference configuration's)."""
+    """One closed-form step: ``kind`` (one of :data:`MODULE_KINDS`), its ``joint``, the bodies it
+    poses (``links``) and the assembly ``branch`` (+1/-1; 0 = the reference configuration's).
+
+    crank: ``joint`` the crank's tip, ``links`` (crank,). rrr: ``joint`` the revolute it places,
+    ``links`` the dyad's two bodies. rrp: ``joint`` the joint it places on a slide, ``links`` (the
+    link with its known joint,). rpr: ``joint`` the known joint of the block, ``links`` (block,
+    guide). prp: ``joint`` the joint it places on two slides, no ``links`` (its blocks are the
+    sliding bodies at the joint). rpp: ``joint`` the known joint of the block, ``links`` (block,
+    the body the block slides along, which itself slides along the ground or a placed guide)."""
 
     kind: str
     joint: str
-    links: tuple
+    links: tuple = ()
     branch: int = 0
 
     def __post_init__(self):
         if self.kind not in MODULE_KINDS:
             raise InputError(f"module kind must be one of {MODULE_KINDS}, got {self.kind!r}")
-        n = {"crank": 1, "rrr": 2, "rrp": 1}[self.kind]
+        object.__setattr__(self, "links", tuple(self.links))
+        n = MODULE_LINKS[self.kind]
         if len(self.links) != n:
-            raise InputError(f"module '{self.kind}' at joint '{self.joint}' needs {n} link(s), got {list(self.links)}")
+            raise InputError(f"module '{self.kind}' at joint '{self.joint}' needs {n} link(s), got {list(self.links)}"
+                             + (" (its slides are the joint's: a slider support, blocks at the joint)"
+                                if self.kind == "prp" else ""))
         if self.branch not in (-1, 0, 1):
             raise InputError(f"module '{self.kind}' at joint '{self.joint}': branch must be +1, -1 or 0, got "
                              f"{self.branch!r}")
+        if self.branch and self.kind in SINGLE_ASSEMBLY:
+            raise InputError(f"module '{self.kind}' at joint '{self.joint}' has a single assembly (its closure is "
+                             f"linear): it takes no branch, got {self.branch!r}")
 
     def label(self, index: int) -> str:
-        return f"module {index + 1} ({self.kind} at joint '{self.joint}', link{'s' if len(self.links) > 1 else ''} " \
-               f"{', '.join(repr(b) for b in self.links)})"
+        links = (f", link{'s' if len(self.links) > 1 else ''} {', '.join(repr(b) for b in self.links)}"
+                 if self.links else "")
+        return f"module {index + 1} ({self.kind} at joint '{self.joint}'{links})"
 
 
 @dataclass(frozen=True)
@@ -132,12 +192,15 @@ class BodyMotion:
 class LinkageState:
     """Solved kinematics: ``joints[name] = (position, velocity, acceleration)``, each (..., 2);
     ``bodies[name]`` a :class:`BodyMotion`; ``slides[joint] = (s, s_dot, s_ddot)``: the slide of
-    an rrp module's joint along its line from the reference position [m, m/s, m/s^2]."""
+    an rrp module's joint along its line, or of a prp module's joint along its ground slide, from
+    the reference position [m, m/s, m/s^2]; ``block_slides[body]``: the same for every sliding
+    body (a block along its guide, a body along the ground)."""
 
     crank_angle: np.ndarray
     joints: Mapping[str, tuple]
     bodies: Mapping[str, BodyMotion]
     slides: Mapping[str, tuple]
+    block_slides: Mapping[str, tuple] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -154,7 +217,9 @@ class LinkageKinematics:
         reference position.
     guided : ``{block body: (guide body, direction [rad])}``: the block slides along the guide on
         the line through its reference position with that direction at the reference, and turns
-        with the guide.
+        with the guide. Guide ``None``: the block slides along the ground without turning (the
+        links welded to a ground slider's block); one of its joints is that ground slide's, in
+        ``ground_slides`` with the same direction.
     """
 
     reference: Mapping[str, tuple]
@@ -192,20 +257,26 @@ class LinkageKinematics:
         for j in list(self.ground) + list(self.ground_slides):
             if j not in ref:
                 raise InputError(f"{name}: ground joint '{j}' has no position")
-        for s, (g, _) in self.guided.items():
-            if s not in self.bodies or (g not in self.bodies):
+        for s, (g, d) in self.guided.items():
+            if s not in self.bodies or (g is not None and g not in self.bodies):
                 raise InputError(f"{name}: guided body '{s}' or its guide '{g}' is not a body")
+            if g == s:
+                raise InputError(f"{name}: body '{s}' cannot slide along itself")
+            if g is None and not any(j in self.ground_slides and abs(math.sin(self.ground_slides[j] - d)) < 1e-12
+                                     for j in self.bodies[s]):
+                raise InputError(f"{name}: body '{s}' slides along the ground but none of its joints is a ground "
+                                 "slide in that direction (its block)")
         if self.crank not in self.bodies:
             raise InputError(f"{name}: the crank '{self.crank}' is not a link")
         known = set(self.ground)
         posed = set()
         steps = []
 
-        def members_of(j):
-            return [b for b, js in self.bodies.items() if j in js]
+        def known_joints(body, exclude=None):
+            return [j for j in self.bodies[body] if j in known and j != exclude]
 
         def known_joint(body, exclude, label):
-            ks = [j for j in self.bodies[body] if j in known and j != exclude]
+            ks = known_joints(body, exclude)
             if not ks:
                 raise InputError(f"{name}: {label}: link '{body}' has no joint placed yet (place one of "
                                  f"{list(self.bodies[body])} by an earlier module)")
@@ -214,21 +285,64 @@ class LinkageKinematics:
                                  "over-constrained (a link placed by a module has exactly one joint known before it)")
             return ks[0]
 
-        def pose(body, label):
+        def guide_text(g):
+            return "the ground" if g is None else f"link '{g}'"
+
+        def pose(body, label, slide=False):
             if body in posed:
                 raise InputError(f"{name}: {label}: link '{body}' is already placed by an earlier module")
+            if body in self.guided and not slide:
+                raise InputError(f"{name}: {label}: link '{body}' slides along {guide_text(self.guided[body][0])}: "
+                                 "place it by a module that keeps its slide (rrp, prp, rpr or rpp)")
             posed.add(body)
             known.update(self.bodies[body])
+
+        def slide_lines(C):
+            """The slides of joint C not placed yet: (block body or None, guide body or None for
+            the ground, direction). A ground slider's block carrying welded links is one slide."""
+            out = [(s, g, d) for s, (g, d) in self.guided.items() if C in self.bodies[s] and s not in posed]
+            if C in self.ground_slides:
+                d = self.ground_slides[C]
+                if not any(g is None and abs(math.sin(dd - d)) < 1e-12 for _, g, dd in out):
+                    out.append((None, None, d))
+            return out
+
+        def describe(lines):
+            return ", ".join("its ground slide" if s is None else
+                             f"block '{s}' along {guide_text(g)}" for s, g, _ in lines) or "none"
+
+        def fresh(body, label):
+            kj = known_joints(body)
+            if kj:
+                raise InputError(f"{name}: {label}: link '{body}' already has joint(s) {kj} placed by other links: it "
+                                 "is over-constrained")
+
+        def block_on(block, guide, label):
+            if block not in self.guided or self.guided[block][0] != guide:
+                raise InputError(f"{name}: {label}: link '{block}' is not a block sliding along link '{guide}'")
+            return self.guided[block][1]
 
         for i, m in enumerate(self.modules):
             label = m.label(i)
             for b in m.links:
                 if b not in self.bodies:
                     raise InputError(f"{name}: {label}: unknown link '{b}' (links: {', '.join(self.bodies)})")
+            on = m.links[:1] if m.kind in ("rpr", "rpp") else m.links
+            for b in on:
                 if m.joint not in self.bodies[b]:
                     raise InputError(f"{name}: {label}: joint '{m.joint}' is not on link '{b}'")
-            if m.joint in known:
+            if m.kind in ("rpr", "rpp"):
+                if m.joint not in known:
+                    raise InputError(f"{name}: {label}: joint '{m.joint}' is not placed yet (an {m.kind} module "
+                                     "moves a block pinned at a joint placed by an earlier module)")
+                if m.joint in self.bodies[m.links[1]]:
+                    raise InputError(f"{name}: {label}: joint '{m.joint}' is on link '{m.links[1]}' too")
+                if m.links[0] == m.links[1]:
+                    raise InputError(f"{name}: {label}: the block and its guide must be different links")
+            elif m.joint in known:
                 raise InputError(f"{name}: {label}: joint '{m.joint}' is already placed by an earlier module")
+            elif m.joint not in ref:
+                raise InputError(f"{name}: {label}: unknown joint '{m.joint}'")
             if m.kind == "crank":
                 if i != 0:
                     raise InputError(f"{name}: {label}: the crank module must come first")
@@ -262,25 +376,28 @@ class LinkageKinematics:
                 steps.append(dict(kind="rrr", label=label, b1=b1, b2=b2, P=P, Q=Q, C=C, r1=r1, r2=r2, branch=branch))
                 pose(b1, label)
                 pose(b2, label)
-            else:                                   # rrp
+            elif m.kind == "rrp":
                 b1 = m.links[0]
                 C = m.joint
                 P = known_joint(b1, C, label)
-                block = next((s for s in self.guided if C in self.bodies[s]), None)
-                if C in self.ground_slides and block is not None:
-                    raise InputError(f"{name}: {label}: joint '{C}' slides on the ground and on block '{block}'")
-                if C in self.ground_slides:
-                    guide, direction = None, self.ground_slides[C]
-                elif block is not None:
-                    guide, direction = self.guided[block]
-                    if guide not in posed:
-                        raise InputError(f"{name}: {label}: the guide '{guide}' of block '{block}' is not placed yet")
-                    if block == b1:
-                        raise InputError(f"{name}: {label}: the link '{b1}' cannot be its own sliding block")
-                else:
+                lines = slide_lines(C)
+                if any(s == b1 for s, _, _ in lines):
+                    raise InputError(f"{name}: {label}: the link '{b1}' cannot be its own sliding block")
+                ready = [x for x in lines if x[1] is None or x[1] in posed]
+                if not ready:
+                    waiting = [x for x in lines if x not in ready]
+                    if waiting:
+                        raise InputError(f"{name}: {label}: the guide '{waiting[0][1]}' of block '{waiting[0][0]}' is "
+                                         "not placed yet")
                     raise InputError(f"{name}: {label}: joint '{C}' has no slide (give it a slider support, or put it "
                                      "on a block that slides along a guide)")
-                e = np.array([math.cos(direction), math.sin(direction)])
+                if len(ready) > 1:
+                    raise InputError(f"{name}: {label}: joint '{C}' is on two slides ({describe(ready)}): a joint on "
+                                     "two slides is placed by a 'prp' module, with no link")
+                block, guide, direction = ready[0]
+                if block is not None:
+                    fresh(block, label)
+                e = _unit(direction)
                 r1 = float(np.hypot(*(ref[C] - ref[P])))
                 if r1 <= 0:
                     raise InputError(f"{name}: {label}: joint '{C}' coincides with joint '{P}'")
@@ -293,9 +410,90 @@ class LinkageKinematics:
                                   block=block, e_ref=e))
                 pose(b1, label)
                 if block is not None:
-                    pose(block, label)
-            # A body none of whose joints a module places, but two of whose joints are known, is
-            # over-constrained (it could not keep its length).
+                    pose(block, label, slide=True)
+            elif m.kind == "rpr":
+                block, guide = m.links
+                P = m.joint
+                direction = block_on(block, guide, label)
+                if guide in self.guided:
+                    raise InputError(f"{name}: {label}: the guide '{guide}' slides along "
+                                     f"{guide_text(self.guided[guide][0])}: an rpr module turns its guide about a "
+                                     "pivot (use rpp for a guide that slides)")
+                for b in (block, guide):
+                    if b in posed:
+                        raise InputError(f"{name}: {label}: link '{b}' is already placed by an earlier module")
+                if known_joints(block) != [P]:
+                    raise InputError(f"{name}: {label}: block '{block}' already has joints "
+                                     f"{known_joints(block)} placed: it is over-constrained (its one known joint is "
+                                     f"'{P}')")
+                Q = known_joint(guide, None, label)
+                u = ref[P] - ref[Q]
+                if np.hypot(*u) <= 0:
+                    raise InputError(f"{name}: {label}: joint '{P}' coincides with the pivot '{Q}' of the guide")
+                e = _unit(direction)
+                along = float(u @ e)
+                branch = m.branch or (1 if along > 0 else -1 if along < 0 else 0)
+                if branch == 0:
+                    raise InputError(f"{name}: {label}: the line from '{Q}' to '{P}' is square to the slide in the "
+                                     "reference configuration (it locks there); give the module a branch")
+                steps.append(dict(kind="rpr", label=label, block=block, guide=guide, P=P, Q=Q, u=u, e_ref=e,
+                                  offset=float(_cross(u, e)), along_ref=along, reach=float(np.hypot(*u)),
+                                  branch=branch))
+                pose(block, label, slide=True)
+                pose(guide, label)
+            elif m.kind == "prp":
+                C = m.joint
+                lines = slide_lines(C)
+                ready = [x for x in lines if x[1] is None or x[1] in posed]
+                if len(ready) != 2:
+                    waiting = [x for x in lines if x not in ready]
+                    raise InputError(f"{name}: {label}: joint '{C}' needs two slides along the ground or placed guides, "
+                                     f"it has {len(ready)} ({describe(ready)})"
+                                     + (f"; the guide of {describe(waiting)} is not placed yet" if waiting else ""))
+                if all(g is None for _, g, _ in ready):
+                    raise InputError(f"{name}: {label}: both slides of joint '{C}' are on the ground: the joint cannot "
+                                     "move (make it a pinned ground joint)")
+                es = [_unit(d) for _, _, d in ready]
+                if abs(float(_cross(es[0], es[1]))) <= LOCK_TOLERANCE:
+                    raise InputError(f"{name}: {label}: the two slides of joint '{C}' ({describe(ready)}) are parallel "
+                                     "in the reference configuration (it locks there)")
+                for s, _, _ in ready:
+                    if s is not None:
+                        fresh(s, label)
+                steps.append(dict(kind="prp", label=label, C=C,
+                                  lines=tuple((s, g, e) for (s, g, _), e in zip(ready, es))))
+                for s, _, _ in ready:
+                    if s is not None:
+                        pose(s, label, slide=True)
+                known.add(C)
+            else:                                   # rpp
+                block, mid = m.links
+                P = m.joint
+                d1 = block_on(block, mid, label)
+                if mid not in self.guided:
+                    raise InputError(f"{name}: {label}: link '{mid}' does not slide: an rpp module moves a block along "
+                                     "a link that slides along the ground or a placed guide (use rpr for a guide that "
+                                     "turns about a pivot)")
+                guide, d2 = self.guided[mid]
+                if guide is not None and guide not in posed:
+                    raise InputError(f"{name}: {label}: the guide '{guide}' of link '{mid}' is not placed yet")
+                for b in (block, mid):
+                    if b in posed:
+                        raise InputError(f"{name}: {label}: link '{b}' is already placed by an earlier module")
+                if known_joints(block) != [P]:
+                    raise InputError(f"{name}: {label}: block '{block}' already has joints "
+                                     f"{known_joints(block)} placed: it is over-constrained (its one known joint is "
+                                     f"'{P}')")
+                fresh(mid, label)
+                e1, e2 = _unit(d1), _unit(d2)
+                if abs(float(_cross(e1, e2))) <= LOCK_TOLERANCE:
+                    raise InputError(f"{name}: {label}: the slide of block '{block}' along link '{mid}' is parallel to "
+                                     f"the slide of '{mid}' along {guide_text(guide)}: the linkage locks at every "
+                                     "position")
+                steps.append(dict(kind="rpp", label=label, block=block, mid=mid, guide=guide, P=P,
+                                  X=self.bodies[mid][0], e1_ref=e1, e2_ref=e2))
+                pose(block, label, slide=True)
+                pose(mid, label, slide=True)
         missing = [b for b in self.bodies if b not in posed]
         if missing:
             raise InputError(f"{name}: link(s) {', '.join(repr(b) for b in missing)} are placed by no module "
@@ -318,6 +516,19 @@ class LinkageKinematics:
         """The crank angle of the reference configuration [rad]."""
         return float(self._steps[0]["theta_ref"] - self.crank_zero)
 
+    @property
+    def sliding_blocks(self) -> dict:
+        """``{ground slide joint: body}`` for the ground slides whose block carries welded links:
+        the body translates along the slide without turning (a ``sliding_clamp`` support in the
+        instantaneous structure)."""
+        out = {}
+        for b, (g, d) in self.guided.items():
+            if g is None:
+                for j in self.bodies[b]:
+                    if j in self.ground_slides and abs(math.sin(self.ground_slides[j] - d)) < 1e-12:
+                        out[j] = b
+        return out
+
     def step(self, index: int) -> dict:
         """The planned data of module ``index`` (known joints, radii, branch, slide)."""
         return dict(self._steps[index])
@@ -327,8 +538,8 @@ class LinkageKinematics:
               lock_tolerance: float = LOCK_TOLERANCE) -> LinkageState:
         """Positions, velocities and accelerations of every joint and body at the crank states
         (arrays broadcast together; crank angle [rad] from ``crank_zero``, CCW positive). A
-        module whose links come within ``lock_tolerance`` (the sine of the angle) of a toggle
-        raises :class:`AssemblyError`."""
+        module that cannot assemble, or whose toggle angle (see :data:`LOCK_TOLERANCE`) has a
+        sine within ``lock_tolerance``, raises :class:`AssemblyError`."""
         th = require_finite("crank_angle", crank_angle)
         w = require_finite("crank_speed", crank_speed)
         a = require_finite("crank_acceleration", crank_acceleration)
@@ -337,7 +548,10 @@ class LinkageKinematics:
         ref = self._ref
         zero2 = np.zeros(shape + (2,))
         J = {j: (np.broadcast_to(ref[j], shape + (2,)).copy(), zero2, zero2) for j in self.ground}
-        B, S = {}, {}
+        B, S, BS = {}, {}, {}
+
+        def at(v):
+            return np.broadcast_to(v, shape + (2,))
 
         def set_pose(body, anchor, rot, om, al):
             B[body] = BodyMotion(rot, om, al)
@@ -345,7 +559,7 @@ class LinkageKinematics:
             for j in self.bodies[body]:
                 if j == anchor or j in J:
                     continue
-                r = _rot(np.broadcast_to(ref[j] - ref[anchor], shape + (2,)), rot)
+                r = _rot(at(ref[j] - ref[anchor]), rot)
                 kr = _perp(r)
                 J[j] = (p0 + r, v0 + om[..., None] * kr, a0 + al[..., None] * kr - (om**2)[..., None] * r)
 
@@ -357,17 +571,34 @@ class LinkageKinematics:
             rot = _angle(r) - _angle(ref[C] - ref[P])
             set_pose(body, P, rot, _cross(r, vc - vp) / r2, _cross(r, ac - ap) / r2)
 
+        def carried(guide, X):
+            """The point of body ``guide`` (None: the ground) at joint X's reference position:
+            position, velocity, acceleration, and the guide's rotation, speed, acceleration."""
+            if guide is None:
+                z = np.zeros(shape)
+                return at(ref[X]).copy(), zero2, zero2, z, z, z
+            g = B[guide]
+            anchor = next(j for j in self.bodies[guide] if j in J)
+            p0, v0, a0 = J[anchor]
+            r = _rot(at(ref[X] - ref[anchor]), g.rotation)
+            kr = _perp(r)
+            return (p0 + r, v0 + g.omega[..., None] * kr,
+                    a0 + g.alpha[..., None] * kr - (g.omega**2)[..., None] * r, g.rotation, g.omega, g.alpha)
+
         def fail(step, msg, bad):
-            i = int(np.flatnonzero(np.ravel(bad))[0])
+            i = int(np.flatnonzero(np.ravel(np.broadcast_to(bad, shape)))[0])
             deg = math.degrees(float(np.ravel(th)[i]))
             raise AssemblyError(f"{self.name}: at crank angle {deg % 360.0:.6g} deg, {step['label']} {msg(i)}")
 
+        def sc(x, v):
+            return x[..., None] * v
+
         for st in self._steps:
-            if st["kind"] == "crank":
+            kind = st["kind"]
+            if kind == "crank":
                 rot = self.crank_zero + th - st["theta_ref"]
                 set_pose(st["body"], self.pivot, rot, w, a)
-                continue
-            if st["kind"] == "rrr":
+            elif kind == "rrr":
                 P, Q, C, r1, r2, br = st["P"], st["Q"], st["C"], st["r1"], st["r2"], st["branch"]
                 (pp, vp, ap), (pq, vq, aq) = J[P], J[Q]
                 d = pq - pp
@@ -382,7 +613,7 @@ class LinkageKinematics:
                 x = (D**2 + r1**2 - r2**2) / (2 * D)
                 y = br * np.sqrt(np.maximum(r1**2 - x**2, 0.0))
                 u = d / D[..., None]
-                pc = pp + x[..., None] * u + y[..., None] * _perp(u)
+                pc = pp + sc(x, u) + sc(y, _perp(u))
                 cp, cq = pc - pp, pc - pq
                 det = _cross(cp, cq)
                 lock = np.abs(det) <= lock_tolerance * r1 * r2
@@ -399,55 +630,147 @@ class LinkageKinematics:
                 J[C] = (pc, vc, ac)
                 pose_from(st["b1"], P, C)
                 pose_from(st["b2"], Q, C)
-                continue
-            # rrp: C = L0 + s e on the slide line, |C - P| = r1
-            P, C, r1, br, e_ref = st["P"], st["C"], st["r1"], st["branch"], st["e_ref"]
-            pp, vp, ap = J[P]
-            if st["guide"] is None:
-                L0, vL, aL = np.broadcast_to(ref[C], shape + (2,)), zero2, zero2
-                rot_g, om, al = np.zeros(shape), np.zeros(shape), np.zeros(shape)
-            else:
-                g = B[st["guide"]]
-                anchor = next(j for j in self.bodies[st["guide"]] if j in J)
-                p0, v0, a0 = J[anchor]
-                rg = _rot(np.broadcast_to(ref[C] - ref[anchor], shape + (2,)), g.rotation)
-                krg = _perp(rg)
-                om, al, rot_g = g.omega, g.alpha, g.rotation
-                L0 = p0 + rg
-                vL = v0 + om[..., None] * krg
-                aL = a0 + al[..., None] * krg - (om**2)[..., None] * rg
-            e = _rot(np.broadcast_to(e_ref, shape + (2,)), rot_g)
-            ke = _perp(e)
-            h = L0 - pp
-            c = _cross(h, e)
-            disc = r1**2 - c**2
-            far = disc < -1e-12 * r1**2
-            if np.any(far):
-                fail(st, lambda i: (f"cannot assemble: joint '{P}' is {abs(np.ravel(c)[i]):.6g} m from the slide "
-                                    f"line of joint '{C}', farther than the link reaches ({r1:.6g} m): the linkage "
-                                    "locks before this position"), far)
-            s = -_dot(h, e) + br * np.sqrt(np.maximum(disc, 0.0))
-            pc = L0 + s[..., None] * e
-            cp = pc - pp
-            den = _dot(cp, e)
-            lock = np.abs(den) <= lock_tolerance * r1
-            if np.any(lock):
-                fail(st, lambda i: (f"locks: link '{st['b1']}' is "
-                                    f"{_asin_deg(np.ravel(den)[i] / r1):.3g} deg from "
-                                    f"perpendicular to the slide of joint '{C}' (its motion along the slide is "
-                                    "undefined)"), lock)
-            vg = vL + (om * s)[..., None] * ke                 # guide point under C
-            sd = -_dot(cp, vg - vp) / den
-            vc = vg + sd[..., None] * e
-            ag = aL + (al * s)[..., None] * ke - (om**2 * s)[..., None] * e
-            cor = (2.0 * sd * om)[..., None] * ke
-            sdd = -(_dot(cp, ag + cor - ap) + _dot(vc - vp, vc - vp)) / den
-            J[C] = (pc, vc, ag + cor + sdd[..., None] * e)
-            S[C] = (s, sd, sdd)
-            pose_from(st["b1"], P, C)
-            if st["block"] is not None:
-                set_pose(st["block"], C, rot_g, om, al)
-        return LinkageState(th, J, B, S)
+            elif kind == "rrp":
+                # C = L0 + s e on the slide line, |C - P| = r1
+                P, C, r1, br = st["P"], st["C"], st["r1"], st["branch"]
+                pp, vp, ap = J[P]
+                L0, vL, aL, rot_g, om, al = carried(st["guide"], C)
+                e = _rot(at(st["e_ref"]), rot_g)
+                ke = _perp(e)
+                h = L0 - pp
+                c = _cross(h, e)
+                disc = r1**2 - c**2
+                far = disc < -1e-12 * r1**2
+                if np.any(far):
+                    fail(st, lambda i: (f"cannot assemble: joint '{P}' is {abs(np.ravel(c)[i]):.6g} m from the slide "
+                                        f"line of joint '{C}', farther than the link reaches ({r1:.6g} m): the linkage "
+                                        "locks before this position"), far)
+                s = -_dot(h, e) + br * np.sqrt(np.maximum(disc, 0.0))
+                pc = L0 + sc(s, e)
+                cp = pc - pp
+                den = _dot(cp, e)
+                lock = np.abs(den) <= lock_tolerance * r1
+                if np.any(lock):
+                    fail(st, lambda i: (f"locks: link '{st['b1']}' is "
+                                        f"{_asin_deg(np.ravel(den)[i] / r1):.3g} deg from "
+                                        f"perpendicular to the slide of joint '{C}' (its motion along the slide is "
+                                        "undefined)"), lock)
+                vg = vL + sc(om * s, ke)                 # guide point under C
+                sd = -_dot(cp, vg - vp) / den
+                vc = vg + sc(sd, e)
+                ag = aL + sc(al * s, ke) - sc(om**2 * s, e)
+                cor = sc(2.0 * sd * om, ke)
+                sdd = -(_dot(cp, ag + cor - ap) + _dot(vc - vp, vc - vp)) / den
+                J[C] = (pc, vc, ag + cor + sc(sdd, e))
+                S[C] = (s, sd, sdd)
+                pose_from(st["b1"], P, C)
+                if st["block"] is not None:
+                    set_pose(st["block"], C, rot_g, om, al)
+                    BS[st["block"]] = S[C]
+            elif kind == "rpr":
+                # P - Q = R(phi) (u + s e0): the block (through P) and the guide (through Q) turn
+                # together by phi; |u + s e0| = |P - Q| gives s, its direction phi.
+                P, Q, br, off, reach = st["P"], st["Q"], st["branch"], st["offset"], st["reach"]
+                (pp, vp, ap), (pq, vq, aq) = J[P], J[Q]
+                d = pp - pq
+                D = np.hypot(d[..., 0], d[..., 1])
+                disc = D**2 - off**2
+                far = disc < -1e-12 * reach**2
+                if np.any(far):
+                    fail(st, lambda i: (f"cannot assemble: joints '{P}' and '{Q}' are {np.ravel(D)[i]:.6g} m apart, "
+                                        f"less than the offset ({abs(off):.6g} m) of the slide of block "
+                                        f"'{st['block']}' from the pivot '{Q}' of its guide '{st['guide']}': the "
+                                        "linkage locks before this position"), far)
+                s = -st["along_ref"] + br * np.sqrt(np.maximum(disc, 0.0))
+                rot = _angle(d) - _angle(at(st["u"]) + sc(s, at(st["e_ref"])))
+                e = _rot(at(st["e_ref"]), rot)
+                den = _dot(d, e)
+                # Locked: P - Q square to the slide (the limit of an offset slide), or P on the pivot.
+                through = D <= lock_tolerance * reach
+                lock = (np.abs(den) <= lock_tolerance * D) | through
+                if np.any(lock):
+                    fail(st, lambda i: (f"locks: joint '{P}' is {np.ravel(D)[i]:.3g} m from the pivot '{Q}' of the "
+                                        f"guide '{st['guide']}' (its turn is undefined)" if np.ravel(through)[i] else
+                                        f"locks: the line from the pivot '{Q}' to joint '{P}' is "
+                                        f"{_asin_deg(np.ravel(den)[i] / np.ravel(D)[i]):.3g} deg from square to the "
+                                        f"slide of block '{st['block']}' along '{st['guide']}' (the guide's turn is "
+                                        "undefined)"), lock)
+                kd, ke = _perp(d), _perp(e)
+
+                def solve_pe(b):               # b = x kd + y e  (det = cross(kd, e) = -den)
+                    return -_cross(b, e) / den, -_cross(kd, b) / den
+                om, sd = solve_pe(vp - vq)
+                al, sdd = solve_pe(ap - aq + sc(om**2, d) - sc(2.0 * sd * om, ke))
+                set_pose(st["guide"], Q, rot, om, al)
+                set_pose(st["block"], P, rot, om, al)
+                BS[st["block"]] = (s, sd, sdd)
+            elif kind == "prp":
+                # C = L1 + s1 e1 = L2 + s2 e2: two slide lines, each on the ground or a placed guide.
+                C = st["C"]
+                ln = []
+                for blk, g, e_ref in st["lines"]:
+                    L, vL, aL, rot, om, al = carried(g, C)
+                    ln.append((blk, L, vL, aL, rot, om, al, _rot(at(e_ref), rot)))
+                e1, e2 = ln[0][7], ln[1][7]
+                cr = _cross(e1, e2)
+                lock = np.abs(cr) <= lock_tolerance
+                if np.any(lock):
+                    fail(st, lambda i: (f"cannot assemble: its two slides ({', '.join(self._line_text(x) for x in st['lines'])}) "
+                                        f"are {_asin_deg(np.ravel(cr)[i]):.3g} deg from parallel (joint '{C}' is "
+                                        "undefined along them)"), lock)
+
+                def solve_ll(b):               # b = s1 e1 - s2 e2
+                    return _cross(b, e2) / cr, -_cross(e1, b) / cr
+                s1, s2 = solve_ll(ln[1][1] - ln[0][1])
+                ss = (s1, s2)
+                vg = [x[2] + sc(x[5] * s_, _perp(x[7])) for x, s_ in zip(ln, ss)]
+                sd = solve_ll(vg[1] - vg[0])
+                ag = [x[3] + sc(x[6] * s_, _perp(x[7])) - sc(x[5]**2 * s_, x[7]) + sc(2.0 * x[5] * v_, _perp(x[7]))
+                      for x, s_, v_ in zip(ln, ss, sd)]
+                sdd = solve_ll(ag[1] - ag[0])
+                J[C] = (ln[0][1] + sc(s1, e1), vg[0] + sc(sd[0], e1), ag[0] + sc(sdd[0], e1))
+                for k, x in enumerate(ln):
+                    slide = (ss[k], sd[k], sdd[k])
+                    if x[0] is None or st["lines"][k][1] is None:
+                        S[C] = slide
+                    if x[0] is not None:
+                        set_pose(x[0], C, x[4], x[5], x[6])
+                        BS[x[0]] = slide
+            else:                                                        # rpp
+                # P = G(P_ref) + s2 e2 + s1 e1: the block slides along `mid`, `mid` along its guide G;
+                # both keep the guide's rotation.
+                P, X = st["P"], st["X"]
+                pp, vp, ap = J[P]
+                Lp, vLp, aLp, rot, om, al = carried(st["guide"], P)
+                e1, e2 = _rot(at(st["e1_ref"]), rot), _rot(at(st["e2_ref"]), rot)
+                cr = _cross(e2, e1)
+                lock = np.abs(cr) <= lock_tolerance
+                if np.any(lock):
+                    fail(st, lambda i: (f"locks: the slide of block '{st['block']}' along '{st['mid']}' is "
+                                        f"{_asin_deg(np.ravel(cr)[i]):.3g} deg from parallel to the slide of "
+                                        f"'{st['mid']}' along "
+                                        f"{'the ground' if st['guide'] is None else repr(st['guide'])}"), lock)
+
+                def solve_pp(b):               # b = s2 e2 + s1 e1
+                    return _cross(b, e1) / cr, _cross(e2, b) / cr
+                b = pp - Lp
+                s2, s1 = solve_pp(b)
+                sd2, sd1 = solve_pp(vp - vLp - sc(om, _perp(b)))
+                wv = sc(sd2, e2) + sc(sd1, e1)
+                sdd2, sdd1 = solve_pp(ap - aLp - sc(al, _perp(b)) + sc(om**2, b) - sc(2.0 * om, _perp(wv)))
+                LX, vLX, aLX, _, _, _ = carried(st["guide"], X)
+                k2 = _perp(e2)
+                J[X] = (LX + sc(s2, e2), vLX + sc(om * s2, k2) + sc(sd2, e2),
+                        aLX + sc(al * s2, k2) - sc(om**2 * s2, e2) + sc(2.0 * om * sd2, k2) + sc(sdd2, e2))
+                set_pose(st["mid"], X, rot, om, al)
+                set_pose(st["block"], P, rot, om, al)
+                BS[st["block"]], BS[st["mid"]] = (s1, sd1, sdd1), (s2, sd2, sdd2)
+        return LinkageState(th, J, B, S, BS)
+
+    @staticmethod
+    def _line_text(line) -> str:
+        s, g, _ = line
+        return "the ground slide" if s is None else f"block '{s}' along {'the ground' if g is None else repr(g)}"
 
 
 @dataclass(frozen=True)
@@ -511,7 +834,9 @@ class LinkageMechanism(_LinkageMethods):
         order of the instantaneous structure. Connections: 'pin' (revolute) or 'rigid' (welded).
     frames : ``{link: body}``: the kinematic body each member belongs to.
     supports : ``{joint: 'pinned' | 'slider'}`` of the ground joints (slider: along
-        ``kinematics.ground_slides``); the crank pivot is clamped in the instantaneous structure.
+        ``kinematics.ground_slides``; a slider whose block carries welded links, a body of
+        ``kinematics.sliding_blocks``, is a ``sliding_clamp`` in the instantaneous structure); the
+        crank pivot is clamped in the instantaneous structure.
     plates, sliders, springs : :class:`Plate`, :class:`GuidedSlider`, :class:`Spring` s.
     loads : ``{link: (n+1, 3)}`` constant applied loads (global Fx, Fy, Mz) at the member nodes.
     """
@@ -606,6 +931,7 @@ class LinkageMechanism(_LinkageMethods):
         for s in self.sliders:
             used |= {s.block, s.guide}
         joints = []
+        clamps = kin.sliding_blocks
         for j in kin.joint_names:
             if j not in used:
                 continue
@@ -614,7 +940,8 @@ class LinkageMechanism(_LinkageMethods):
             elif j in pins:
                 joints.append(Joint(j, "pinned"))
             elif self.supports.get(j) == "slider":
-                joints.append(Joint(j, "slider", kin.ground_slides[j]))
+                # A block carrying welded links slides without turning: the links keep their angle.
+                joints.append(Joint(j, "sliding_clamp" if j in clamps else "slider", kin.ground_slides[j]))
             elif self.supports.get(j) == "pinned":
                 joints.append(Joint(j, "pinned"))
             else:
