@@ -4,6 +4,7 @@
     cosim run <name|path> [options]              run a scenario through the engines, write logs/
     cosim sweep <name|path> --rpm 100:400:25     peak strain against speed, points in parallel
     cosim uncertainty <name|path>                band of predicted strains over uncertain parameters
+    cosim identify <name> ... --validate <name>  calibrate declared unknowns, predict held-out speeds
     cosim compare <folder>                       the table of a run, sweep or uncertainty folder
     cosim new <name> [--like SCENARIO]           a commented scenario file to start from
     cosim synthesize --case I|II ...             link lengths of a rigid crank-rocker (cosim.synthesis)
@@ -12,7 +13,8 @@ Bad input (unknown scenario or engine, malformed range, bad scenario file) ends 
 ``error: ...`` on stderr and exit status 2; a run in which an engine failed exits with 1.
 ``python -m cosim`` is the same command.
 
-Output: the tables (and where the results were written) go to stdout; progress bars and messages
+Output: the tables (and where the results were written) go to stdout (with ``--stdout`` the
+recording goes there, and the tables to stderr); progress bars and messages
 go to stderr through :mod:`logging` (``-v`` adds detail, ``-q`` leaves only warnings and errors
 and switches the bars off; bars are off anyway when stderr is not a terminal). Results are
 written under ``./logs/`` of the current directory unless ``--out`` says otherwise.
@@ -121,7 +123,7 @@ def _parser() -> argparse.ArgumentParser:
                "logs/crank_rocker_373rpm-<timestamp>")
     p.add_argument("--version", action="version", version=f"cosim {__version__}")
     _verbosity_arguments(p, top=True)
-    sub = p.add_subparsers(dest="command", metavar="{list,run,sweep,uncertainty,compare,new,synthesize}")
+    sub = p.add_subparsers(dest="command", metavar="{list,run,sweep,uncertainty,identify,compare,new,synthesize}")
 
     sub.add_parser("list", help="show the scenarios and their one-line descriptions",
                    description="Show the scenario files under scenarios/ with their one-line descriptions.")
@@ -142,18 +144,8 @@ def _parser() -> argparse.ArgumentParser:
     r.add_argument("--records", type=Path, metavar="DIR",
                    help="score against the records in DIR (<name>.csv + <name>.toml each, format in "
                         "cosim/records.py) instead of the shipped scenarios/records")
-    view = r.add_mutually_exclusive_group()
-    view.add_argument("--save", dest="viewer", action="store_const", const="save",
-                      help="write run.rrd only, no viewer (default; headless)")
-    view.add_argument("--spawn", dest="viewer", action="store_const", const="spawn",
-                      help="also spawn a rerun viewer and stream to it")
-    view.add_argument("--connect", dest="connect", nargs="?", const="rerun+http://127.0.0.1:9876/proxy",
-                      metavar="URL", help="also stream to a running rerun viewer (default URL "
-                                          "rerun+http://127.0.0.1:9876/proxy)")
-    view.add_argument("--no-record", dest="viewer", action="store_const", const="none",
-                      help="no rerun recording at all")
-    r.add_argument("--exaggeration", type=float, default=20.0,
-                   help="factor on the elastic displacements in the linkage drawing (default 20)")
+    from .recording.options import add_viewer_arguments
+    add_viewer_arguments(r, "run.rrd", run=True)
     _verbosity_arguments(r)
 
     s = sub.add_parser("sweep", help="peak strain against crank speed; points run in parallel",
@@ -174,19 +166,24 @@ def _parser() -> argparse.ArgumentParser:
                         "revolution; four-bars only)")
     s.add_argument("--records", type=Path, metavar="DIR",
                    help="draw the recorded peaks from DIR instead of the shipped scenarios/records")
+    add_viewer_arguments(s, "sweep.rrd")
     _verbosity_arguments(s)
 
     u = sub.add_parser("uncertainty", help="band of predicted strains over the scenario's uncertain parameters",
-                       description="Monte Carlo over the parameters in the scenario's [uncertainty] table (periodic "
-                                   "TMM solves), a one-at-a-time sensitivity ranking, and whether the records' peaks "
-                                   "fall inside the band. Samples run in parallel, or on a Dask cluster.")
+                       description="Band over the unknowns declared in the scenario's [uncertainty] table (Latin "
+                                   "hypercube and Morris design; the TMM marched to its steady revolution), a Morris "
+                                   "sensitivity ranking, and whether each recorded peak lies inside the band. Samples "
+                                   "run in parallel, or on a Dask cluster.")
     u.add_argument("scenario", help="scenario name or path (with an [uncertainty] table)")
     u.add_argument("--samples", type=int, help="Monte Carlo samples (default: the scenario's)")
     u.add_argument("--seed", type=int, help="random seed (default: the scenario's)")
+    u.add_argument("--trajectories", type=int, help="Morris trajectories (default: the scenario's "
+                                                    "morris_trajectories, else 8)")
     _executor_arguments(u, "samples")
     u.add_argument("--out", type=Path, help="output folder (default: ./logs/<scenario>-uncertainty-<timestamp>)")
     u.add_argument("--records", type=Path, metavar="DIR",
                    help="check the recorded peaks from DIR instead of the shipped scenarios/records")
+    add_viewer_arguments(u, "uncertainty.rrd")
     _verbosity_arguments(u)
 
     c = sub.add_parser("compare", help="print the table of a run, sweep or uncertainty folder",
@@ -210,6 +207,8 @@ def _parser() -> argparse.ArgumentParser:
 
     from .synthesis import add_parser as add_synthesize_parser
     _verbosity_arguments(add_synthesize_parser(sub))
+    from .identify import add_parser as add_identify_parser
+    _verbosity_arguments(add_identify_parser(sub))
     return p
 
 
@@ -254,20 +253,27 @@ def _dispatch(parser, args) -> int:
         from .sweep import parse_rpm, run_sweep
         rpm = parse_rpm(args.rpm)
         from .report import sweep_table
+        viewer, save = _viewer(args)
         folder, summary = run_sweep(args.scenario, rpm, _engines(args.engines), args.revolutions, args.workers,
-                                    args.scheduler, args.out, progress=not _quiet(args), method=args.method,
-                                    resonance=args.campbell, records_dir=args.records)
-        print(sweep_table(summary))
+                                    args.scheduler, args.out, record=viewer is not None, progress=not _quiet(args),
+                                    method=args.method, resonance=args.campbell, records_dir=args.records)
+        out = sys.stderr if viewer is not None and viewer.stdout else sys.stdout     # --stdout: the .rrd
+        print(sweep_table(summary), file=out)
         print(f"\nsweep {summary['status']}: {len(summary['points'])} points in {summary['wall_time_s']:.1f} s; "
-              f"written to {folder}")
+              f"written to {folder}", file=out)
+        _show(folder / "sweep.rrd", viewer, save)
         return 0 if summary["status"] == "completed" else 1
     if args.command == "uncertainty":
         from .report import uncertainty_table
         from .uncertainty import run_uncertainty
+        viewer, save = _viewer(args)
         folder, summary = run_uncertainty(args.scenario, args.samples, args.seed, args.workers, args.scheduler,
-                                          args.out, progress=not _quiet(args), records_dir=args.records)
-        print(uncertainty_table(summary))
-        print(f"\nwritten to {folder}")
+                                          args.out, record=viewer is not None, progress=not _quiet(args),
+                                          records_dir=args.records, trajectories=args.trajectories)
+        out = sys.stderr if viewer is not None and viewer.stdout else sys.stdout     # --stdout: the .rrd
+        print(uncertainty_table(summary), file=out)
+        print(f"\nwritten to {folder}", file=out)
+        _show(folder / "uncertainty.rrd", viewer, save)
         return 0 if summary["status"].startswith("completed") else 1
     if args.command == "new":
         from .template import new_scenario
@@ -275,6 +281,9 @@ def _dispatch(parser, args) -> int:
         print(f"wrote {path}" + (f" and its base file(s) {', '.join(str(b) for b in bases)}" if bases else ""))
         print(f"run it with: cosim run {path}")
         return 0
+    if args.command == "identify":
+        from .identify import run_command as identify_command
+        return identify_command(args, progress=not _quiet(args))
     if args.command == "synthesize":
         from .synthesis import run_command
         return run_command(args)
@@ -305,25 +314,53 @@ def run_main(scenario: str, args=None) -> int:
         setup_logging(args.verbose, args.quiet)
     from .report import comparison_table
     from .run import RunOptions, run_scenario
-    viewer = "connect" if getattr(args, "connect", None) else (args.viewer or "save")
+    viewer, save = _viewer(args)
     from .scenario import load
     sc = load(scenario)
     if getattr(sc, "kind", None) == "structure":       # a structure at one position: static analysis
         from .structure_scenario import run_static, summary_table
         if getattr(args, "records", None) is not None:
             logging.getLogger("cosim.cli").warning("--records: a static structure has no records to score; ignored")
+        if viewer is not None and (viewer.viewer != "save" or viewer.stdout or save):
+            logging.getLogger("cosim.cli").warning("a static structure writes no recording; the viewer flags are "
+                                                   "ignored")
         folder, summary = run_static(sc, args.out)
         print(summary_table(summary))
         print(f"\nwritten to {folder}")
         return 0
     engines = _engines(args.engines) if args.engines else sc.output.engines
     options = RunOptions(engines=engines, mode=args.drive, revolutions=args.revolutions, out=args.out,
-                         viewer=viewer, connect_url=getattr(args, "connect", None), exaggeration=args.exaggeration,
-                         progress=not _quiet(args), records=args.records)
+                         viewer="none" if viewer is None else viewer.viewer,
+                         connect_url=None if viewer is None else viewer.url, save_path=save,
+                         viewer_timeout_s=5.0 if viewer is None else viewer.timeout_s, exaggeration=args.exaggeration,
+                         linkage_fps=args.linkage_fps, animation=args.animation, progress=not _quiet(args),
+                         records=args.records)
     result = run_scenario(sc, options)
-    print(comparison_table(result.summary))
-    print(f"\nwritten to {result.folder}")
+    out = sys.stderr if viewer is not None and viewer.stdout else sys.stdout     # --stdout: the .rrd
+    print(comparison_table(result.summary), file=out)
+    print(f"\nwritten to {result.folder}", file=out)
+    recording = result.summary["files"].get("recording")
+    if viewer is not None and viewer.stdout and recording:
+        from .recording.sinks import copy_to_stdout
+        copy_to_stdout(result.folder / recording)          # an absolute --save path stays absolute
+    if result.recorder is not None and getattr(result.recorder, "serving", None):
+        logging.getLogger("cosim.cli").info("serving the recording until Ctrl-C")
+        result.recorder.serve_until_interrupted()
     return {"completed": 0, "interrupted": 130}.get(result.summary["status"], 1)
+
+
+def _viewer(args):
+    """(ViewerOptions or None, --save path or None) of the recording flags (cosim.recording.options)."""
+    from .recording.options import viewer_from_args
+    return viewer_from_args(args)
+
+
+def _show(path: Path, viewer, save) -> None:
+    """A finished sweep/uncertainty recording in the viewer the flags ask for (and --save, --stdout)."""
+    if viewer is None or not path.exists():
+        return
+    from .recording.sinks import show_file
+    show_file(path, viewer, save)
 
 
 if __name__ == "__main__":

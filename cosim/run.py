@@ -6,7 +6,12 @@
   derivations; every assumption with its rationale; the file as written);
 * ``traces.csv``: time column and one column per trace, units in the names
   (:mod:`cosim.traces`), appended every macro step;
-* ``run.rrd``: the rerun recording (:mod:`cosim.recording`);
+* ``run.rrd``: the rerun recording (:mod:`cosim.recording`; written by a child process, to
+  ``RunOptions.save_path`` instead if given, and streamed to a viewer as ``RunOptions.viewer``
+  says, never waiting on one without a bound);
+* ``model.xml`` (MuJoCo's MJCF, with visual capsules) and ``exudyn_solution.txt`` (exudyn's
+  solution file for its ``SolutionViewer``) when those engines ran; ``linkage.gif`` with
+  ``RunOptions.animation``;
 * ``traces.parquet``: the traces as one long table, written when the run ends
   (:mod:`cosim.results`, ``cosim.load_run``);
 * ``strains.png`` / ``strains.svg``: strain against crank angle per gauge, engines and records
@@ -49,9 +54,13 @@ class RunOptions:
     mode: str | None = None              # 'prescribed' | 'motor'; default: the scenario's drive.mode
     revolutions: float | None = None     # default: the scenario's output.revolutions, else until steady
     out: Path | None = None              # default: logs/<scenario>-<timestamp>
-    viewer: str = "save"                 # 'save' (headless, default) | 'spawn' | 'connect' | 'none'
+    viewer: str = "save"                 # 'save' (headless, default) | 'spawn' | 'connect' | 'serve' | 'none'
     connect_url: str | None = None
-    exaggeration: float = 20.0
+    save_path: Path | None = None        # the recording file (default: <run folder>/run.rrd)
+    viewer_timeout_s: float = 5.0        # connecting to / flushing to a viewer (cosim.recording.sinks)
+    exaggeration: float | None = None    # linkage drawing; None: from the largest deformation
+    linkage_fps: float | None = 60.0     # linkage frames per simulated second in the recording (None: every step)
+    animation: bool = False              # linkage.gif in the run folder (matplotlib)
     progress: bool = True
     records: Path | None = None          # records directory (default: the shipped scenarios/records)
     figures: bool = True                 # strains.png/.svg in the run folder
@@ -63,6 +72,7 @@ class RunResult:
     summary: dict
     result: object = None                # cosim.master.CoSimResult
     notes: list = field(default_factory=list)
+    recorder: object = None              # the closed recorder (``serve_until_interrupted`` with viewer 'serve')
 
 
 def _on_sigterm(signum, frame):
@@ -138,8 +148,7 @@ def run_scenario(scenario, options: RunOptions = RunOptions(), callback=None) ->
     for e in options.engines:
         if e not in ENGINES:
             raise InputError(f"unknown engine {e!r}; choose from {', '.join(ENGINES)}")
-    if options.viewer not in ("save", "spawn", "connect", "none"):
-        raise InputError(f"viewer must be save, spawn, connect or none, got {options.viewer!r}")
+    viewer = _viewer_options(options)                    # refuses a bad viewer before anything runs
     mode = options.mode or sc.drive.mode
     engines, unavailable = {}, {}
     for name in options.engines:
@@ -174,24 +183,16 @@ def run_scenario(scenario, options: RunOptions = RunOptions(), callback=None) ->
                if mode == "motor" else None,
                "started": time.strftime("%Y-%m-%dT%H:%M:%S"), "progress": 0.0,
                "engines": {n: {"status": "unavailable", "error": msg} for n, msg in unavailable.items()},
-               "files": {"traces": "traces.csv", "recording": "run.rrd" if options.viewer != "none" else None,
-                         "scenario": "scenario.resolved.toml"}}
+               "files": {"traces": "traces.csv", "recording": None, "scenario": "scenario.resolved.toml"}}
     summary["linkage"] = linkage_summary(sc)
     write_json(folder / "summary.json", summary)
 
     writer = TraceWriter(folder / "traces.csv")
-    recorder = [None]
     notes = []
-
-    def recorder_for_first_step():
-        # Built at the first macro step: the engines are reset then and know their meshes.
-        from .recording import Recorder
-        rec = Recorder(sc, {n: e.node_stations() for n, e in engines.items() if _has_stations(e)}, mode,
-                       save_path=folder / "run.rrd", spawn=options.viewer == "spawn",
-                       connect=options.connect_url if options.viewer == "connect" else None,
-                       exaggeration=options.exaggeration)
-        rec.log_text("scenario", (folder / "scenario.resolved.toml").read_text(encoding="utf-8"))
-        return rec
+    # Started before the engines set up: its child process imports rerun meanwhile.
+    recorder = [_start_recorder(sc, mode, engines, folder, options, viewer, summary)]
+    stations = [False]
+    exports = _start_exports(engines, folder)
 
     bar = None
     if options.progress:
@@ -202,9 +203,10 @@ def run_scenario(scenario, options: RunOptions = RunOptions(), callback=None) ->
     failures = {}
     def on_step(step):
         writer.write_step(step.outputs)
-        if options.viewer != "none":
-            if recorder[0] is None:
-                recorder[0] = recorder_for_first_step()
+        if recorder[0] is not None:
+            if not stations[0]:         # the engines are reset now and know their meshes
+                recorder[0].set_stations({n: e.node_stations() for n, e in engines.items() if _has_stations(e)})
+                stations[0] = True
             recorder[0].log_macro_step(step)
         failures.update(step.failed)
         frac = step.step / step.n_steps
@@ -268,16 +270,83 @@ def run_scenario(scenario, options: RunOptions = RunOptions(), callback=None) ->
                     "steady" if e["steady"] else "NOT STEADY: the last revolution is a transient") +
                     ("" if change is None else f" (last two revolutions differ by {100 * change:.2f} % of the "
                                                f"peak-to-peak; tolerance {100 * e['steady_tolerance']:.2g} %)"))
-        recorder[0].close()
-    else:
-        for name in engines:
-            summary["engines"].setdefault(name, {"status": "interrupted"})
+        notes += [f"recording: {p}" for p in recorder[0].close()]
+    for name in engines:
+        summary["engines"].setdefault(name, {"status": "interrupted"})
+    _finish_exports(exports, engines, result, folder, summary, notes, options)
     if writer.columns is not None:
         _write_results(folder, sc, summary, notes, options)
     if notes:
         summary["notes"] = notes
     write_json(folder / "summary.json", summary)
-    return RunResult(folder, summary, result, notes)
+    return RunResult(folder, summary, result, notes, recorder[0])
+
+
+def _viewer_options(options: RunOptions):
+    """The recording's viewer (cosim.recording.sinks.ViewerOptions), None for no recording;
+    a bad choice is refused naming the option."""
+    from .recording.batch import check_linkage_rate
+    from .recording.recorder import check_exaggeration
+    from .recording.sinks import ViewerOptions
+    try:
+        check_exaggeration(options.exaggeration)          # the recording's and the animation's
+        if options.viewer == "none":
+            return None
+        check_linkage_rate(1, options.linkage_fps)
+        return ViewerOptions(options.viewer, url=options.connect_url, timeout_s=options.viewer_timeout_s)
+    except ValueError as exc:
+        raise InputError(str(exc)) from None
+
+
+def _start_recorder(sc: Scenario, mode: str, engines: dict, folder: Path, options: RunOptions, viewer, summary):
+    """The run's recorder (rerun in a child process, cosim.recording.process), with the resolved
+    scenario as text; None with viewer 'none'. The file goes to ``options.save_path`` or
+    <folder>/run.rrd and is named in the summary's files."""
+    if viewer is None:
+        return None
+    from .recording.process import RecorderProcess
+    path = Path(options.save_path) if options.save_path is not None else folder / "run.rrd"
+    # The engines' stations come with the first macro step (set_stations): they know their meshes then.
+    rec = RecorderProcess(sc, {name: {} for name in engines}, mode, save_path=path, viewer=viewer,
+                          exaggeration=options.exaggeration, linkage_fps=options.linkage_fps)
+    summary["files"]["recording"] = path.name if path.parent.resolve() == folder.resolve() else str(path.resolve())
+    rec.log_text("scenario", (folder / "scenario.resolved.toml").read_text(encoding="utf-8"))
+    return rec
+
+
+def _start_exports(engines: dict, folder: Path) -> dict:
+    """Files for the engines' own tools, asked for before the run: exudyn writes its solution
+    file while it runs (``ExudynEngine.write_solution``). Returns {engine: file name}."""
+    exports = {}
+    if hasattr(engines.get("exudyn"), "write_solution"):
+        engines["exudyn"].write_solution(folder / "exudyn_solution.txt")
+        exports["exudyn"] = "exudyn_solution.txt"
+    return exports
+
+
+def _finish_exports(exports: dict, engines: dict, result, folder: Path, summary: dict, notes: list,
+                    options: RunOptions) -> None:
+    """After the run: MuJoCo's MJCF (``model.xml``), the exudyn solution file written meanwhile,
+    and with ``options.animation`` a GIF of the linkage; each named in the summary's files, a
+    failure a note (never a lost run)."""
+    files = summary["files"]
+    if "exudyn" in exports and (folder / exports["exudyn"]).exists():
+        files["exudyn_solution"] = exports["exudyn"]
+    if hasattr(engines.get("mujoco"), "export_model") and getattr(engines["mujoco"], "xml", None):
+        try:
+            engines["mujoco"].export_model(folder / "model.xml")
+            files["mujoco_model"] = "model.xml"
+        except Exception as exc:
+            notes.append(f"model.xml not written: {type(exc).__name__}: {exc}")
+    if options.animation and result is not None:
+        try:
+            from .recording.animation import write_gif
+            runs = {n: ch.run for n, ch in result.channels.items()}
+            stations = {n: e.node_stations() for n, e in engines.items() if _has_stations(e)}
+            files["animation"] = write_gif(folder / "linkage.gif", runs, stations, options.exaggeration).name
+        except Exception as exc:
+            notes.append(f"linkage.gif not drawn: {type(exc).__name__}: {exc}")
+            log.warning(notes[-1])
 
 
 def _write_results(folder: Path, sc: Scenario, summary: dict, notes: list, options: RunOptions) -> None:

@@ -1,33 +1,38 @@
-"""Uncertainty bands: Monte Carlo over the parameters a scenario declares uncertain.
+"""Uncertainty bands over a scenario's declared unknowns, a global sensitivity ranking, and
+whether each recorded peak lies inside the band.
 
-A scenario's ``[uncertainty]`` table names the parameters the sources leave open and their
-distributions; each parameter sets one or more keys of the scenario file::
+The unknowns are declared in the scenario's ``[uncertainty]`` table (format and the three kinds
+of keys: :mod:`cosim.unknowns`)::
 
     [uncertainty]
-    samples = 32
+    samples = 24                 # Latin hypercube samples of the band
     seed = 1
+    morris_trajectories = 8      # Morris screening: trajectories of (unknowns + 1) runs each
     [uncertainty.parameters.damping]
     keys = ["links.coupler.damping.ratio", "links.rocker.damping.ratio"]
-    distribution = "uniform"            # uniform (low, high) | normal (mean, std) | choice (values)
+    distribution = "uniform"     # uniform | loguniform (low, high) | normal (mean, std) | choice (values)
     low = "1 %"
-    high = "5 %"
-    unit = ""                           # how a drawn number is written back ("%", "lbf", ...)
+    high = "15 %"
+    unit = "%"
+    rationale = "why this range"
 
-Every sample is a periodic steady-state solve of the transfer-matrix model (one revolution, no
-transient), so a band of 32 samples costs about 32 periodic solves; samples run in parallel on a
-``concurrent.futures`` executor (local processes, or a Dask cluster given a scheduler address).
-The band is the envelope (and the 5-95 % percentiles) of the bending strain over the crank angle,
-over the samples *without* the nominal run; the nominal history is reported beside it. A
-one-at-a-time sensitivity (each parameter alone at its low and high end, or at each of its
-choices) ranks which parameter widens the peaks most. Records of the rig at the speed are checked
-against the band of the peaks.
+Every run is the transfer-matrix model marched to its steady revolution (:func:`cosim.unknowns.solve`,
+4 segments at 0.5 deg); runs that differ only in how the gauges read (face, polarity) share one
+solve. Runs go to a ``concurrent.futures`` executor (local processes or a Dask cluster).
+
+* **Band**: the envelope (and the 5-95 % percentiles of the Latin hypercube samples) of the bending
+  strain over the crank angle, over every sample (Latin hypercube and Morris design, the nominal
+  run excluded), and the range of each +/- peak.
+* **Sensitivity**: Morris elementary effects (SALib) of every +/- bending peak per gauge; ``mu*``
+  is given as the change of the peak over the unknown's whole range [microstrain] (for a choice:
+  between its values), and the unknowns are ranked by their mean normalized ``mu*``.
+* **Records**: each recorded +/- peak of the rig at the speed, inside or outside the band of
+  that peak.
 """
 from __future__ import annotations
 
-import copy
 import logging
 import math
-import re
 import time
 from pathlib import Path
 
@@ -35,187 +40,134 @@ import numpy as np
 
 from .parallel import executor
 from .runlog import run_folder, write_csv, write_json
-from .scenario import ScenarioError, from_dict, load
+from .scenario import ScenarioError, load
+from .unknowns import Settings, declared, read, solve_job, variant
 
 log = logging.getLogger(__name__)
-N_GRID = 360
-_INDEX = re.compile(r"^(\w+)\[(\d+)\]$")
-
-
-def _set(raw: dict, key: str, value) -> None:
-    """Set ``a.b[0].c`` in a TOML tree; a {value, ...} table keeps its other entries."""
-    node = raw
-    parts = key.split(".")
-    for i, part in enumerate(parts):
-        m = _INDEX.match(part)
-        last = i == len(parts) - 1
-        if m:
-            name, j = m.group(1), int(m.group(2))
-            if name not in node or not isinstance(node[name], list) or j >= len(node[name]):
-                raise ScenarioError(f"uncertainty key '{key}': no list item {part}")
-            if last:
-                node[name][j] = value
-                return
-            node = node[name][j]
-            continue
-        if last:
-            if isinstance(node.get(part), dict) and "value" in node[part]:
-                node[part] = dict(node[part], value=value)
-            else:
-                node[part] = value
-            return
-        if part not in node or not isinstance(node[part], dict):
-            raise ScenarioError(f"uncertainty key '{key}': no table '{part}'")
-        node = node[part]
+PEAKS = (("+", "bending_max_ue"), ("-", "bending_min_ue"))
 
 
 def parameters(raw: dict, path: str = "<scenario>") -> tuple:
-    """``(samples, seed, {name: spec})`` from the scenario's [uncertainty] table."""
-    from .scenario import UREG
-    u = raw.get("uncertainty")
-    if not isinstance(u, dict) or not isinstance(u.get("parameters"), dict) or not u["parameters"]:
-        raise ScenarioError(f"scenario '{path}': an uncertainty run needs [uncertainty.parameters.<name>] tables")
-    specs = {}
-    for name, d in u["parameters"].items():
-        key = f"uncertainty.parameters.{name}"
-        keys = d.get("keys")
-        if not isinstance(keys, list) or not keys:
-            raise ScenarioError(f"scenario '{path}': key '{key}.keys' must list the scenario keys it sets")
-        dist = d.get("distribution")
-        unit = d.get("unit", "")
-
-        def num(k):
-            if k not in d:
-                raise ScenarioError(f"scenario '{path}': key '{key}.{k}' is required for a {dist} distribution")
-            q = UREG.Quantity(str(d[k]).replace("^", "**"))
-            return float(q.to(unit).magnitude) if unit and hasattr(q, "to") else float(getattr(q, "magnitude", q))
-        if dist == "uniform":
-            spec = {"distribution": dist, "low": num("low"), "high": num("high")}
-            if spec["high"] < spec["low"]:
-                raise ScenarioError(f"scenario '{path}': key '{key}': high below low")
-        elif dist == "normal":
-            spec = {"distribution": dist, "mean": num("mean"), "std": num("std")}
-        elif dist == "choice":
-            values = d.get("values")
-            if not isinstance(values, list) or not values:
-                raise ScenarioError(f"scenario '{path}': key '{key}.values' must list the choices")
-            spec = {"distribution": dist, "values": values}
-        else:
-            raise ScenarioError(f"scenario '{path}': key '{key}.distribution' = {dist!r}: uniform, normal or choice")
-        spec.update(keys=keys, unit=unit, rationale=d.get("rationale", d.get("assumption", "")))
-        specs[name] = spec
-    return int(u.get("samples", 32)), int(u.get("seed", 1)), specs
+    """``(samples, seed, {name: description})`` of the declared unknowns (see :func:`cosim.unknowns.declared`)."""
+    n, seed, unknowns, _ = declared(raw, path)
+    return n, seed, {k: u.describe() for k, u in unknowns.items()}
 
 
-def _value(spec, x):
-    return x if spec["distribution"] == "choice" else (f"{x!r} {spec['unit']}".strip() if spec["unit"] else x)
-
-
-def draw(specs: dict, n: int, seed: int) -> list:
-    """``n`` samples {name: value}: Latin hypercube for uniform parameters, normal and choice drawn
-    with the seeded generator."""
+def draw(unknowns: dict, n: int, seed: int) -> list:
+    """``n`` Latin hypercube samples ``{name: value}`` (each unknown's range split in ``n``
+    strata; a normal unknown through its quantiles, a choice through equal shares)."""
     rng = np.random.default_rng(seed)
     out = [{} for _ in range(n)]
-    for name, spec in specs.items():
-        if spec["distribution"] == "uniform":
-            u = (rng.permutation(n) + rng.random(n)) / n
-            vals = spec["low"] + (spec["high"] - spec["low"]) * u
-        elif spec["distribution"] == "normal":
-            vals = spec["mean"] + spec["std"] * rng.standard_normal(n)
-        else:
-            vals = [spec["values"][i] for i in rng.integers(0, len(spec["values"]), n)]
-        for s, v in zip(out, vals):
-            s[name] = v
+    for name, u in unknowns.items():
+        q = (rng.permutation(n) + rng.random(n)) / n
+        for s, x in zip(out, q):
+            s[name] = u.at(x)
     return out
 
 
-def apply(raw: dict, specs: dict, sample: dict) -> dict:
-    data = copy.deepcopy(raw)
-    data.pop("uncertainty", None)
-    for name, x in sample.items():
-        for key in specs[name]["keys"]:
-            _set(data, key, _value(specs[name], float(x) if isinstance(x, (np.floating, float)) else x))
-    return data
+def morris_design(unknowns: dict, trajectories: int, seed: int) -> tuple:
+    """``(problem, X (runs, unknowns) in [0, 1], samples)``: a Morris design of ``trajectories``
+    trajectories on 4 levels (SALib)."""
+    from SALib.sample import morris
+    names = list(unknowns)
+    problem = {"num_vars": len(names), "names": names, "bounds": [[0.0, 1.0]] * len(names)}
+    X = morris.sample(problem, N=trajectories, num_levels=4, seed=seed)
+    return problem, X, [{n: unknowns[n].at(x) for n, x in zip(names, row)} for row in X]
 
 
-def solve_sample(raw: dict, path: str, specs: dict, sample: dict) -> dict:
-    """One sample: periodic TMM solve; bending/axial per gauge on the uniform angle grid [ue]."""
-    from .sweep import periodic_point_histories
-    sc = from_dict(apply(raw, specs, sample), path)
-    return periodic_point_histories(sc)
+def evaluate(sc, unknowns: dict, samples: list, settings: Settings = Settings(), workers=None, scheduler=None,
+             desc: str | None = None) -> list:
+    """The model read at every sample (``None`` as a sample: the scenario as it is): one solve per
+    distinct physics, the gauge readings applied per sample."""
+    variants = [variant(sc, unknowns, s or {}) for s in samples]
+    jobs, index = [], {}
+    for v in variants:
+        key = v.physics_key()
+        if key not in index:
+            index[key] = len(jobs)
+            jobs.append((sc.raw, str(sc.path or sc.name), v.overrides, v.model, settings))
+    log.debug("%d runs, %d distinct solves", len(samples), len(jobs))
+    results = _map(solve_job, jobs, workers, scheduler, desc=desc)
+    return [read(results[index[v.physics_key()]], v.signs) for v in variants]
+
+
+def morris_ranking(problem, X, outputs: list, unknowns: dict, gauges, seed: int = 1) -> dict:
+    """Morris ``mu*`` per gauge and peak (as the change over the unknown's range [ue]) and the
+    ranking by mean normalized ``mu*``; trajectories with a failed run are left out."""
+    from SALib.analyze import morris
+    D = problem["num_vars"]
+    ok = np.array([o.get("status") == "completed" for o in outputs]).reshape(-1, D + 1).all(1)
+    if not ok.any():
+        return {"method": "morris", "error": "no complete trajectory"}
+    rows = np.repeat(ok, D + 1)
+    Xk = X[rows]
+    good = [o for o, r in zip(outputs, rows) if r]
+    delta = 4 / (2 * (4 - 1))
+    mu, score = {}, np.zeros(D)
+    for g in gauges:
+        mu[g] = {}
+        for peak, key in PEAKS:
+            Y = np.array([o["peaks"][g][key] for o in good])
+            res = morris.analyze(problem, Xk, Y, num_levels=4, seed=seed)
+            scale = np.array([delta if unknowns[n].discrete else 1.0 for n in problem["names"]])
+            m = np.asarray(res["mu_star"], float) * scale
+            mu[g][peak] = {n: float(v) for n, v in zip(problem["names"], m)}
+            if m.max() > 0:
+                score += m / m.max()
+    score /= max(len(gauges) * len(PEAKS), 1)
+    order = np.argsort(-score)
+    return {"method": "morris", "trajectories_used": int(ok.sum()), "trajectories": int(len(ok)),
+            "mu_star_ue": mu, "ranking": [{"unknown": problem["names"][i], "score": float(score[i])} for i in order]}
 
 
 def run_uncertainty(scenario: str, samples: int | None = None, seed: int | None = None, workers: int | None = None,
                     scheduler: str | None = None, out: Path | None = None, record: bool = True,
-                    sensitivity: bool = True, progress: bool = True, records_dir: Path | None = None) -> tuple:
-    """Monte Carlo band, sensitivity ranking, record check; returns ``(folder, summary)``.
-    ``progress``: a bar over the solves (auto-off when stderr is not a terminal); ``records_dir``:
-    where the records checked against the band come from (default: the shipped records)."""
+                    sensitivity: bool = True, progress: bool = True, records_dir: Path | None = None,
+                    trajectories: int | None = None, settings: Settings = Settings()) -> tuple:
+    """Band, Morris ranking, record check; returns ``(folder, summary)``. ``progress``: a bar
+    over the solves (auto-off when stderr is not a terminal); ``records_dir``: where the records
+    checked against the band come from (default: the shipped records)."""
     sc = load(scenario)
-    n_default, seed_default, specs = parameters(sc.raw, str(sc.path))
+    n_default, seed_default, unknowns, options = declared(sc.raw, str(sc.path))
     n = samples if samples is not None else n_default
     seed = seed if seed is not None else seed_default
+    r = trajectories if trajectories is not None else int(options.get("morris_trajectories", 8))
     if n < 2:
         raise ScenarioError("an uncertainty run needs at least 2 samples")
+    if sensitivity and r < 2:
+        raise ScenarioError("a Morris ranking needs at least 2 trajectories")
     folder = run_folder(f"{sc.name}-uncertainty", out)
-    log.info("uncertainty of %s: %d samples; results to %s", sc.name, n, folder)
+    log.info("uncertainty of %s: %d samples%s; results to %s", sc.name, n,
+             f" + Morris {r} trajectories" if sensitivity else "", folder)
     summary = {"scenario": sc.name, "status": "incomplete", "samples": n, "seed": seed,
-               "parameters": {k: {kk: vv for kk, vv in v.items() if kk != "keys"} | {"keys": v["keys"]}
-                              for k, v in specs.items()}}
+               "model": {"engine": "tmm", "segments": settings.segments, "step_deg": settings.step_deg,
+                         "method": "time marching to the steady revolution"},
+               "parameters": {k: u.describe() for k, u in unknowns.items()}}
     write_json(folder / "summary.json", summary)
-    draws = draw(specs, n, seed)
-    jobs = [("nominal", {})] + [(f"sample {i}", d) for i, d in enumerate(draws)]
-    if sensitivity:
-        for name, spec in specs.items():
-            ends = (spec["values"] if spec["distribution"] == "choice" else
-                    [spec["low"], spec["high"]] if spec["distribution"] == "uniform" else
-                    [spec["mean"] - 2 * spec["std"], spec["mean"] + 2 * spec["std"]])
-            jobs += [(f"one-at-a-time {name}={v}", {name: v}) for v in ends]
+    lhs = draw(unknowns, n, seed)
+    design = morris_design(unknowns, r, seed) if sensitivity else (None, None, [])
+    runs = [None] + lhs + design[2]
     tic = time.perf_counter()
-    results = _map(solve_sample, [(sc.raw, str(sc.path), specs, d) for _, d in jobs], workers, scheduler,
-                   desc=f"uncertainty {sc.name}" if progress else None)
-    labels = [j[0] for j in jobs]
-    nominal = results[0]
-    mc = [r for lab, r in zip(labels, results) if lab.startswith("sample") and r.get("status") == "completed"]
-    failed = [lab for lab, r in zip(labels, results) if r.get("status") != "completed"]
+    results = evaluate(sc, unknowns, runs, settings, workers, scheduler, desc=f"uncertainty {sc.name}" if progress else None)
+    nominal, mc, mo = results[0], results[1:1 + n], results[1 + n:]
     summary["wall_time_s"] = time.perf_counter() - tic
-    summary["failed_samples"] = failed
-    if nominal.get("status") != "completed" or len(mc) < 2:
+    summary["failed_samples"] = [f"sample {i}: {x.get('error')}" for i, x in enumerate(mc + mo)
+                                 if x.get("status") != "completed"]
+    every = [x for x in mc + mo if x.get("status") == "completed"]
+    if nominal.get("status") != "completed" or len(every) < 2:
         summary["status"] = "failed"
         summary["error"] = nominal.get("error") or "fewer than two samples solved"
         write_json(folder / "summary.json", summary)
         return folder, summary
-    grid = nominal["angle_deg"]
-    bands, rows = {}, []
-    for g in nominal["gauges"]:
-        H = np.array([r["gauges"][g]["bending_ue"] for r in mc])
-        lo, hi = H.min(0), H.max(0)
-        p5, p95 = np.percentile(H, 5, axis=0), np.percentile(H, 95, axis=0)
-        nom = np.asarray(nominal["gauges"][g]["bending_ue"])
-        bands[g] = {"peak_max_range_ue": [float(H.max(1).min()), float(H.max(1).max())],
-                    "peak_min_range_ue": [float(H.min(1).min()), float(H.min(1).max())],
-                    "nominal_max_ue": float(nom.max()), "nominal_min_ue": float(nom.min()),
-                    "nominal_inside_envelope": float(np.mean((nom >= lo - 1e-9) & (nom <= hi + 1e-9)))}
-        for k, a in enumerate(grid):
-            rows.append({"gauge": g, "crank_angle_deg": a, "nominal_ue": nom[k], "low_ue": lo[k], "high_ue": hi[k],
-                         "p5_ue": p5[k], "p95_ue": p95[k]})
-    summary["band"] = bands
+    summary.update(band_summary(nominal, every, [x for x in mc if x.get("status") == "completed"]))
+    rows = summary.pop("_rows")
     if sensitivity:
-        ranking = {}
-        for name in specs:
-            runs = [r for lab, r in zip(labels, results) if lab.startswith(f"one-at-a-time {name}=")
-                    and r.get("status") == "completed"]
-            spread = {}
-            for g in nominal["gauges"]:
-                mx = [max(r["gauges"][g]["bending_ue"]) for r in runs]
-                mn = [min(r["gauges"][g]["bending_ue"]) for r in runs]
-                spread[g] = float(max(np.ptp(mx), np.ptp(mn))) if runs else float("nan")
-            ranking[name] = spread
-        summary["sensitivity_peak_spread_ue"] = ranking
-        summary["most_influential"] = {g: max(ranking, key=lambda k: ranking[k][g] if ranking[k][g] == ranking[k][g]
-                                              else -1) for g in nominal["gauges"]}
-    summary["records"] = _record_check(sc, bands, records_dir)
-    summary["status"] = "completed" if not failed else "completed with failed samples"
+        summary["sensitivity"] = morris_ranking(design[0], design[1], mo, unknowns, list(nominal["gauges"]), seed)
+        rank = summary["sensitivity"].get("mu_star_ue", {})
+        summary["most_influential"] = {g: max(((k, sum(p[k] for p in rank[g].values())) for k in unknowns),
+                                              key=lambda kv: kv[1])[0] for g in rank}
+    summary["records"] = record_check(sc, summary["band"], records_dir)
+    summary["status"] = "completed" if not summary["failed_samples"] else "completed with failed samples"
     write_csv(folder / "band.csv", rows)
     summary["figures"] = [p.name for p in _plot(folder, sc.name, rows, summary["records"])]
     write_json(folder / "summary.json", summary)
@@ -224,8 +176,31 @@ def run_uncertainty(scenario: str, samples: int | None = None, seed: int | None 
     return folder, summary
 
 
-def _record_check(sc, bands, records_dir=None) -> list:
-    """Is each recorded peak inside the band of the predicted peaks?"""
+def band_summary(nominal: dict, runs: list, random_runs: list) -> dict:
+    """``{"band": {gauge: peak ranges, nominal}, "_rows": the band over crank angle}``."""
+    grid = nominal["angle_deg"]
+    bands, rows = {}, []
+    for g in nominal["gauges"]:
+        H = np.array([x["gauges"][g]["bending_ue"] for x in runs])
+        R = np.array([x["gauges"][g]["bending_ue"] for x in random_runs]) if len(random_runs) >= 2 else H
+        lo, hi = H.min(0), H.max(0)
+        p5, p95 = np.percentile(R, 5, axis=0), np.percentile(R, 95, axis=0)
+        nom = np.asarray(nominal["gauges"][g]["bending_ue"])
+        mx = np.array([x["peaks"][g]["bending_max_ue"] for x in runs])
+        mn = np.array([x["peaks"][g]["bending_min_ue"] for x in runs])
+        bands[g] = {"peak_max_range_ue": [float(mx.min()), float(mx.max())],
+                    "peak_min_range_ue": [float(mn.min()), float(mn.max())],
+                    "nominal_max_ue": nominal["peaks"][g]["bending_max_ue"],
+                    "nominal_min_ue": nominal["peaks"][g]["bending_min_ue"],
+                    "nominal_inside_envelope": float(np.mean((nom >= lo - 1e-9) & (nom <= hi + 1e-9)))}
+        for k, a in enumerate(grid):
+            rows.append({"gauge": g, "crank_angle_deg": a, "nominal_ue": nom[k], "low_ue": lo[k], "high_ue": hi[k],
+                         "p5_ue": p5[k], "p95_ue": p95[k]})
+    return {"band": bands, "_rows": rows}
+
+
+def record_check(sc, bands, records_dir=None) -> list:
+    """Is each recorded +/- bending peak inside the band of the predicted peaks?"""
     from .records import peaks_at, records_for
     rpm = abs(sc.drive.speed_rad_s) * 30 / math.pi
     out = []
@@ -242,8 +217,9 @@ def _record_check(sc, bands, records_dir=None) -> list:
                 if v is None:
                     continue
                 lo, hi = b[rng_key]
-                out.append({"record": rec.name, "title": rec.title, "gauge": g, "peak": side, "recorded_ue": v,
-                            "band_ue": [lo, hi], "inside": bool(lo <= v <= hi)})
+                out.append({"record": rec.name, "title": rec.title, "kind": rec.kind, "gauge": g, "peak": side,
+                            "recorded_ue": v, "band_ue": [lo, hi], "inside": bool(lo <= v <= hi),
+                            "outside_by": 0.0 if lo <= v <= hi else float(v / (hi if v > hi else lo) - 1.0)})
     return out
 
 
@@ -285,28 +261,7 @@ def _plot(folder, name, rows, records):
 
 
 def _record(path, sc, rows, records) -> None:
-    import rerun as rr
-    import rerun.blueprint as rrb
-    rec = rr.RecordingStream("flexlink-bench-uncertainty", recording_id=f"{sc.name}-uncertainty")
-    rec.save(str(path))
-    views = []
-    for g in sorted({r["gauge"] for r in rows}):
-        rr_ = [r for r in rows if r["gauge"] == g]
-        mdeg = np.rint(np.array([r["crank_angle_deg"] for r in rr_]) * 1000).astype(np.int64)
-        vals = np.array([[r["low_ue"], r["high_ue"], r["p5_ue"], r["p95_ue"], r["nominal_ue"]] for r in rr_])
-        rec.log(f"/tmm/uncertainty/{g}", rr.SeriesLines(names=["tmm band low [µε]", "tmm band high [µε]",
-                                                               "tmm 5 % [µε]", "tmm 95 % [µε]", "tmm nominal [µε]"]),
-                static=True)
-        rec.send_columns(f"/tmm/uncertainty/{g}", indexes=[rr.TimeColumn("crank_angle_mdeg", sequence=mdeg)],
-                         columns=rr.Scalars.columns(scalars=vals))
-        lines = [x for x in records if x["gauge"] == g]
-        if lines:
-            rec.log(f"/records/peaks/{g}", rr.SeriesLines(names=[f"{x['record']} {x['peak']}peak [µε]" for x in lines]),
-                    static=True)
-            rec.send_columns(f"/records/peaks/{g}", indexes=[rr.TimeColumn("crank_angle_mdeg", sequence=mdeg)],
-                             columns=rr.Scalars.columns(scalars=np.tile([x["recorded_ue"] for x in lines],
-                                                                         (len(mdeg), 1))))
-        views.append(rrb.TimeSeriesView(name=f"{g}: band of predicted bending [µε] and recorded peaks",
-                                        contents=[f"/tmm/uncertainty/{g}", f"/records/peaks/{g}"]))
-    rec.send_blueprint(rrb.Blueprint(rrb.Vertical(*views), collapse_panels=True))
-    rec.flush()
+    """The band over crank angle with the recorded peaks as 2D charts in rerun
+    (:func:`cosim.recording.summaries.uncertainty_recording`)."""
+    from .recording.summaries import uncertainty_recording
+    uncertainty_recording(path, sc.name, rows, records)

@@ -98,3 +98,43 @@ trigger_angle = "{trigger_angle_deg} deg"
 filter = "none"
 ''', encoding="utf-8")
     return side
+
+
+def synthesize_peaks(folder, name: str, rig: str, peaks: dict, *, noise_relative: float = 0.10,
+                     noise_absolute_ue: float = 5.0, seed: int = 1, truth: dict | None = None) -> Path:
+    """A synthetic *peaks* record (the format of Table I) made from known model peaks: writes
+    ``<folder>/<name>.csv`` and ``.toml`` and returns the sidecar path.
+
+    ``peaks``: ``{rpm: {gauge: {"+": ue, "-": ue}}}`` (bending, signed: the "-" peak negative,
+    written as a magnitude like Table I). Each value gets Gaussian noise of standard deviation
+    ``sqrt((noise_relative * value)^2 + noise_absolute_ue^2)`` (the same error model as
+    :mod:`cosim.identify`'s residuals). ``truth``: the parameter values the peaks came from,
+    written into the provenance (never used by the bench). The record's kind is ``synthetic``."""
+    rng = np.random.default_rng(seed)
+    lines = ["rpm,gauge,peak,quantity,value,unit"]
+    for rpm in sorted(peaks):
+        for gauge in sorted(peaks[rpm]):
+            for side in ("+", "-"):
+                if side not in peaks[rpm][gauge]:
+                    continue
+                v = float(peaks[rpm][gauge][side])
+                v += rng.normal(0.0, math.hypot(noise_relative * v, noise_absolute_ue))
+                lines.append(f"{rpm:g},{gauge},{side},bending,{abs(v):.6g},microstrain")
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    (folder / f"{name}.csv").write_text("\n".join(lines) + "\n", encoding="utf-8")
+    truth_text = ", ".join(f"{k} = {v!r}" for k, v in (truth or {}).items()) or "not given"
+    side_path = folder / f"{name}.toml"
+    side_path.write_text(f'''[record]
+name = "{name}"
+format = "peaks"
+kind = "synthetic"
+rig = "{rig}"
+description = "Virtual rig: +/- bending peaks of a model run with known parameters, with noise (never a measurement)"
+sign_convention = "as the model's declared gauge faces"
+
+[provenance]
+source = "synthetic: cosim.virtual_rig.synthesize_peaks (seed {seed})"
+notes = "noise sqrt(({noise_relative} * peak)^2 + {noise_absolute_ue}^2) ue; truth: {truth_text}"
+''', encoding="utf-8")
+    return side_path

@@ -13,11 +13,13 @@ from cosim import scenario as scenarios
 from cosim.engines.base import EngineOutput
 from cosim.master import MacroStep
 from cosim.motor import MotorTrace
-from cosim.recording import CRANK_ANGLE, Recorder, read_back, read_blueprint, read_scalars
+from cosim.recording import (CRANK_ANGLE, CRANK_ANGLE_WRAPPED, REVOLUTION, Recorder, chunk_counts, read_back,
+                             read_blueprint, read_column, read_scalars, read_static)
 
 SAMPLES = {"tmm": 4, "exudyn": 1, "mujoco": 6}      # samples per macro step, as the engines differ
 N_STEPS = 6
 MOTOR_ENTITIES = ("current", "voltage", "torque", "speed", "power", "energy")
+AMPLITUDE = 1e-4                                    # fake deflection [m]
 
 
 @pytest.fixture(scope="module")
@@ -40,7 +42,7 @@ def strain(engine, gauge_index, angle):
 
 def deflection(x, angle):
     """A fake elastic deflection [m] normal to the ground line, zero at the link ends."""
-    return 1e-4 * np.sin(math.pi * x / x[-1])[None, :] * np.sin(3 * angle)[:, None]
+    return AMPLITUDE * np.sin(math.pi * x / x[-1])[None, :] * np.sin(3 * angle)[:, None]
 
 
 def fake_steps(sc, engines, n_steps=N_STEPS, motor=True):
@@ -70,22 +72,14 @@ def fake_steps(sc, engines, n_steps=N_STEPS, motor=True):
         yield MacroStep(k + 1, n_steps, H * (k + 1), outputs)
 
 
-def series_names(path):
-    """{entity: static series names} straight from the file."""
-    from rerun.chunk import RrdReader
-
-    out = {}
-    for chunk in RrdReader(str(path)).stream():
-        batch = chunk.to_record_batch()
-        if chunk.is_static and "SeriesLines:names" in batch.schema.names:
-            out[chunk.entity_path] = batch.column(batch.schema.get_field_index("SeriesLines:names")).to_pylist()[-1]
-    return out
+def series_names(path, entity):
+    return read_static(path, entity, "SeriesLines:names")
 
 
-def record_run(sc, path, mode="motor", **kwargs):
+def record_run(sc, path, mode="motor", cls=Recorder, **kwargs):
     engines = stations_of(sc)
-    rec = Recorder(sc, engines, mode, save_path=path, **kwargs)
-    rec.flush_every_steps = 4              # several sends per entity, and a flush at close
+    rec = cls(sc, engines, mode, save_path=path, **kwargs)
+    rec.batch_samples = 10                 # several batches per entity, and the rest at close
     for step in fake_steps(sc, engines, motor=(mode == "motor")):
         rec.log_macro_step(step)
     return rec, engines
@@ -96,47 +90,54 @@ def test_layout_counts_and_blueprint(sc, tmp_path):
     rec, _ = record_run(sc, path)
     angle = np.linspace(0.0, 2 * math.pi, 37)
     rec.log_reference("coupler_mid", "Table II", angle=angle, bending_ue=250 * np.sin(angle),
-                      axial_ue=15 * np.cos(angle), kind="published model")
+                      axial_ue=15 * np.cos(angle), kind="published_model")
     rec.log_reference("coupler_mid", "Table I", bending_ue=(310.0, -290.0), axial_ue=(20.0, -18.0))
     rec.log_text("resolved_scenario.toml", "[drive]\nspeed_rpm = 373\n")
-    rec.close()
-    rec.close()                            # idempotent
+    assert rec.close() == []
+    assert rec.close() == []               # idempotent
 
     counts = read_back(path)
     roots = {e.split("/")[1] for e in counts}
-    assert {"tmm", "exudyn", "mujoco", "motor", "records", "scenario"} <= roots
+    assert {"tmm", "exudyn", "mujoco", "motor", "records", "scenario", "ground"} <= roots
 
     gauges = [g.name for g in sc.gauges]
     for engine, m in SAMPLES.items():
         for g in gauges:
             assert counts[f"/{engine}/strain/{g}"] == N_STEPS * m
-        assert counts[f"/{engine}/drive_torque"] == N_STEPS * m
-        assert counts[f"/{engine}/crank_speed"] == N_STEPS * m
-        assert counts[f"/{engine}/linkage/rigid"] == N_STEPS          # once per macro step
+            assert counts[f"/{engine}/axial_strain/{g}"] == N_STEPS * m
+        for q in ("drive_torque", "crank_speed", "drive_power"):
+            assert counts[f"/{engine}/{q}"] == N_STEPS * m
+        assert counts[f"/{engine}/linkage/straight"] == N_STEPS          # once per macro step
         assert counts[f"/{engine}/linkage/deformed"] == N_STEPS
+        assert counts[f"/{engine}/linkage/legend"] == 1                  # the view's engine legend
         for q in MOTOR_ENTITIES:
             assert counts[f"/motor/{engine}/{q}"] == N_STEPS * m
     assert counts["/mujoco/extras/loop_closure_m"] == N_STEPS * SAMPLES["mujoco"]
     assert counts["/records/strain/coupler_mid/Table_I"] == 2          # a line: two ends
+    assert counts["/records/axial_strain/coupler_mid/Table_I"] == 2
     assert counts["/records/strain/coupler_mid/Table_II"] > 0
     assert counts["/scenario/resolved_scenario.toml"] == 1
     assert counts["/scenario/linkage_drawing"] == 1
 
-    names = series_names(path)
-    assert names["/exudyn/strain/coupler_mid"] == ["exudyn bending [µε]", "exudyn axial [µε]"]
-    assert names["/motor/tmm/current"] == ["tmm motor current [A]"]
-    assert names["/records/strain/coupler_mid/Table_I"][0] == "Table I (measurement) bending +peak [µε]"
+    assert series_names(path, "/exudyn/strain/coupler_mid") == ["exudyn bending [µε]"]
+    assert series_names(path, "/exudyn/axial_strain/coupler_mid") == ["exudyn coupler_mid axial [µε]"]
+    assert series_names(path, "/motor/tmm/current") == ["tmm motor current [A]"]
+    assert series_names(path, "/records/strain/coupler_mid/Table_I") == ["Table I +peak (measurement) [µε]",
+                                                                          "Table I -peak (measurement) [µε]"]
+    assert series_names(path, "/records/strain/coupler_mid/Table_II") == ["Table II (published model) [µε]"]
 
     views = read_blueprint(path)
     assert views, "the default blueprint is not in the file"
     by_name = {v["name"]: v for v in views}
     for g in gauges:
-        (view,) = [v for v in views if v["name"].startswith(f"strain {g} ")]
+        (view,) = [v for v in views if v["name"].startswith(f"bending strain {g} ")]
         assert view["class"] == "TimeSeries"
         assert set(view["contents"]) == {f"/{e}/strain/{g}" for e in SAMPLES} | {f"/records/strain/{g}/**"}
     linkage = [v for v in views if v["class"] == "2D"]
     assert len(linkage) == 1 and set(linkage[0]["contents"]) == {f"/{e}/linkage/**" for e in SAMPLES}
-    assert "×20" in linkage[0]["name"]                                  # exaggeration declared
+    # The factor is chosen from the largest deformation: 1e-4 m drawn at ~5 % of the 0.3 m rocker.
+    assert "×100" in linkage[0]["name"]
+    assert "×100" in read_static(path, "/tmm/linkage/legend", "Points2D:labels")[0]
     for q in ("current", "voltage", "torque"):
         assert set(by_name[next(n for n in by_name if n.startswith(f"motor {q} "))]["contents"]) == \
             {f"/motor/{e}/{q}" for e in SAMPLES}
@@ -157,17 +158,35 @@ def test_values_read_back_equal_logged(sc, tmp_path):
         angle = np.concatenate([o.crank_angle for o in outs])
 
         t_read, values = read_scalars(path, f"/{engine}/strain/{gauge}")
-        assert values.shape == (len(t), 2)
+        assert values.shape == (len(t), 1)
         np.testing.assert_allclose(t_read, t, atol=1e-9)               # sim_time is stored in ns
         np.testing.assert_allclose(values[:, 0], bending * 1e6, rtol=1e-12)   # microstrain
-        np.testing.assert_allclose(values[:, 1], axial * 1e6, rtol=1e-12)
+        _, values = read_scalars(path, f"/{engine}/axial_strain/{gauge}")
+        np.testing.assert_allclose(values[:, 0], axial * 1e6, rtol=1e-12)
 
         mdeg, _ = read_scalars(path, f"/{engine}/strain/{gauge}", timeline=CRANK_ANGLE)
         np.testing.assert_array_equal(mdeg, np.rint(np.degrees(angle) * 1000).astype(np.int64))
+        # Revolutions overlaid: the wrapped angle and the revolution index give the cumulative angle.
+        wrapped, _ = read_scalars(path, f"/{engine}/strain/{gauge}", timeline=CRANK_ANGLE_WRAPPED)
+        rev, _ = read_scalars(path, f"/{engine}/strain/{gauge}", timeline=REVOLUTION)
+        np.testing.assert_array_equal(np.sort(wrapped + 360_000 * rev), mdeg)
+        assert wrapped.min() >= 0 and wrapped.max() < 360_000
 
     _, current = read_scalars(path, "/motor/tmm/current")
     tmm_angle = np.concatenate([s.outputs["tmm"][1].crank_angle_rad for s in steps])
     np.testing.assert_allclose(current[:, 0], 2.0 + np.sin(tmm_angle), rtol=1e-12)
+    _, power = read_scalars(path, "/tmm/drive_power")
+    out = [s.outputs["tmm"][0] for s in steps]
+    np.testing.assert_allclose(power[:, 0], np.concatenate([o.drive_torque * o.crank_speed for o in out]), rtol=1e-12)
+
+
+def test_one_chunk_per_entity_in_a_file_only_recording(sc, tmp_path):
+    """With only a file attached every entity is sent once (``rerun rrd stats`` finds it optimal)."""
+    path = tmp_path / "run.rrd"
+    rec, _ = record_run(sc, path)
+    rec.close()
+    counts = chunk_counts(path)
+    assert counts and max(counts.values()) == 1, counts
 
 
 def test_records_span_the_run(sc, tmp_path):
@@ -180,8 +199,9 @@ def test_records_span_the_run(sc, tmp_path):
     rec.close()
 
     counts = read_back(path)
-    # Prescribed: no motor traces, only the drive power demand (torque x crank speed).
-    assert {e for e in counts if e.startswith("/motor")} <= {f"/motor/{e}/power_demand" for e in ("tmm", "exudyn", "mujoco")}
+    # Prescribed: no motor entities at all; the drive power is the engine's own.
+    assert not any(e.startswith("/motor") for e in counts)
+    assert counts["/tmm/drive_power"] == N_STEPS * SAMPLES["tmm"]
     t_end = N_STEPS * sc.revolution_period_s / 24
     a_end = sc.drive.speed_rad_s * t_end
     # The one-revolution angle history is repeated over the crank angles the run covered; the
@@ -192,31 +212,34 @@ def test_records_span_the_run(sc, tmp_path):
     t_peaks, peaks = read_scalars(path, "/records/strain/rocker_mid/peaks")
     np.testing.assert_allclose(peaks, [[120.0, -80.0]] * 2)
     assert t_peaks[0] > 0 and t_peaks[-1] == pytest.approx(t_end, abs=1e-9)
-    t_lab, lab = read_scalars(path, "/records/strain/rocker_mid/lab")
+    t_lab, lab = read_scalars(path, "/records/axial_strain/rocker_mid/lab")
     np.testing.assert_allclose(t_lab, [0.0, 0.01, 0.02], atol=1e-9)
     np.testing.assert_allclose(lab[:, 0], [1.0, 2.0, 3.0])
 
     names = {v["name"] for v in read_blueprint(path)}
     assert not any(n.startswith("motor ") for n in names)
+    assert any(n.startswith("drive power") for n in names)
+
+
+def test_no_label_repeats_motor(sc, tmp_path):
+    path = tmp_path / "run.rrd"
+    rec, _ = record_run(sc, path)
+    rec.close()
+    names = [n for e in read_back(path) for n in (series_names(path, e) or [])]
+    assert names and not any("motor motor" in n for n in names)
+    assert series_names(path, "/motor/tmm/speed") == ["tmm motor shaft speed [rad/s]",
+                                                       "tmm crank speed [rad/s]", "tmm speed set-point [rad/s]"]
 
 
 def test_linkage_every_and_exaggeration(sc, tmp_path):
-    from rerun.chunk import RrdReader
-
     path = tmp_path / "run.rrd"
     rec, engines = record_run(sc, path, mode="prescribed", exaggeration=50.0, linkage_every=4)
     rec.close()
     counts = read_back(path)
     # Steps 1 and 5 by the stride; the last step (6) is always drawn.
-    assert counts["/tmm/linkage/rigid"] == counts["/tmm/linkage/deformed"] == 3
+    assert counts["/tmm/linkage/straight"] == counts["/tmm/linkage/deformed"] == 3
 
-    rows = []
-    for chunk in RrdReader(str(path)).stream():
-        if chunk.entity_path == "/tmm/linkage/deformed" and not chunk.is_static:
-            batch = chunk.to_record_batch()
-            t = batch.column(batch.schema.get_field_index("sim_time")).cast("int64").to_numpy()
-            rows += zip(t, batch.column(batch.schema.get_field_index("LineStrips2D:strips")).to_pylist())
-    t_ns, strips = max(rows, key=lambda r: r[0])
+    t_ns, strips = read_column(path, "/tmm/linkage/deformed", "LineStrips2D:strips")[-1]
     last = list(fake_steps(sc, engines, motor=False))[-1].outputs["tmm"][0]
     assert t_ns == round(last.t[-1] * 1e9)
     links = sc.mechanism.links()
@@ -227,6 +250,18 @@ def test_linkage_every_and_exaggeration(sc, tmp_path):
         rigid = np.asarray(motion.link(link.name).point(x)[0])[0]
         expected = rigid + 50.0 * np.stack([np.zeros(len(x)), deflection(x, last.crank_angle[-1:])[0]], -1)
         np.testing.assert_allclose(np.array(strip), expected, atol=1e-6)   # float32 in the file
+    (linkage,) = [v for v in read_blueprint(path) if v["class"] == "2D"]
+    assert "×50" in linkage["name"]
+
+
+def test_linkage_at_display_rate(sc, tmp_path):
+    """At most ``linkage_fps`` frames per simulated second (and always the last step): the fake
+    steps are 6.7 ms apart, so 60 fps (16.7 ms) draws steps 1, 4 and the last, 6."""
+    path = tmp_path / "run.rrd"
+    rec, _ = record_run(sc, path, mode="prescribed", linkage_fps=60.0)
+    rec.close()
+    assert read_back(path)["/tmm/linkage/deformed"] == 3
+    assert read_back(path)["/tmm/strain/coupler_mid"] == N_STEPS * SAMPLES["tmm"]      # data keep every sample
 
 
 def test_roots_only_for_engines_that_run(sc, tmp_path):
@@ -241,10 +276,22 @@ def test_roots_only_for_engines_that_run(sc, tmp_path):
     counts = read_back(path)
     roots = {e.split("/")[1] for e in counts}
     assert {"tmm", "exudyn", "mujoco"} <= roots and "ghost" not in roots
-    assert counts["/mujoco/linkage/rigid"] == 2
+    assert counts["/mujoco/linkage/straight"] == 2
     assert counts["/mujoco/strain/coupler_mid"] == 2 * SAMPLES["mujoco"]
-    (view,) = [v for v in read_blueprint(path) if v["name"].startswith("strain coupler_mid ")]
+    (view,) = [v for v in read_blueprint(path) if v["name"].startswith("bending strain coupler_mid ")]
     assert "/mujoco/strain/coupler_mid" in view["contents"]
+
+
+def test_recorder_in_a_child_process_writes_the_same(sc, tmp_path):
+    from cosim.recording import RecorderProcess
+    here, there = tmp_path / "here.rrd", tmp_path / "there.rrd"
+    for cls, path in ((Recorder, here), (RecorderProcess, there)):
+        rec, _ = record_run(sc, path, cls=cls)
+        rec.log_reference("coupler_mid", "Table I", bending_ue=(310.0, -290.0))
+        assert rec.close() == []
+    assert read_back(there) == read_back(here)
+    np.testing.assert_array_equal(read_scalars(there, "/tmm/strain/rocker_mid")[1],
+                                  read_scalars(here, "/tmm/strain/rocker_mid")[1])
 
 
 def test_needs_a_destination(sc):
@@ -252,9 +299,11 @@ def test_needs_a_destination(sc):
         Recorder(sc, {"tmm": {}}, "prescribed")
 
 
-@pytest.mark.parametrize("kwargs", [dict(exaggeration=0.0), dict(linkage_every=0)])
-def test_bad_settings(sc, tmp_path, kwargs):
-    with pytest.raises(ValueError):
+@pytest.mark.parametrize("kwargs, match", [(dict(exaggeration=0.0), "exaggeration"),
+                                           (dict(linkage_every=0), "linkage_every"),
+                                           (dict(linkage_fps=-1.0), "linkage-fps")])
+def test_bad_settings(sc, tmp_path, kwargs, match):
+    with pytest.raises(ValueError, match=match):
         Recorder(sc, {"tmm": {}}, "prescribed", save_path=tmp_path / "x.rrd", **kwargs)
 
 

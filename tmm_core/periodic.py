@@ -66,20 +66,35 @@ def _batched_step(td: TimeDomain, cfg, idx, state, dt):
 
 def periodic_steady_state(td: TimeDomain, speed_rad_s: float, *, step_s: float | None = None,
                           step_deg: float | None = None, start_angle: float = 0.0, newton_tolerance: float = 1e-7,
-                          newton_iterations: int = 15) -> PeriodicResult:
+                          newton_iterations: int = 15, crank: CrankMotion | None = None) -> PeriodicResult:
     """Periodic response of ``td`` at constant crank ``speed_rad_s``; the step must divide a
     revolution (as for a constant-speed :class:`CrankMotion`). ``newton_tolerance``: relative
-    change of the state over a revolution at which Newton shooting stops (second-order model)."""
+    change of the state over a revolution at which Newton shooting stops (second-order model).
+
+    ``crank``: instead of the constant speed, one period of a periodic crank history (a crank
+    whose speed fluctuates within the revolution): N + 1 samples whose last is one revolution
+    after the first (angle advanced by 2 pi, same speed and acceleration); ``speed_rad_s`` and
+    the step arguments are then unused."""
     if any(link.viscoelastic is not None for link in td.links):
         raise InputError("the periodic solver does not carry the viscoelastic (SLS) history states; use time marching")
     keys = STATE_KEYS.get(td.integrator.name)
     if keys is None:
         raise InputError(f"periodic solver: unsupported integrator {td.integrator.name!r}")
-    crank = CrankMotion.constant_speed(speed_rad_s, step_s=step_s, step_deg=step_deg, revolutions=1.0,
-                                       start_angle=start_angle)
-    N = crank.steps_per_revolution()
-    if N is None:
-        raise InputError("the step must divide a revolution into a whole number of steps")
+    if crank is None:
+        crank = CrankMotion.constant_speed(speed_rad_s, step_s=step_s, step_deg=step_deg, revolutions=1.0,
+                                           start_angle=start_angle)
+        N = crank.steps_per_revolution()
+        if N is None:
+            raise InputError("the step must divide a revolution into a whole number of steps")
+    else:
+        N = len(crank.t) - 1
+        turn = abs(crank.angle[N] - crank.angle[0])
+        if (abs(turn - 2 * math.pi) > 1e-9 * 2 * math.pi or
+                not np.isclose(crank.speed[N], crank.speed[0], rtol=1e-6, atol=1e-9) or
+                not np.isclose(crank.acceleration[N], crank.acceleration[0], rtol=1e-6,
+                               atol=1e-6 * max(1.0, float(np.max(np.abs(crank.acceleration)))))):
+            raise InputError("periodic solver: the crank history must span exactly one period (last sample one "
+                             "revolution after the first, with the same speed and acceleration)")
     dt = crank.dt
     cfg = td.configurations(crank.angle[:N], crank.speed[:N], crank.acceleration[:N], dt, maps=True)
     if cfg["maps"] is None:

@@ -1,0 +1,473 @@
+"""Identification: calibrate chosen declared unknowns against the records of some scenarios, then
+predict held-out scenarios without ever reading their records during the fit.
+
+``cosim identify crank_rocker_241rpm --validate crank_rocker_95rpm,crank_rocker_373rpm``:
+
+1. **Inputs, checked before any solve**: the unknowns must be declared in every scenario's
+   ``[uncertainty]`` table with the same range (default: its ``identify`` list); calibration and
+   validation sets must not overlap; every calibration scenario needs a peaks record of its rig at
+   its speed (``kind`` measurement or synthetic; published models are never calibrated against).
+2. **Fit**: bounded least squares (``scipy.optimize.least_squares``, trust-region reflective) of
+   the +/- bending peaks of every gauge, each residual ``(model - record) / sigma`` with
+   ``sigma = sqrt((relative * record)^2 + absolute^2)`` (default 10 % and 5 microstrain: Table I
+   gives averaged peaks of recorder traces the author calls noisy), over the continuous unknowns
+   scaled to [0, 1] of their declared ranges (log for a loguniform range), from several starts.
+   Discrete unknowns (a choice) are enumerated; a gauge's face and polarity only flip its sign,
+   so they are enumerated as one sign per gauge. The model is :func:`cosim.unknowns.solve`.
+3. **Confidence**: the covariance ``s^2 (J^T J)^-1`` of the scaled unknowns at the optimum, with
+   ``s^2 = max(1, chi^2 per degree of freedom)``: the records' stated sigma, inflated when the
+   model misses them by more than it (with no degree of freedom the sigma model is taken as it
+   stands); mapped to each unknown's unit; an unknown at a bound of its range or in a direction
+   the records do not constrain is flagged.
+4. **Validation**: only after the fit, every held-out scenario is predicted at the identified
+   values and its records are read. A prediction's 1-sigma propagates the covariance of the
+   identified unknowns with their declared ranges as a prior (variance 1/12 of the range squared),
+   so an unknown the calibration cannot see spreads the prediction over its range, not beyond;
+   unknowns that are not identified keep the scenario's values and add nothing to it.
+   ``validation.<scenario>.<gauge>.<peak>.error = model / record - 1``.
+
+Output folder: ``identification.json``, ``identification.png/.svg`` (recorded against predicted
+peaks with the strain over the revolution, per scenario and gauge) and ``identification.rrd``.
+"""
+from __future__ import annotations
+
+import itertools
+import logging
+import math
+import time
+from pathlib import Path
+
+import numpy as np
+
+from .runlog import run_folder, write_json
+from .scenario import ScenarioError, load
+from .unknowns import Settings, declared, read, solve, variant
+
+log = logging.getLogger(__name__)
+PEAKS = (("+", "bending_max_ue"), ("-", "bending_min_ue"))
+CALIBRATION_KINDS = ("measurement", "synthetic")
+
+
+class IdentificationError(ScenarioError):
+    """Bad input to an identification (refused before any solve)."""
+
+
+def rpm_of(sc) -> float:
+    return abs(sc.drive.speed_rad_s) * 30 / math.pi
+
+
+def record_peaks(sc, records_dir=None) -> tuple:
+    """``({gauge: {"+": ue, "-": ue}}, [record descriptions])`` of the scenario's peaks records
+    (measurement or synthetic) at its speed; only gauges the scenario has."""
+    from .records import peaks_at, records_for
+    gauges = {g.name for g in sc.gauges}
+    peaks, used = {}, []
+    for rec in records_for(sc, records_dir):
+        if rec.format != "peaks" or rec.kind not in CALIBRATION_KINDS:
+            continue
+        got = False
+        for g, p in peaks_at(rec, rpm_of(sc)).items():
+            if g not in gauges:
+                continue
+            for side, key in PEAKS:
+                if p.get(key) is not None:
+                    peaks.setdefault(g, {})[side] = float(p[key])
+                    got = True
+        if got:
+            used.append({"record": rec.name, "kind": rec.kind, "title": rec.title, "path": str(rec.path)})
+    return peaks, used
+
+
+def _sigma(value, rel, absolute):
+    return math.sqrt((rel * value) ** 2 + absolute ** 2)
+
+
+def check_inputs(calibration, validation, parameters, records_dir=None) -> dict:
+    """Load and check everything (no solve, no validation record read): returns the plan."""
+    calibration, validation = list(calibration), list(validation or [])
+    if not calibration:
+        raise IdentificationError("identify: give at least one calibration scenario")
+    cal = [load(s) for s in calibration]
+    val = [load(s) for s in validation]
+
+    def ident(sc):
+        return str(Path(sc.path).resolve()) if sc.path else sc.name
+    overlap = sorted({sc.name for sc in cal if ident(sc) in {ident(v) for v in val}})
+    if overlap:
+        raise IdentificationError(f"identify: {', '.join(overlap)} is in both the calibration and the validation set; "
+                                  "a held-out scenario must not be calibrated on")
+    if len({ident(s) for s in cal}) < len(cal) or len({ident(s) for s in val}) < len(val):
+        raise IdentificationError("identify: a scenario is given twice")
+    declared_by = {}
+    for sc in cal + val:
+        declared_by[sc.name] = declared(sc.raw, str(sc.path or sc.name))[2]
+    unknowns = declared_by[cal[0].name]
+    if parameters is None:
+        parameters = declared(cal[0].raw, str(cal[0].path))[3].get("identify")
+        if not parameters:
+            raise IdentificationError(f"identify: name the unknowns to calibrate (--parameters), or list them as "
+                                      f"[uncertainty] identify = [...] in '{cal[0].path}'")
+    parameters = list(dict.fromkeys(parameters))
+    for name in parameters:
+        for sc in cal + val:
+            u = declared_by[sc.name]
+            if name not in u:
+                raise IdentificationError(f"identify: unknown {name!r} is not declared in [uncertainty.parameters] of "
+                                          f"'{sc.path or sc.name}' (declared: {', '.join(u)})")
+            if u[name].describe() != unknowns[name].describe():
+                raise IdentificationError(f"identify: unknown {name!r} is declared differently in '{sc.name}' and "
+                                          f"'{cal[0].name}'; an identified value must mean the same in every scenario")
+    targets, used = {}, {}
+    for sc in cal:
+        peaks, recs = record_peaks(sc, records_dir)
+        if not peaks:
+            raise IdentificationError(f"identify: scenario '{sc.name}' ({sc.path}) has no peaks record (measurement or "
+                                      f"synthetic) of "
+                                      f"its rig {sc.rig!r} at {rpm_of(sc):.6g} rpm to calibrate against (records in "
+                                      f"{records_dir or 'scenarios/records'})")
+        targets[sc.name], used[sc.name] = peaks, recs
+    return {"calibration": cal, "validation": val, "unknowns": unknowns, "parameters": parameters,
+            "targets": targets, "records": used}
+
+
+def _combos(unknowns, names, gauges) -> list:
+    """Distinct discrete choices: ``[(physical {name: value}, signs {gauge: (b, a)}, labels)]``."""
+    discrete = [n for n in names if unknowns[n].discrete]
+    out, seen = [], set()
+    for values in itertools.product(*(unknowns[n].values for n in discrete)):
+        choice = dict(zip(discrete, values))
+        phys = {n: v for n, v in choice.items() if not unknowns[n].measurement_only}
+        meas = {n: v for n, v in choice.items() if unknowns[n].measurement_only}
+        key = (tuple(sorted(phys.items(), key=str)),
+               tuple(sorted(variant(_Gauges(gauges), unknowns, meas).signs.items())))
+        if key not in seen:
+            seen.add(key)
+            out.append(choice)
+    return out or [{}]
+
+
+class _Gauges:
+    """Stand-in scenario for the reading signs of a choice (faces relative to the gauges' own)."""
+
+    def __init__(self, gauges):
+        self.gauges, self.name, self.path = gauges, "scenario", None
+
+
+def _sample(unknowns, continuous, x, choice) -> dict:
+    return {**{n: unknowns[n].at(u) for n, u in zip(continuous, x)}, **choice}
+
+
+class Model:
+    """Peaks of the calibration scenarios at a point of the scaled unknowns, one solve per
+    scenario and distinct physics (cached)."""
+
+    def __init__(self, scenarios, unknowns, continuous, settings):
+        self.scenarios, self.unknowns, self.continuous, self.settings = scenarios, unknowns, continuous, settings
+        self.cache, self.solves = {}, 0
+
+    def peaks(self, sc, x, choice) -> dict:
+        v = variant(sc, self.unknowns, _sample(self.unknowns, self.continuous, x, choice))
+        key = (sc.name, v.physics_key())
+        if key not in self.cache:
+            target = sc.with_overrides(v.overrides) if v.overrides else sc
+            self.cache[key] = solve(target, v.model, self.settings)
+            self.solves += 1
+        res = read(self.cache[key], v.signs)
+        if res.get("status") != "completed":
+            raise RuntimeError(f"{sc.name}: {res.get('error')}")
+        return res
+
+
+def residuals(model: Model, targets: dict, x, choice, rel, absolute) -> np.ndarray:
+    out = []
+    for sc in model.scenarios:
+        p = model.peaks(sc, x, choice)["peaks"]
+        for g, sides in sorted(targets[sc.name].items()):
+            for side, key in PEAKS:
+                if side in sides:
+                    out.append((p[g][key] - sides[side]) / _sigma(sides[side], rel, absolute))
+    return np.array(out)
+
+
+def fit_job(scenarios_raw, unknowns, continuous, choice, x0, targets, settings, rel, absolute, max_nfev) -> dict:
+    """One bounded least-squares fit (a worker job): one choice of the discrete unknowns, one start."""
+    from scipy.optimize import least_squares
+
+    from .scenario import from_dict
+    scs = [from_dict(raw, path) for raw, path in scenarios_raw]
+    model = Model(scs, unknowns, continuous, settings)
+    tic = time.perf_counter()
+    try:
+        if continuous:
+            res = least_squares(lambda x: residuals(model, targets, x, choice, rel, absolute), np.asarray(x0, float),
+                                bounds=(0.0, 1.0), method="trf", diff_step=1e-3, x_scale=1.0, max_nfev=max_nfev)
+            x, r, jac, status = res.x, res.fun, res.jac, res.message
+        else:
+            x, jac, status = np.zeros(0), np.zeros((0, 0)), "no continuous unknowns"
+            r = residuals(model, targets, x, choice, rel, absolute)
+    except RuntimeError as exc:
+        return {"choice": choice, "x0": list(x0), "status": "failed", "error": str(exc), "cost": math.inf}
+    return {"choice": choice, "x0": list(x0), "status": "completed", "message": status, "x": x.tolist(),
+            "fun": r.tolist(), "jac": np.asarray(jac).tolist(), "cost": float(0.5 * r @ r), "solves": model.solves,
+            "wall_time_s": time.perf_counter() - tic}
+
+
+def _confidence(unknowns, continuous, best, m) -> tuple:
+    """Per continuous unknown: value, 1-sigma, 95 % interval, flags; and the correlation matrix."""
+    x = np.array(best["x"])
+    J = np.array(best["jac"]).reshape(m, len(continuous))
+    r = np.array(best["fun"])
+    p = len(continuous)
+    dof = m - p
+    s2 = max(1.0, float(r @ r / dof)) if dof > 0 else 1.0
+    sv = np.linalg.svd(J, compute_uv=False) if p else np.zeros(0)
+    cov = s2 * np.linalg.pinv(J.T @ J, rcond=1e-10) if p else np.zeros((0, 0))
+    weak = np.zeros(p, bool)
+    if p:
+        _, s, Vt = np.linalg.svd(J, full_matrices=True)
+        s = np.concatenate([s, np.zeros(max(0, p - len(s)))])
+        for k in range(p):
+            if s[k] < 1e-3 * max(s[0], 1e-300):
+                weak |= np.abs(Vt[k]) > 0.3
+    out = {}
+    for i, n in enumerate(continuous):
+        u = unknowns[n]
+        su = math.sqrt(max(cov[i, i], 0.0))
+        value = u.at(x[i])
+        lo, hi = u.at(max(0.0, x[i] - 1.96 * su)), u.at(min(1.0, x[i] + 1.96 * su))
+        out[n] = {"value": value, "unit": u.unit, "sigma": su * abs(u.dvalue_du(x[i])), "interval95": [lo, hi],
+                  "scaled_value": float(x[i]), "scaled_sigma": su, "range": list(u.bounds()),
+                  "at_bound": bool(x[i] < 1e-3 or x[i] > 1 - 1e-3),
+                  "constrained": bool(not weak[i] and su < 0.5), "rationale": u.rationale}
+    corr = None
+    if p:
+        d = np.sqrt(np.maximum(np.diag(cov), 1e-300))
+        corr = {a: {b: float(cov[i, j] / (d[i] * d[j])) for j, b in enumerate(continuous)} for i, a in enumerate(continuous)}
+    return out, corr, {"chi2": float(r @ r), "peaks": m, "unknowns": p, "dof": dof, "s2": s2,
+                       "singular_values": [float(v) for v in sv]}
+
+
+def identify(calibration, validation=(), parameters=None, records_dir=None, out=None, settings: Settings = Settings(),
+             starts: int = 3, workers=None, scheduler=None, sigma_relative: float = 0.10, sigma_absolute_ue: float = 5.0,
+             max_nfev: int | None = None, seed: int = 1, record: bool = True, progress: bool = True) -> tuple:
+    """Calibrate, then predict the held-out scenarios; returns ``(folder, result)``."""
+    from .uncertainty import _map
+    plan = check_inputs(calibration, validation, parameters, records_dir)
+    cal, val, unknowns, names = plan["calibration"], plan["validation"], plan["unknowns"], plan["parameters"]
+    continuous = [n for n in names if not unknowns[n].discrete]
+    combos = _combos(unknowns, names, cal[0].gauges)
+    rng = np.random.default_rng(seed)
+    x0s = [[0.5] * len(continuous)] + [rng.random(len(continuous)).tolist() for _ in range(max(0, starts - 1))]
+    if not continuous:
+        x0s = x0s[:1]
+    tag = "+".join(sc.name for sc in cal)
+    folder = run_folder(f"{tag}-identify", out)
+    log.info("identify %s on %s (%d choices x %d starts); results to %s", ", ".join(names), tag, len(combos),
+             len(x0s), folder)
+    raws = [(sc.raw, str(sc.path or sc.name)) for sc in cal]
+    jobs = [(raws, unknowns, continuous, c, x0, plan["targets"], settings, sigma_relative, sigma_absolute_ue,
+             max_nfev or 40 * (len(continuous) + 1)) for c in combos for x0 in x0s]
+    tic = time.perf_counter()
+    fits = _map(fit_job, jobs, workers, scheduler, desc="identify" if progress else None)
+    ok = [f for f in fits if f["status"] == "completed"]
+    result = {"status": "failed", "calibration_scenarios": [sc.name for sc in cal],
+              "calibration_rpm": [rpm_of(sc) for sc in cal], "validation_scenarios": [sc.name for sc in val],
+              "identified": names, "settings": {"segments": settings.segments, "step_deg": settings.step_deg,
+                                                "tolerance": settings.tolerance, "method": "time marching to the "
+                                                "steady revolution (cosim.unknowns.solve)"},
+              "sigma_model": {"relative": sigma_relative, "absolute_ue": sigma_absolute_ue},
+              "records_used": plan["records"], "fits": [{k: f.get(k) for k in ("choice", "x0", "status", "cost",
+                                                                                "message", "error", "solves")}
+                                                         for f in fits]}
+    if not ok:
+        result["error"] = "every fit failed: " + "; ".join(str(f.get("error")) for f in fits[:3])
+        write_json(folder / "identification.json", result)
+        return folder, result
+    best = min(ok, key=lambda f: f["cost"])
+    m = len(best["fun"])
+    params, corr, stats = _confidence(unknowns, continuous, best, m)
+    where = [f"{sc.name} ({rpm_of(sc):.0f} rpm)" for sc in cal]
+    for n in params:
+        params[n]["identified_at"] = where
+    choice = best["choice"]
+    for n, v in choice.items():
+        alternatives = sorted({(str(f["choice"].get(n)), f["cost"]) for f in ok}, key=lambda t: t[1])
+        params[n] = {"value": v, "discrete": True, "identified_at": where, "rationale": unknowns[n].rationale,
+                     "best_cost_per_value": {a: c for a, c in reversed(alternatives)}}
+    signs = variant(cal[0], unknowns, {n: v for n, v in choice.items() if unknowns[n].measurement_only}).signs
+    result.update(status="completed", parameters=params, correlation=corr, statistics=stats,
+                  best_choice=choice, wall_time_s=None,
+                  reading={g.name: {"bending_sign": signs.get(g.name, (1, 1))[0], "axial_sign": signs.get(g.name, (1, 1))[1],
+                                    "declared_face": g.face} for g in cal[0].gauges},
+                  reading_note="a gauge's bending sign is its face times its polarity: Table I's peaks cannot tell "
+                               "them apart (its axial strains are printed as magnitudes)")
+    result["fixed"] = {n: "the scenario's own value" for n in unknowns if n not in names}
+    # Calibration residuals (the calibrated model at the optimum; solves are fast and cached).
+    x = np.array(best["x"])
+    sample = _sample(unknowns, continuous, x, choice)
+    # The predictions' covariance: the records' information plus the declared ranges as a prior (a
+    # uniform range's variance, 1/12 of its width squared, in the scaled unknowns), so that an
+    # unknown the records leave open spreads a prediction over its range, not beyond it.
+    J = np.array(best["jac"]).reshape(m, len(continuous))
+    cov = np.linalg.inv(J.T @ J / stats["s2"] + 12.0 * np.eye(len(continuous))) if continuous else np.zeros((0, 0))
+    preds = predict(cal + val, unknowns, continuous, x, choice, cov, settings, workers, scheduler)
+    result["calibration"] = {}
+    for sc in cal:
+        result["calibration"][sc.name] = compare(preds[sc.name], plan["targets"][sc.name], sigma_relative,
+                                                 sigma_absolute_ue)
+    # Only now are the held-out records read.
+    result["validation"], result["predictions"] = {}, {}
+    for sc in val:
+        peaks, used = record_peaks(sc, records_dir)
+        result["validation"][sc.name] = compare(preds[sc.name], peaks, sigma_relative, sigma_absolute_ue)
+        result["predictions"][sc.name] = {"rpm": rpm_of(sc), "records_used": used,
+                                          "note": None if peaks else "no record of the rig at this speed"}
+    for sc in cal + val:
+        result.setdefault("predictions", {}).setdefault(sc.name, {"rpm": rpm_of(sc)})
+        result["predictions"][sc.name].update(peaks=preds[sc.name]["peaks"], sigma_ue=preds[sc.name]["sigma_ue"],
+                                              nominal_peaks=preds[sc.name]["nominal"]["peaks"],
+                                              speed_fluctuation=preds[sc.name]["speed_fluctuation"])
+    result["wall_time_s"] = time.perf_counter() - tic
+    result["sample"] = {k: (v if isinstance(v, (str, int)) else float(v)) for k, v in sample.items()}
+    write_json(folder / "identification.json", result)
+    from .identify_report import plot, record_rrd
+    try:
+        result["figures"] = [p.name for p in plot(folder, result, preds)]
+    except Exception as exc:                    # a figure never loses the identification
+        log.warning("identification figure not drawn: %s", exc)
+    if record:
+        record_rrd(folder / "identification.rrd", result, preds)
+    write_json(folder / "identification.json", result)
+    return folder, result
+
+
+def predict(scenarios, unknowns, continuous, x, choice, cov, settings, workers=None, scheduler=None) -> dict:
+    """Peaks and histories of each scenario at ``x`` (and the nominal scenario), with the 1-sigma
+    of the peaks from ``cov`` (finite differences: one more solve per continuous unknown)."""
+    from .uncertainty import evaluate
+    h = 1e-3
+    out = {}
+    for sc in scenarios:
+        pts = [_sample(unknowns, continuous, x, choice)]
+        for i in range(len(continuous)):
+            xi = np.array(x, float)
+            xi[i] = xi[i] + h if xi[i] + h <= 1 else xi[i] - h
+            pts.append(_sample(unknowns, continuous, xi, choice))
+        res = evaluate(sc, unknowns, [None] + pts, settings, workers, scheduler)
+        nominal, at, steps = res[0], res[1], res[2:]
+        if at.get("status") != "completed":
+            out[sc.name] = {"status": "failed", "error": at.get("error"), "peaks": {}, "sigma_ue": {},
+                            "nominal": nominal, "speed_fluctuation": None, "gauges": {}}
+            continue
+        sig = {}
+        for g in at["peaks"]:
+            sig[g] = {}
+            for side, key in PEAKS:
+                if continuous and all(s.get("status") == "completed" for s in steps):
+                    d = np.array([(s["peaks"][g][key] - at["peaks"][g][key]) /
+                                  (h if x[i] + h <= 1 else -h) for i, s in enumerate(steps)])
+                    sig[g][side] = float(math.sqrt(max(d @ cov @ d, 0.0)))
+                else:
+                    sig[g][side] = 0.0 if not continuous else None
+        out[sc.name] = {**at, "sigma_ue": sig, "nominal": nominal}
+    return out
+
+
+def compare(pred: dict, peaks: dict, rel, absolute) -> dict:
+    """``{gauge: {peak: {record_ue, model_ue, sigma_ue, error, normalized}}}`` (error = model / record - 1)."""
+    out = {}
+    for g, sides in sorted(peaks.items()):
+        for side, key in PEAKS:
+            if side not in sides:
+                continue
+            rec = sides[side]
+            mod = (pred.get("peaks") or {}).get(g, {}).get(key)
+            out.setdefault(g, {})[side] = {
+                "record_ue": rec, "model_ue": mod, "sigma_ue": (pred.get("sigma_ue") or {}).get(g, {}).get(side),
+                "error": None if mod is None else float(mod / rec - 1.0),
+                "normalized": None if mod is None else float((mod - rec) / _sigma(rec, rel, absolute))}
+    return out
+
+
+def table(result: dict) -> str:
+    """The printed summary of an identification."""
+    lines = [f"identification on {', '.join(result['calibration_scenarios'])}: {result['status']}"]
+    if result.get("error"):
+        return "\n".join(lines + [f"error: {result['error']}"])
+    st = result["statistics"]
+    lines.append(f"chi^2 {st['chi2']:.3g} over {st['peaks']} peaks, {st['unknowns']} continuous unknowns "
+                 f"(sigma: {result['sigma_model']['relative']:.0%} of the peak and "
+                 f"{result['sigma_model']['absolute_ue']:g} ue)")
+    for n, p in result["parameters"].items():
+        if p.get("discrete"):
+            lines.append(f"  {n:<18} {p['value']!s:>12}  (choice; cost per value {p['best_cost_per_value']})")
+        else:
+            flags = ", ".join(f for f, on in (("at a bound of its range", p["at_bound"]),
+                                              ("not constrained by the records", not p["constrained"])) if on)
+            lines.append(f"  {n:<18} {p['value']:>12.4g} +/- {p['sigma']:.2g} {p['unit']}  95 %: "
+                         f"{p['interval95'][0]:.3g}..{p['interval95'][1]:.3g}" + (f"  [{flags}]" if flags else ""))
+    for title, block in (("calibration", result.get("calibration", {})), ("validation", result.get("validation", {}))):
+        for scn, gauges in block.items():
+            for g, sides in gauges.items():
+                cells = []
+                for side, c in sides.items():
+                    err = "n/a" if c["error"] is None else f"{c['error']:+.0%}"
+                    sig = "" if not c.get("sigma_ue") else f" +/- {c['sigma_ue']:.0f}"
+                    model = "n/a" if c["model_ue"] is None else f"{c['model_ue']:.0f}{sig}"
+                    cells.append(f"{side} record {c['record_ue']:.0f} model {model} ({err})")
+                lines.append(f"  {title:<11} {scn} {g}: " + "; ".join(cells))
+    return "\n".join(lines)
+
+
+def add_parser(sub):
+    """The ``cosim identify`` subcommand (registered by :mod:`cosim.cli`)."""
+    p = sub.add_parser("identify", help="calibrate declared unknowns at some speeds, predict held-out ones",
+                       description="Calibrate chosen unknowns of the scenarios' [uncertainty] table against their "
+                                   "records by bounded least squares within the declared ranges, then predict the "
+                                   "held-out scenarios (--validate) without reading their records during the fit. "
+                                   "Writes identification.json, identification.png/.svg and identification.rrd.",
+                       epilog="Example: cosim identify crank_rocker_241rpm --validate "
+                              "crank_rocker_95rpm,crank_rocker_373rpm")
+    p.add_argument("scenarios", nargs="+", metavar="SCENARIO", help="calibration scenarios (names or paths)")
+    p.add_argument("--validate", default="", metavar="SCENARIO[,SCENARIO]",
+                   help="held-out scenarios to predict (comma-separated)")
+    p.add_argument("--parameters", metavar="NAME[,NAME]",
+                   help="declared unknowns to calibrate (default: the scenario's [uncertainty] identify list); the "
+                        "others keep the scenario's own values")
+    p.add_argument("--starts", type=int, default=3, help="least-squares starts per choice of the discrete unknowns "
+                                                         "(default 3: mid-range and random points)")
+    p.add_argument("--sigma", default="10%,5", metavar="REL%,ABS",
+                   help="record uncertainty: relative part and absolute part in microstrain (default 10%%,5)")
+    p.add_argument("--records", type=Path, metavar="DIR",
+                   help="read the records from DIR instead of the shipped scenarios/records")
+    p.add_argument("--out", type=Path, help="output folder (default: ./logs/<scenarios>-identify-<timestamp>)")
+    p.add_argument("--workers", type=int, help="local worker processes (default: the number of cores)")
+    p.add_argument("--scheduler", help="Dask scheduler address: run the fits there")
+    return p
+
+
+def _parse_sigma(text: str) -> tuple:
+    try:
+        rel, absolute = (x.strip() for x in str(text).split(","))
+        rel = float(rel.rstrip("%")) / (100.0 if rel.endswith("%") else 1.0)
+        absolute = float(absolute)
+        if rel < 0 or absolute < 0 or rel + absolute <= 0:
+            raise ValueError
+    except ValueError:
+        raise ValueError(f"--sigma {text!r}: write the relative and absolute parts, e.g. 10%,5") from None
+    return rel, absolute
+
+
+def run_command(args, progress: bool = True) -> int:
+    """``cosim identify``: prints the table and where the results went."""
+    validation = [s.strip() for s in args.validate.split(",") if s.strip()]
+    names = [s.strip() for s in args.parameters.split(",") if s.strip()] if args.parameters else None
+    if args.starts < 1:
+        raise ValueError("--starts must be at least 1")
+    rel, absolute = _parse_sigma(args.sigma)
+    folder, result = identify(args.scenarios, validation, names, args.records, args.out, starts=args.starts,
+                              workers=args.workers, scheduler=args.scheduler, sigma_relative=rel,
+                              sigma_absolute_ue=absolute, progress=progress)
+    print(table(result))
+    print(f"\nwritten to {folder}")
+    return 0 if result["status"] == "completed" else 1

@@ -1,0 +1,282 @@
+"""The recorder with its rerun side in a child process (what ``cosim run`` uses).
+
+Why a process: importing rerun and converting arrays to chunks cost a TMM run of a few seconds
+more than the TMM itself (about 0.35 s for the import and the first send alone). The child
+starts when the run starts, imports rerun while the engines set up, and writes while they run,
+on another core; the run only collects references to its arrays (:mod:`cosim.recording.batch`)
+and hands a pickled batch to a pipe a few times a second (from a thread, so a slow child never
+stalls the run).
+
+The child ignores Ctrl-C (it runs in its own session): the run closes the recording when it
+ends, interrupted or not. If the run's process dies, the child sees its input end and finishes
+the file all the same. ``RecorderProcess.close`` waits for the child at most
+``close_timeout_s``; with ``--serve`` the child keeps serving until
+:meth:`RecorderProcess.serve_until_interrupted` returns (Ctrl-C).
+
+Messages (pickled tuples on the child's stdin): ``("open", kwargs of StreamWriter)``,
+``("stations", {...})``, ``("batch", batch)``, ``("reference", Reference)``,
+``("text", path, text)``, ``("close",)``. The child answers on its stdout with JSON lines:
+``{"serving": url}`` (serve mode, once everything is flushed) and ``{"warnings": [...]}`` when the
+file is finished.
+"""
+from __future__ import annotations
+
+import json
+import logging
+import os
+import pickle
+import queue
+import selectors
+import signal
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+from .batch import StepBatcher, check_linkage_rate
+from .recorder import Recorder, check_exaggeration, viewer_options
+from .sinks import ViewerOptions
+from .spec import RecordingSpec, spec_from_scenario
+
+log = logging.getLogger("cosim.recording")
+_DONE = object()
+WRITER_NICE = 10              # the child's scheduling priority offset (Unix nice)
+
+
+class RecorderProcess(Recorder):
+    """:class:`cosim.recording.recorder.Recorder` with the rerun side in a child process (same
+    arguments and methods, plus ``close_timeout_s``)."""
+
+    close_timeout_s = 120.0
+
+    def __init__(self, scenario, engines: dict | None = None, mode: str = "prescribed", *, save_path=None,
+                 spawn: bool = False, connect: str | None = None, viewer: ViewerOptions | None = None,
+                 exaggeration: float | None = None, linkage_every: int = 1, linkage_fps: float | None = None,
+                 application_id: str = "flexlink-bench"):
+        viewer = viewer_options(save_path, spawn, connect, viewer)
+        check_exaggeration(exaggeration)
+        check_linkage_rate(linkage_every, linkage_fps)
+        self.spec = scenario if isinstance(scenario, RecordingSpec) else spec_from_scenario(scenario, mode,
+                                                                                           engines or ())
+        self.save_path, self.viewer = save_path, viewer
+        self.batcher = StepBatcher(linkage_every, linkage_fps)
+        self._record_colors, self._last_take, self._closed = {}, time.monotonic(), False
+        self._broken = None
+        root = str(Path(__file__).resolve().parents[2])            # so the child imports this cosim
+        env = dict(os.environ, PYTHONPATH=os.pathsep.join(filter(None, [root, os.environ.get("PYTHONPATH")])))
+        level = logging.getLogger("cosim").getEffectiveLevel()
+        self._proc = subprocess.Popen([sys.executable, "-m", "cosim.recording.process", str(level)],
+                                      stdin=subprocess.PIPE, stdout=subprocess.PIPE, env=env,
+                                      start_new_session=True)
+        self._queue: queue.Queue = queue.Queue()
+        self._thread = threading.Thread(target=self._pump, name="recording-pipe", daemon=True)
+        self._thread.start()
+        self._send("open", dict(spec=self.spec, save_path=None if save_path is None else str(save_path),
+                                viewer=viewer, exaggeration=exaggeration, application_id=application_id,
+                                stations=engines))
+
+    # -- transport ---------------------------------------------------------------------------------
+    def set_stations(self, stations: dict) -> None:
+        self._check_open()
+        self._send("stations", stations)
+
+    def _take(self):
+        batch = self.batcher.take()
+        if batch is not None:
+            self._send("batch", batch)
+        self._last_take = time.monotonic()
+
+    def _reference(self, ref):
+        self._send("reference", ref)
+
+    def _text(self, path, text):
+        self._send("text", path, text)
+
+    def _send(self, *message):
+        self._queue.put(pickle.dumps(message, protocol=pickle.HIGHEST_PROTOCOL))
+
+    def _pump(self):
+        """Thread: queued messages into the child's stdin (blocking here, not in the run)."""
+        while True:
+            item = self._queue.get()
+            if item is _DONE:
+                break
+            if self._broken is None:
+                try:
+                    self._proc.stdin.write(item)
+                    self._proc.stdin.flush()            # a live viewer sees each batch now
+                except (BrokenPipeError, OSError) as exc:
+                    self._broken = exc
+        try:
+            self._proc.stdin.close()
+        except OSError:
+            pass
+
+    # -- the end -----------------------------------------------------------------------------------
+    def close(self) -> list:
+        """Hand over the rest and wait for the child to finish the file (at most
+        ``close_timeout_s``); with ``--serve`` until it serves everything. Returns warnings."""
+        if self._closed:
+            return []
+        self._closed = True
+        self._take()
+        self._send("close")
+        self._queue.put(_DONE)
+        deadline = time.monotonic() + self.close_timeout_s
+        self._thread.join(timeout=self.close_timeout_s)
+        problems, finished = [], False
+        for status in self._status_lines(deadline):
+            problems += status.get("warnings", [])
+            if "serving" in status:
+                self.serving = status["serving"]
+                break
+            if "warnings" in status:          # the file is finished: no need to wait for the exit
+                finished = True
+                break
+        if self.serving is None and not finished:
+            try:
+                self._proc.wait(timeout=max(0.1, deadline - time.monotonic()))
+            except subprocess.TimeoutExpired:
+                self._proc.kill()
+                problems.append(f"the recording writer did not finish within {self.close_timeout_s:g} s and was "
+                                f"stopped; {self.save_path} may be incomplete")
+            if self._proc.returncode not in (0, None) and not problems:
+                problems.append(f"the recording writer failed (exit status {self._proc.returncode}, its error is "
+                                f"above); {self.save_path} may be incomplete")
+        if self._broken is not None:
+            problems.append(f"the recording writer stopped reading ({self._broken}); {self.save_path} may be "
+                            "incomplete")
+        for p in problems:
+            log.warning("recording: %s", p)
+        return problems
+
+    serving = None              # the gRPC URL while the child serves (viewer 'serve')
+
+    def serve_until_interrupted(self) -> None:
+        """With ``--serve``: keep the child serving until Ctrl-C, then let it finish the file."""
+        if self.serving is None:
+            return
+
+        def stop(signum, frame):
+            raise KeyboardInterrupt
+        previous = signal.signal(signal.SIGTERM, stop)       # SIGTERM stops serving as Ctrl-C does
+        try:
+            while self._proc.poll() is None:
+                time.sleep(0.2)
+        except KeyboardInterrupt:
+            pass
+        finally:
+            signal.signal(signal.SIGTERM, previous)
+            self.stop_serving()
+
+    def stop_serving(self) -> None:
+        """Stop the child's servers; it finishes its file (footer) on SIGTERM."""
+        if self._proc.poll() is None:
+            self._proc.terminate()
+            try:
+                self._proc.wait(timeout=30)
+            except subprocess.TimeoutExpired:
+                self._proc.kill()
+
+    def _status_lines(self, deadline):
+        """The child's JSON status lines until it closes its stdout or the deadline passes."""
+        sel = selectors.DefaultSelector()
+        sel.register(self._proc.stdout, selectors.EVENT_READ)
+        try:
+            while time.monotonic() < deadline:
+                if not sel.select(timeout=max(0.0, deadline - time.monotonic())):
+                    return
+                line = self._proc.stdout.readline()
+                if not line:
+                    return
+                try:
+                    yield json.loads(line)
+                except ValueError:
+                    continue
+        finally:
+            sel.close()
+
+
+# -- the child ----------------------------------------------------------------------------------------
+class _NoPandas:
+    """Import hook refusing pandas. pyarrow imports pandas on the first ``pa.array`` of strings only
+    to check whether the data are pandas objects (rerun's text conversion goes through it): 0.2-0.4 s
+    of CPU that the writer never needs, on the core the engines run on."""
+
+    def find_spec(self, name, path=None, target=None):
+        if name == "pandas" or name.startswith("pandas."):
+            raise ImportError("the recording writer does not use pandas")
+
+
+def _child(level: int) -> int:
+    parent = os.getppid()
+    sys.meta_path.insert(0, _NoPandas())
+    try:
+        # The recording yields to the simulation when the cores are busy (it catches up at close).
+        os.nice(WRITER_NICE)
+    except (AttributeError, OSError):
+        pass
+    from .sinks import serve_until_interrupted
+    from .writer import StreamWriter
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+    def terminate(signum, frame):
+        raise KeyboardInterrupt
+    signal.signal(signal.SIGTERM, terminate)
+    handler = logging.StreamHandler(sys.stderr)
+    handler.setFormatter(_Prefix())
+    logger = logging.getLogger("cosim")
+    logger.addHandler(handler)
+    logger.setLevel(level)
+    logger.propagate = False
+    status = sys.stdout
+
+    def report(**kw):
+        try:
+            status.write(json.dumps(kw) + "\n")
+            status.flush()
+        except (BrokenPipeError, OSError, ValueError):
+            pass
+    writer, inp = None, sys.stdin.buffer
+    try:
+        while True:
+            try:
+                message = pickle.load(inp)
+            except EOFError:                          # the run's process ended without "close"
+                break
+            kind, *args = message
+            if kind == "open":
+                writer = StreamWriter(**args[0])
+            elif kind == "close":
+                break
+            elif writer is not None:
+                {"stations": writer.set_stations, "batch": writer.write, "reference": writer.reference,
+                 "text": writer.text}[kind](*args)
+    except KeyboardInterrupt:
+        pass
+    if writer is None:
+        return 0
+    try:
+        writer.complete()
+        if writer.viewer.viewer == "serve" and writer.urls:
+            writer.rec.flush(timeout_sec=writer.viewer.timeout_s)
+            report(serving=writer.urls[0])
+            serve_until_interrupted(parent)
+    except KeyboardInterrupt:
+        pass
+    report(warnings=writer.finish())
+    return 0
+
+
+class _Prefix(logging.Formatter):
+    """As the ``cosim`` command's messages: warnings and errors prefixed, the rest as they are."""
+
+    def format(self, record):
+        text = record.getMessage()
+        return text if record.levelno < logging.WARNING else f"{record.levelname.lower()}: {text}"
+
+
+if __name__ == "__main__":
+    sys.exit(_child(int(sys.argv[1]) if len(sys.argv) > 1 else logging.WARNING))

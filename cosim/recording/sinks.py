@@ -1,0 +1,238 @@
+"""Where a recording goes: always its file, and at most one viewer; never an unbounded wait.
+
+Viewer choices (:class:`ViewerOptions`, the ``cosim`` flags in brackets; they follow rerun's
+script conventions, ``rr.script_add_args``):
+
+``save`` (default, ``--save [PATH]``, ``--headless``)
+    the file only.
+``spawn`` (``--spawn``)
+    also start a native viewer and stream to it. Needs a display; without one (no ``DISPLAY``
+    or ``WAYLAND_DISPLAY``) no viewer is started and a warning says so.
+``connect`` (``--connect [URL]``, ``--url URL``)
+    also stream to a viewer that is already running.
+``serve`` (``--serve``, ``--serve-web``)
+    also host the stream over gRPC and a web viewer on this machine; the process keeps serving
+    after the run until it is interrupted (Ctrl-C).
+``stdout`` (``--stdout``)
+    the finished file is written to standard output after the run (rerun's ``--stdout`` streams
+    live; a run also keeps its file, and a file sink cannot be teed with stdout in rerun 0.41).
+
+A viewer that cannot be reached is *checked before* it becomes a sink (a TCP connection with a
+timeout), because rerun's gRPC sink blocks ``send`` for seconds and ``flush`` without limit while
+it retries (found here: a run with ``--connect`` to a closed port never ended). The stream then
+goes to the file alone, with a warning naming the URL. Flushing to a viewer that goes away later
+is bounded by ``timeout_s``; rerun's own disconnect waits at most 5 s for a last attempt.
+"""
+from __future__ import annotations
+
+import logging
+import os
+import shutil
+import socket
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from urllib.parse import quote, urlparse
+
+VIEWERS = ("save", "spawn", "connect", "serve", "none")
+DEFAULT_URL = "rerun+http://127.0.0.1:9876/proxy"
+SCHEMES = ("rerun", "rerun+http", "rerun+https")
+log = logging.getLogger("cosim.recording")
+
+
+@dataclass(frozen=True)
+class ViewerOptions:
+    """How a recording is shown besides its file (see the module docstring)."""
+
+    viewer: str = "save"
+    url: str | None = None          # connect: the running viewer's address
+    stdout: bool = False
+    timeout_s: float = 5.0          # connecting to and flushing to a viewer
+    grpc_port: int = 9876           # spawn and serve
+    web_port: int = 9090            # serve
+
+    def __post_init__(self):
+        if self.viewer not in VIEWERS:
+            raise ValueError(f"viewer must be one of {', '.join(VIEWERS)}, got {self.viewer!r}")
+        if self.viewer == "connect":
+            viewer_address(self.url or DEFAULT_URL)
+        if not (isinstance(self.timeout_s, (int, float)) and self.timeout_s > 0):
+            raise ValueError(f"viewer timeout must be a positive number of seconds, got {self.timeout_s!r}")
+
+    @property
+    def connect_url(self) -> str:
+        return self.url or DEFAULT_URL
+
+
+def viewer_address(url: str) -> tuple:
+    """(host, port) of a viewer URL ``rerun+http://host:port/proxy``; an error names ``--connect``."""
+    p = urlparse(str(url))
+    if p.scheme not in SCHEMES or not p.hostname or p.port is None:
+        raise ValueError(f"--connect {url!r}: expected a rerun viewer URL such as {DEFAULT_URL} "
+                         f"(scheme {', '.join(SCHEMES)}, a host and a port)")
+    return p.hostname, p.port
+
+
+def reachable(host: str, port: int, timeout_s: float) -> bool:
+    """Whether something accepts TCP connections at host:port within ``timeout_s``."""
+    deadline = time.monotonic() + timeout_s
+    while True:
+        try:
+            with socket.create_connection((host, port), timeout=max(0.05, min(1.0, deadline - time.monotonic()))):
+                return True
+        except OSError:
+            if time.monotonic() >= deadline:
+                return False
+            time.sleep(0.1)
+
+
+def rerun_executable() -> str | None:
+    """The ``rerun`` viewer binary of the installed rerun-sdk (``rerun_cli/rerun``: the script
+    ``.venv/bin/rerun`` only wraps it in a second process, which a terminate would not stop),
+    else the script next to this Python, else ``rerun`` on PATH."""
+    try:
+        import rerun_cli
+        binary = Path(rerun_cli.__file__).with_name("rerun")
+        if binary.exists():
+            return str(binary)
+    except ImportError:
+        pass
+    here = Path(sys.executable).with_name("rerun")
+    return str(here) if here.exists() else shutil.which("rerun")
+
+
+def attach(rec, file_path, options: ViewerOptions) -> list:
+    """Give ``rec`` its sinks: the file (if any) and the viewer the options ask for, if it can be
+    reached. Returns the viewer URLs attached (empty: the file alone)."""
+    import rerun as rr
+    if file_path is not None:
+        Path(file_path).parent.mkdir(parents=True, exist_ok=True)
+    sinks = [rr.FileSink(str(file_path))] if file_path is not None else []
+    urls = []
+    if options.viewer == "spawn":
+        url = f"rerun+http://127.0.0.1:{options.grpc_port}/proxy"
+        if sys.platform.startswith("linux") and not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
+            log.warning("--spawn: no display (DISPLAY and WAYLAND_DISPLAY are unset), so no viewer was started; "
+                        "the recording goes to %s only (--serve shows it in a browser)", file_path)
+        else:
+            exe = rerun_executable()
+            rr.spawn(port=options.grpc_port, connect=False, hide_welcome_screen=True, recording=rec,
+                     **({"executable_path": exe} if exe else {}))
+            # A viewer that cannot open a window listens for a moment and exits: check it stays.
+            if reachable("127.0.0.1", options.grpc_port, options.timeout_s) and (time.sleep(0.5) or
+                                                                                  reachable("127.0.0.1", options.grpc_port, 0.5)):
+                urls.append(url)
+            else:
+                log.warning("--spawn: the rerun viewer did not start listening at %s within %g s; the recording goes "
+                            "to %s only", url, options.timeout_s, file_path)
+    elif options.viewer == "connect":
+        url = options.connect_url
+        if reachable(*viewer_address(url), options.timeout_s):
+            urls.append(url)
+        else:
+            log.warning("--connect: no rerun viewer answers at %s (waited %g s); the recording goes to %s only",
+                        url, options.timeout_s, file_path)
+    if options.viewer in ("spawn", "connect"):
+        sinks += [rr.GrpcSink(u) for u in urls]
+    elif options.viewer == "serve":
+        try:
+            sinks.append(rr.GrpcServerSink(port=options.grpc_port))
+        except Exception as exc:       # e.g. the port is taken
+            log.warning("--serve: cannot serve on port %d (%s); the recording goes to %s only",
+                        options.grpc_port, exc, file_path)
+        else:
+            url = f"rerun+http://127.0.0.1:{options.grpc_port}/proxy"
+            rr.serve_web_viewer(web_port=options.web_port, open_browser=False, connect_to=url)
+            urls.append(url)
+            log.info("serving the recording: open http://127.0.0.1:%d/?url=%s in a browser, or run `rerun %s`",
+                     options.web_port, quote(url, safe=""), url)
+    rec.set_sinks(*sinks)
+    return urls
+
+
+def finish(rec, urls: list, timeout_s: float) -> list:
+    """Flush (bounded by ``timeout_s`` when a viewer is attached) and close every sink; the file
+    gets its footer. Returns warnings (a viewer that did not take everything)."""
+    warnings = []
+    try:
+        rec.flush(timeout_sec=timeout_s if urls else 1e9)
+    except RuntimeError as exc:        # the viewer went away or is too slow: the file is still finished
+        warnings.append(f"the viewer at {', '.join(urls)} did not take the whole recording within {timeout_s:g} s "
+                        f"({exc}); the file is complete")
+    rec.disconnect()                    # closes the file (footer) and the gRPC connections
+    return warnings
+
+
+def serve_until_interrupted(parent: int | None = None) -> None:
+    """Keep this process (and its gRPC and web servers) alive until Ctrl-C or SIGTERM, or until
+    the process ``parent`` is gone (a child never outlives the run that started it)."""
+    try:
+        while parent is None or os.getppid() == parent:
+            time.sleep(0.5)
+    except KeyboardInterrupt:
+        pass
+
+
+def show_file(path, options: ViewerOptions, save_copy=None) -> list:
+    """Show a finished recording file as ``options`` say (the sweep and uncertainty recordings,
+    written when their results are complete): ``spawn`` starts a viewer on the file, ``connect``
+    sends it to a running viewer (``log_file_from_path`` forwards the data and the layout),
+    ``serve`` hosts it with ``rerun --serve-web`` until Ctrl-C, ``stdout`` writes it to standard
+    output; ``save_copy``: also copy it there. Returns warnings (also logged)."""
+    warnings = []
+    if save_copy:
+        shutil.copyfile(path, save_copy)
+    exe = rerun_executable()
+    if options.viewer in ("spawn", "serve") and exe is None:
+        warnings.append(f"--{options.viewer}: no `rerun` executable found; open {path} yourself")
+    elif options.viewer == "spawn":
+        if sys.platform.startswith("linux") and not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
+            warnings.append(f"--spawn: no display (DISPLAY and WAYLAND_DISPLAY are unset); open {path} elsewhere, or "
+                            "use --serve to view it in a browser")
+        else:
+            import subprocess
+            subprocess.Popen([exe, str(path)], start_new_session=True, stdout=subprocess.DEVNULL,
+                             stderr=subprocess.DEVNULL)
+    elif options.viewer == "connect":
+        url = options.connect_url
+        if not reachable(*viewer_address(url), options.timeout_s):
+            warnings.append(f"--connect: no rerun viewer answers at {url} (waited {options.timeout_s:g} s); "
+                            f"the recording is in {path}")
+        else:
+            import rerun as rr
+            from rerun.chunk import RrdReader
+            store = RrdReader(str(path)).recordings()[0]
+            rec = rr.RecordingStream(store.application_id, recording_id=store.recording_id)
+            rec.set_sinks(rr.GrpcSink(url))
+            rec.log_file_from_path(str(path))
+            warnings += finish(rec, [url], options.timeout_s)
+    elif options.viewer == "serve":
+        import subprocess
+        url = f"rerun+http://127.0.0.1:{options.grpc_port}/proxy"
+        log.info("serving %s: open http://127.0.0.1:%d/?url=%s in a browser, or run `rerun %s`; Ctrl-C stops",
+                 path, options.web_port, quote(url, safe=""), url)
+        proc = subprocess.Popen([exe, "--serve-web", str(path), "--port", str(options.grpc_port),
+                                 "--web-viewer-port", str(options.web_port)], stdout=subprocess.DEVNULL,
+                                stderr=subprocess.DEVNULL)
+        try:
+            proc.wait()
+        except KeyboardInterrupt:
+            pass
+        finally:
+            if proc.poll() is None:
+                proc.terminate()
+                proc.wait(timeout=10)
+    if options.stdout:
+        copy_to_stdout(path)
+    for w in warnings:
+        log.warning("%s", w)
+    return warnings
+
+
+def copy_to_stdout(path) -> None:
+    """The finished recording file to standard output (pipe it into ``rerun -``)."""
+    out = sys.stdout.buffer
+    with open(path, "rb") as f:
+        shutil.copyfileobj(f, out)
+    out.flush()

@@ -1,0 +1,377 @@
+"""Declared unknowns of a scenario (its ``[uncertainty]`` table) and the fast model run behind
+uncertainty bands and identification.
+
+Each unknown sets one or more keys::
+
+    [uncertainty.parameters.damping]
+    keys = ["links.coupler.damping.ratio", "links.rocker.damping.ratio"]
+    distribution = "uniform"       # uniform | loguniform (low, high) | normal (mean, std) | choice (values)
+    low = "1 %"
+    high = "15 %"
+    unit = "%"                     # the unit a drawn number is written in
+    rationale = "why this range"
+
+A key is one of three kinds:
+
+* a **scenario key** (``links.coupler.damping.ratio``, ``gravity.vector``, ...): the variant is
+  made with :meth:`cosim.scenario.Scenario.with_overrides` and validated by the loader;
+* a **model key** (``model.*``, :data:`MODEL_KEYS`): physics the scenario file has no key for,
+  carried by the transfer-matrix model only: the drive's inertia (a free-wheeling crank,
+  :mod:`cosim.drive_profile`), moments at the pins (gauge wires, joint friction,
+  :mod:`cosim.joint_loads`), and gravity written as the fraction of g in the linkage plane and
+  its direction (set as ``gravity.vector``);
+* a **measurement key**: how a gauge reads the model's strain: ``gauges.<g>.face`` (top/bottom:
+  flips the bending sign) and ``measurement.polarity.<g>`` (+1/-1: flips bending and axial).
+  They are applied to the solved strains (no new solve).
+
+:func:`solve` runs one variant: the transfer-matrix model marched to its periodic steady state
+with one revolution of factorized configurations reused (the compiled kernel), which measured
+6-8x faster than the periodic shooting solver for the same peaks (README, "How far the bench is
+from the measurement").
+"""
+from __future__ import annotations
+
+import math
+import re
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .scenario import UREG, ScenarioError
+
+#: Model keys and their SI units.
+MODEL_KEYS = {
+    "model.drive_inertia": "kg*m**2",
+    "model.gravity_in_plane": "",
+    "model.gravity_direction": "rad",
+    "model.joint_moment.C": "N*m",
+    "model.joint_moment.D": "N*m",
+    "model.joint_stiffness.C": "N*m/rad",
+    "model.joint_stiffness.D": "N*m/rad",
+    "model.joint_friction": "N*m",
+}
+_FACE = re.compile(r"^gauges\.(\w+)\.face$")
+_POLARITY = re.compile(r"^measurement\.polarity\.(\w+)$")
+DISTRIBUTIONS = ("uniform", "loguniform", "normal", "choice")
+
+
+@dataclass(frozen=True)
+class Unknown:
+    """One declared unknown. Continuous values are numbers in ``unit``; a choice's values are
+    the TOML values as written."""
+
+    name: str
+    keys: tuple
+    distribution: str
+    unit: str = ""
+    low: float | None = None
+    high: float | None = None
+    mean: float | None = None
+    std: float | None = None
+    values: tuple = ()
+    rationale: str = ""
+
+    @property
+    def discrete(self) -> bool:
+        return self.distribution == "choice"
+
+    @property
+    def measurement_only(self) -> bool:
+        """Changes only how the gauges read the strains (no new solve)."""
+        return all(_FACE.match(k) or _POLARITY.match(k) for k in self.keys)
+
+    def at(self, u: float):
+        """The value at ``u`` in [0, 1] of its range (a quantile for ``normal``)."""
+        u = float(np.clip(u, 0.0, 1.0))
+        if self.distribution == "uniform":
+            return self.low + u * (self.high - self.low)
+        if self.distribution == "loguniform":
+            return self.low * (self.high / self.low) ** u
+        if self.distribution == "normal":
+            from scipy.stats import norm
+            return self.mean + self.std * float(norm.ppf(np.clip(u, 1e-3, 1 - 1e-3)))
+        return self.values[min(int(u * len(self.values)), len(self.values) - 1)]
+
+    def fraction(self, x) -> float:
+        """Inverse of :meth:`at` for continuous unknowns."""
+        if self.distribution == "uniform":
+            return 0.0 if self.high == self.low else (float(x) - self.low) / (self.high - self.low)
+        if self.distribution == "loguniform":
+            return math.log(float(x) / self.low) / math.log(self.high / self.low)
+        if self.distribution == "normal":
+            from scipy.stats import norm
+            return float(norm.cdf((float(x) - self.mean) / self.std))
+        return self.values.index(x) / max(len(self.values) - 1, 1)
+
+    def dvalue_du(self, u: float) -> float:
+        """d(value)/du of a continuous unknown (for confidences in the unknown's unit)."""
+        if self.distribution == "uniform":
+            return self.high - self.low
+        if self.distribution == "loguniform":
+            return self.at(u) * math.log(self.high / self.low)
+        h = 1e-4
+        return (self.at(u + h) - self.at(u - h)) / (2 * h)
+
+    def bounds(self) -> tuple:
+        if self.distribution in ("uniform", "loguniform"):
+            return self.low, self.high
+        if self.distribution == "normal":
+            return self.mean - 2 * self.std, self.mean + 2 * self.std
+        return self.values[0], self.values[-1]
+
+    def describe(self) -> dict:
+        d = {"keys": list(self.keys), "distribution": self.distribution, "unit": self.unit,
+             "rationale": self.rationale}
+        if self.discrete:
+            d["values"] = list(self.values)
+        elif self.distribution == "normal":
+            d.update(mean=self.mean, std=self.std)
+        else:
+            d.update(low=self.low, high=self.high)
+        return d
+
+
+def _quantity(text, unit, where):
+    try:
+        q = UREG.Quantity(str(text).replace("^", "**"))
+        if unit:
+            return float(q.to(unit.replace("^", "**")).magnitude)
+        return float(q.to("").magnitude) if hasattr(q, "to") else float(q)
+    except Exception as exc:
+        raise ScenarioError(f"{where}: cannot read {text!r} in unit {unit or 'dimensionless'!r} ({exc})") from None
+
+
+def declared(raw: dict, path: str = "<scenario>") -> tuple:
+    """``(samples, seed, {name: Unknown}, options)`` from the scenario's ``[uncertainty]`` table
+    (``options``: its other keys, e.g. ``identify``, ``morris_trajectories``)."""
+    u = raw.get("uncertainty")
+    if not isinstance(u, dict) or not isinstance(u.get("parameters"), dict) or not u["parameters"]:
+        raise ScenarioError(f"scenario '{path}': it declares no unknowns ([uncertainty.parameters.<name>] tables)")
+    out = {}
+    for name, d in u["parameters"].items():
+        key = f"scenario '{path}': key 'uncertainty.parameters.{name}"
+        if not isinstance(d, dict):
+            raise ScenarioError(f"{key}' must be a table")
+        keys = d.get("keys")
+        if not isinstance(keys, list) or not keys or not all(isinstance(k, str) for k in keys):
+            raise ScenarioError(f"{key}.keys' must list the scenario keys it sets")
+        for k in keys:
+            if k.startswith("model.") and k not in MODEL_KEYS:
+                raise ScenarioError(f"{key}.keys': unknown model key {k!r}; model keys: {', '.join(MODEL_KEYS)}")
+            if k.startswith("measurement.") and not _POLARITY.match(k):
+                raise ScenarioError(f"{key}.keys': unknown measurement key {k!r} (measurement.polarity.<gauge>)")
+        dist = d.get("distribution")
+        unit = str(d.get("unit", ""))
+        common = dict(name=name, keys=tuple(keys), distribution=dist, unit=unit,
+                      rationale=str(d.get("rationale", d.get("assumption", ""))))
+
+        def num(k):
+            if k not in d:
+                raise ScenarioError(f"{key}.{k}' is required for a {dist} distribution")
+            return _quantity(d[k], unit, f"{key}.{k}'")
+        if dist in ("uniform", "loguniform"):
+            lo, hi = num("low"), num("high")
+            if hi < lo:
+                raise ScenarioError(f"{key}': high below low")
+            if dist == "loguniform" and not lo > 0:
+                raise ScenarioError(f"{key}.low': a loguniform range must be positive")
+            out[name] = Unknown(low=lo, high=hi, **common)
+        elif dist == "normal":
+            out[name] = Unknown(mean=num("mean"), std=num("std"), **common)
+        elif dist == "choice":
+            values = d.get("values")
+            if not isinstance(values, list) or not values:
+                raise ScenarioError(f"{key}.values' must list the choices")
+            out[name] = Unknown(values=tuple(values), **common)
+        else:
+            raise ScenarioError(f"{key}.distribution' = {dist!r}: {', '.join(DISTRIBUTIONS)}")
+    options = {k: v for k, v in u.items() if k not in ("parameters", "samples", "seed")}
+    return int(u.get("samples", 32)), int(u.get("seed", 1)), out, options
+
+
+# -- a sample -> a variant ---------------------------------------------------------------------------
+@dataclass
+class Variant:
+    """What a sample changes: scenario ``overrides``, ``model`` values (SI, :data:`MODEL_KEYS`),
+    and per gauge the ``signs`` (bending, axial) of the reading."""
+
+    overrides: dict = field(default_factory=dict)
+    model: dict = field(default_factory=dict)
+    signs: dict = field(default_factory=dict)
+
+    def physics_key(self) -> tuple:
+        """Hashable identity of what needs a solve (the reading signs excluded)."""
+        return (tuple(sorted((k, repr(v)) for k, v in self.overrides.items())),
+                tuple(sorted((k, round(v, 12)) for k, v in self.model.items())))
+
+
+def _scalar(x):
+    return float(x) if isinstance(x, (np.floating, np.integer, float, int)) and not isinstance(x, bool) else x
+
+
+def variant(sc, unknowns: dict, sample: dict) -> Variant:
+    """The :class:`Variant` of ``sample`` ({name: value}) on the scenario ``sc``."""
+    v = Variant()
+    faces = {g.name: g.face for g in sc.gauges}
+    for name, x in sample.items():
+        if name not in unknowns:
+            raise ScenarioError(f"unknown {name!r} is not declared in [uncertainty.parameters] of "
+                                f"'{sc.path or sc.name}' (declared: {', '.join(unknowns)})")
+        spec = unknowns[name]
+        x = _scalar(x)
+        for key in spec.keys:
+            m_face, m_pol = _FACE.match(key), _POLARITY.match(key)
+            if m_face or m_pol:
+                g = (m_face or m_pol).group(1)
+                if g not in faces:
+                    raise ScenarioError(f"unknown {name!r}: key {key!r} names no gauge of '{sc.name}' "
+                                        f"(gauges: {', '.join(faces)})")
+                sb, sa = v.signs.get(g, (1, 1))
+                if m_face:
+                    if x not in ("top", "bottom"):
+                        raise ScenarioError(f"unknown {name!r}: a face is 'top' or 'bottom', got {x!r}")
+                    sb *= 1 if x == faces[g] else -1
+                else:
+                    if x not in (1, -1, 1.0, -1.0):
+                        raise ScenarioError(f"unknown {name!r}: a polarity is 1 or -1, got {x!r}")
+                    sb, sa = sb * int(x), sa * int(x)
+                v.signs[g] = (sb, sa)
+            elif key.startswith("model."):
+                v.model[key] = _quantity(f"{x} {spec.unit}".strip(), MODEL_KEYS[key], f"unknown '{name}'")
+            elif spec.discrete or not spec.unit:
+                v.overrides[key] = x
+            else:
+                v.overrides[key] = f"{x!r} {spec.unit}"
+    if "model.gravity_in_plane" in v.model or "model.gravity_direction" in v.model:
+        f = v.model.pop("model.gravity_in_plane", 1.0)
+        a = v.model.pop("model.gravity_direction", 0.0)
+        g0 = 9.80665 * f
+        v.overrides["gravity.vector"] = [f"{g0 * math.sin(a)!r} m/s^2", f"{-g0 * math.cos(a)!r} m/s^2"]
+    return v
+
+
+# -- the fast model run ------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Settings:
+    """Transfer-matrix settings of bands and identification: 4 segments per link at 0.5 deg are
+    within 2 % of the shipped 8 segments at 0.5 deg on the FE rig's peaks (README); marched until
+    two revolutions agree to ``tolerance`` of the peak-to-peak (at most ``max_revolutions``)."""
+
+    segments: int = 4
+    step_deg: float = 0.5
+    tolerance: float = 1e-6
+    max_revolutions: int = 80
+    n_grid: int = 360
+
+
+def _joint_laws(model: dict):
+    from .joint_loads import JointMoment
+    f = model.get("model.joint_friction", 0.0)
+    laws = [JointMoment("B", friction=f)]
+    for j in ("C", "D"):
+        laws.append(JointMoment(j, moment=model.get(f"model.joint_moment.{j}", 0.0),
+                                stiffness=model.get(f"model.joint_stiffness.{j}", 0.0), friction=f))
+    return [law for law in laws if law.active]
+
+
+def steady_march(td, crank, tolerance: float, max_revolutions: int) -> tuple:
+    """March the periodic crank history ``crank`` (one period, N + 1 samples) from the
+    quasi-static state, re-using one revolution of configurations, until two revolutions agree
+    to ``tolerance`` of their peak-to-peak: ``(outputs of the last revolution (N, n_out),
+    revolutions, change)``."""
+    N = len(crank.t) - 1
+    cfg = td.configurations(crank.angle[:N], crank.speed[:N], crank.acceleration[:N], crank.dt)
+    march = td.begin(crank.dt, crank.angle[0], crank.speed[0], crank.acceleration[0], start="quasi_static")
+    idx = np.arange(1, N + 1) % N
+    prev, change = None, math.inf
+    for rev in range(1, max_revolutions + 1):
+        _, outs = march.step_many(cfg, idx, record_z=False)
+        if not np.all(np.isfinite(outs)):
+            raise FloatingPointError("the march became non-finite")
+        if prev is not None:
+            change = float(np.max(np.max(np.abs(outs - prev), 0) / np.maximum(np.ptp(outs, 0), 1e-300)))
+            if change < tolerance:
+                return outs, rev, change
+        prev = outs
+    return outs, max_revolutions, change
+
+
+def solve(sc, model: dict | None = None, settings: Settings = Settings()) -> dict:
+    """Steady revolution of the transfer-matrix model of ``sc`` with the model values ``model``:
+    ``{"status", "error", "angle_deg" (uniform grid), "gauges": {g: {"bending_ue", "axial_ue"}},
+    "peaks": {g: {bending/axial max/min [ue]}}, "revolutions", "change", "speed_fluctuation",
+    "wall_time_s"}`` (lists: picklable)."""
+    from tmm_core import CrankMotion, TimeDomain, TMMError
+
+    from .drive_profile import free_wheel
+    from .joint_loads import JointLoadedFourBar
+    tic = time.perf_counter()
+    model = dict(model or {})
+    unknown = set(model) - set(MODEL_KEYS)
+    if unknown:
+        raise ScenarioError(f"unknown model keys {sorted(unknown)}")
+    sc = sc.with_overrides({"solver.tmm.segments": settings.segments, "solver.tmm.step": f"{settings.step_deg} deg"})
+    base = sc.mechanism
+    laws = _joint_laws(model)
+    mech = JointLoadedFourBar.from_mechanism(base, laws) if laws else base
+    s = sc.tmm
+    out = {"status": "failed", "error": None, "speed_fluctuation": 0.0}
+    try:
+        td = TimeDomain(mech, integrator=s.integrator, coupling=s.coupling, beam_column=s.beam_column,
+                        gravity=sc.gravity, gauges=sc.gauges, axial_force=s.axial_force)
+        n = int(round(360.0 / settings.step_deg))
+        w = sc.drive.speed_rad_s
+        if "model.drive_inertia" in model:
+            crank, info = free_wheel(base, w, model["model.drive_inertia"], n, start_angle=sc.drive.start_angle_rad,
+                                     gravity=sc.gravity, applied=mech if laws else None)
+            out["speed_fluctuation"] = info["speed_fluctuation"]
+        else:
+            crank = CrankMotion.constant_speed(w, step_deg=settings.step_deg, revolutions=1.0,
+                                               start_angle=sc.drive.start_angle_rad)
+        outs, revs, change = steady_march(td, crank, settings.tolerance, settings.max_revolutions)
+    except (TMMError, FloatingPointError, np.linalg.LinAlgError) as exc:
+        out.update(error=f"{type(exc).__name__}: {exc}", wall_time_s=time.perf_counter() - tic)
+        return out
+    grid = np.arange(settings.n_grid) * 360.0 / settings.n_grid
+    a = np.mod(np.degrees(crank.angle[1:]), 360.0)
+    order = np.argsort(a)
+    out.update(status="completed" if change < settings.tolerance else "not steady", revolutions=revs, change=change,
+               angle_deg=grid.tolist(), gauges={}, peaks={}, wall_time_s=time.perf_counter() - tic)
+    if change >= settings.tolerance:
+        out["error"] = f"not steady after {revs} revolutions (change {change:.3g})"
+    for i, g in enumerate(sc.gauges):
+        b, ax = outs[:, 1 + 2 * i] * 1e6, outs[:, 2 + 2 * i] * 1e6
+        out["gauges"][g.name] = {"bending_ue": np.interp(grid, a[order], b[order], period=360.0).tolist(),
+                                 "axial_ue": np.interp(grid, a[order], ax[order], period=360.0).tolist()}
+        out["peaks"][g.name] = {"bending_max_ue": float(b.max()), "bending_min_ue": float(b.min()),
+                                "axial_max_ue": float(ax.max()), "axial_min_ue": float(ax.min())}
+    return out
+
+
+def read(result: dict, signs: dict) -> dict:
+    """``result`` as the gauges read it: bending and axial multiplied by each gauge's signs
+    (a flipped reading swaps and negates the max and min)."""
+    if result.get("status") != "completed" or not signs:
+        return result
+    out = dict(result, gauges={}, peaks={})
+    for g, h in result["gauges"].items():
+        sb, sa = signs.get(g, (1, 1))
+        out["gauges"][g] = {"bending_ue": [sb * x for x in h["bending_ue"]], "axial_ue": [sa * x for x in h["axial_ue"]]}
+        p = result["peaks"][g]
+        bmax, bmin = (p["bending_max_ue"], p["bending_min_ue"]) if sb > 0 else (-p["bending_min_ue"], -p["bending_max_ue"])
+        amax, amin = (p["axial_max_ue"], p["axial_min_ue"]) if sa > 0 else (-p["axial_min_ue"], -p["axial_max_ue"])
+        out["peaks"][g] = {"bending_max_ue": bmax, "bending_min_ue": bmin, "axial_max_ue": amax, "axial_min_ue": amin}
+    return out
+
+
+def solve_job(raw: dict, path: str, overrides: dict, model: dict, settings: Settings = Settings()) -> dict:
+    """One solve in a worker process: the scenario from its tree, the variant, :func:`solve`."""
+    from .scenario import from_dict
+    try:
+        sc = from_dict(raw, path)
+        if overrides:
+            sc = sc.with_overrides(overrides)
+    except ScenarioError as exc:
+        return {"status": "failed", "error": f"ScenarioError: {exc}"}
+    return solve(sc, model, settings)

@@ -1,0 +1,148 @@
+"""Where a run's recording goes (cosim.recording.sinks, options, process): rerun's script flags on
+``cosim run``, never a hang on a viewer that is not there, a real viewer receiving the stream,
+stdout, --save PATH, --serve, and the files for the engines' own tools."""
+import json
+import socket
+import subprocess
+import sys
+import time
+import urllib.request
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from cosim.recording import read_back
+
+ROOT = Path(__file__).resolve().parent.parent
+COSIM = [sys.executable, "-m", "cosim.cli"]
+SMALL = ["run", "crank_rocker_95rpm", "--engines", "tmm", "--revolutions", "0.25"]
+
+
+def cosim(*args, timeout=300):
+    return subprocess.run(COSIM + list(args), capture_output=True, cwd=ROOT, timeout=timeout)
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def summary(folder):
+    return json.loads((Path(folder) / "summary.json").read_text())
+
+
+def test_connect_to_no_viewer_ends_with_a_warning_and_a_complete_file(tmp_path):
+    url = f"rerun+http://127.0.0.1:{free_port()}/proxy"          # nothing listens there
+    tic = time.monotonic()
+    res = cosim(*SMALL, "--connect", url, "--viewer-timeout", "1", "--out", str(tmp_path / "r"), timeout=120)
+    elapsed = time.monotonic() - tic
+    err = res.stderr.decode()
+    assert res.returncode == 0, err[-2000:]
+    assert f"warning: --connect: no rerun viewer answers at {url}" in err
+    assert elapsed < 60                                 # a hang was the bug: it never ended
+    assert summary(tmp_path / "r")["status"] == "completed"
+    assert read_back(tmp_path / "r" / "run.rrd")["/tmm/strain/coupler_mid"] > 10
+
+
+@pytest.mark.filterwarnings("ignore:RRD file has no footer")      # the stand-in viewer is stopped, not closed
+def test_connect_streams_to_a_running_viewer(tmp_path):
+    """A headless rerun that saves what it receives stands in for the viewer."""
+    from cosim.recording.sinks import reachable, rerun_executable
+    port = free_port()
+    received = tmp_path / "received.rrd"
+    viewer = subprocess.Popen([rerun_executable(), "--port", str(port), "--save", str(received)],
+                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        assert reachable("127.0.0.1", port, 20.0)
+        res = cosim(*SMALL, "--url", f"rerun+http://127.0.0.1:{port}/proxy", "--out", str(tmp_path / "r"))
+        assert res.returncode == 0, res.stderr.decode()[-2000:]
+        assert "warning" not in res.stderr.decode()
+    finally:
+        viewer.terminate()
+        viewer.wait(timeout=30)
+    mine = read_back(tmp_path / "r" / "run.rrd")
+    theirs = read_back(received)
+    assert theirs["/tmm/strain/coupler_mid"] == mine["/tmm/strain/coupler_mid"] > 10
+
+
+def test_save_elsewhere_and_stdout(tmp_path):
+    """--save PATH puts the recording there (named in the summary); --stdout writes it to stdout
+    after the run, and the tables go to stderr."""
+    target = tmp_path / "elsewhere" / "mine.rrd"
+    res = cosim(*SMALL, "--save", str(target), "--stdout", "--out", str(tmp_path / "r"))
+    assert res.returncode == 0, res.stderr.decode()[-2000:]
+    assert summary(tmp_path / "r")["files"]["recording"] == str(target.resolve())
+    assert not (tmp_path / "r" / "run.rrd").exists()
+    assert read_back(target)["/tmm/strain/coupler_mid"] > 10
+    assert res.stdout == target.read_bytes()
+    assert b"written to" in res.stderr and b"coupler_mid" in res.stderr
+
+
+@pytest.mark.parametrize("flags, message", [
+    (["--url", "rerun+http://127.0.0.1:1/proxy", "--spawn"], "--url"),
+    (["--connect", "http://127.0.0.1:9876"], "--connect 'http://127.0.0.1:9876'"),
+    (["--no-record", "--stdout"], "--stdout"),
+    (["--linkage-fps", "0"], "--linkage-fps"),
+    (["--exaggeration", "-2"], "--exaggeration"),
+    (["--viewer-timeout", "0"], "--viewer-timeout"),
+])
+def test_bad_viewer_flags_are_refused_naming_the_flag(tmp_path, flags, message):
+    res = cosim(*SMALL, *flags, "--out", str(tmp_path / "r"))
+    err = res.stderr.decode()
+    assert res.returncode == 2 and err.startswith("error: ") and message in err, err
+
+
+def test_rerun_script_flags_in_help():
+    for sub in ("run", "sweep", "uncertainty"):
+        text = cosim(sub, "--help").stdout.decode()
+        for flag in ("--save", "--headless", "--spawn", "--connect", "--url", "--serve", "--serve-web", "--stdout",
+                     "--no-record", "--viewer-timeout"):
+            assert flag in text, (sub, flag)
+    assert "--linkage-fps" in cosim("run", "--help").stdout.decode()
+
+
+def test_serve_hosts_a_web_viewer_until_stopped(tmp_path):
+    from cosim.recording import RecorderProcess, ViewerOptions
+    from cosim.scenario import load
+    from tests.test_recording import fake_steps, stations_of
+    sc = load("crank_rocker_373rpm")
+    grpc, web = free_port(), free_port()
+    engines = stations_of(sc)
+    rec = RecorderProcess(sc, engines, "prescribed", save_path=tmp_path / "run.rrd",
+                          viewer=ViewerOptions("serve", grpc_port=grpc, web_port=web))
+    try:
+        for step in fake_steps(sc, engines, motor=False):
+            rec.log_macro_step(step)
+        assert rec.close() == []
+        assert rec.serving == f"rerun+http://127.0.0.1:{grpc}/proxy"
+        with urllib.request.urlopen(f"http://127.0.0.1:{web}/", timeout=20) as page:
+            assert page.status == 200 and b"Rerun" in page.read()
+    finally:
+        rec.stop_serving()
+    assert read_back(tmp_path / "run.rrd")["/tmm/strain/coupler_mid"] > 10
+
+
+def test_model_files_for_the_engines_own_tools(tmp_path):
+    """MuJoCo's MJCF and exudyn's solution file in the run folder, named in the summary."""
+    import exudyn.utilities as eu
+    import mujoco
+    res = cosim("run", "crank_rocker_95rpm", "--engines", "exudyn,mujoco", "--revolutions", "0.1", "--no-record",
+                "--out", str(tmp_path / "r"))
+    assert res.returncode == 0, res.stderr.decode()[-2000:]
+    files = summary(tmp_path / "r")["files"]
+    assert files["mujoco_model"] == "model.xml" and files["exudyn_solution"] == "exudyn_solution.txt"
+    model = mujoco.MjModel.from_xml_path(str(tmp_path / "r" / "model.xml"))
+    assert model.ngeom > 0 and np.all(model.geom_contype == 0)       # visual capsules only
+    solution = eu.LoadSolutionFile(str(tmp_path / "r" / "exudyn_solution.txt"), verbose=False)
+    assert solution["nRows"] > 10 and solution["columnsExported"][0] > 0
+
+
+def test_spawn_without_a_display_says_so_and_records(tmp_path):
+    import os
+    env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
+    res = subprocess.run(COSIM + SMALL + ["--spawn", "--out", str(tmp_path / "r")], capture_output=True, cwd=ROOT,
+                         timeout=300, env=env)
+    assert res.returncode == 0 and b"warning: --spawn: no display" in res.stderr, res.stderr.decode()[-2000:]
+    assert read_back(tmp_path / "r" / "run.rrd")["/tmm/strain/coupler_mid"] > 10
