@@ -540,3 +540,12 @@ def test_bad_new_module_input_names_the_key(edit, key, match):
     with pytest.raises(cs.ScenarioError) as err:
         cs.from_dict(data, "bad_yoke")
     assert f"key '{key}'" in str(err.value) and match in str(err.value)
+
+
+def test_mujoco_refuses_a_module_its_tree_builder_does_not_have():
+    """MuJoCo's builder knows crank, rrr and rrp: an rpr linkage is refused naming the module
+    (the transfer-matrix model and exudyn run it)."""
+    from cosim.engines import make_engine
+    sc = cs.from_dict(shaper_scenario(), "shaper")
+    with pytest.raises(InputError, match=r"module 2 is 'rpr'.*--engines tmm,exudyn"):
+        make_engine("mujoco").reset(sc, 0.0, sc.mechanism.kinematics.reference_crank_angle, 1.0)
