@@ -192,7 +192,7 @@ class Link:
         return m, J
 
 
-class _LinkageMethods:
+class LinkageMethods:
     """What every moving single-loop linkage shares (four-bar, slider-crank): loads, load cases,
     self-weight and the rigid linkage's reflected inertia at the crank."""
 
@@ -281,7 +281,7 @@ class _LinkageMethods:
 
 
 @dataclass(frozen=True)
-class FourBarMechanism(_LinkageMethods):
+class FourBarMechanism(LinkageMethods):
     """Four-bar with flexible links. ``ground_m`` is the distance A-D [m]."""
 
     crank: Link
@@ -327,7 +327,7 @@ class FourBarMechanism(_LinkageMethods):
         return {"A": motion.A, "B": motion.B, "C": motion.C, "D": motion.D}
 
 @dataclass(frozen=True)
-class SliderCrankMechanism(_LinkageMethods):
+class SliderCrankMechanism(LinkageMethods):
     """Slider-crank with a flexible crank and coupler. The slide runs through the line at
     ``offset_m`` from the crank pivot, in the direction ``ground_angle`` [rad]; the crank angle is
     measured from the slide direction. The slider block (``slider_mass_kg``) translates with the
