@@ -56,15 +56,7 @@ from tmm_core.linkage import as_linkage
 from ..scenario import Scenario
 from .base import DriveInput, EngineError, EngineOutput, steps_in
 
-OVT = exu.OutputVariableType
-HUB_MASS_KG = 1e-3        # the hub only transmits the drive; its own inertia must not matter
-HUB_INERTIA_KG_M2 = 1e-8
-
-
-def _rz(angle):
-    """Rotation about z by ``angle`` [rad], 3x3 (a weld's marker frame offset)."""
-    c, s = math.cos(angle), math.sin(angle)
-    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+from .exudyn_bodies import HUB_INERTIA_KG_M2, HUB_MASS_KG, OVT, light_block, rigid_link, rz
 
 
 def _wrap(angle: float) -> float:
@@ -179,7 +171,7 @@ class ExudynEngine:
             lm = mo.link(link.name)
             phi = float(lm.angle[0])
             if link.rigid:
-                ends, start_rigid, station_sensors[link.name] = self._rigid_link(mbs, link, mo, gravity)
+                ends, start_rigid, station_sensors[link.name] = rigid_link(mbs, link, mo, gravity)
                 attach(a, ends[0], start_rigid, phi, "weld" if ca == "rigid" else "pin")
                 attach(b, ends[1], None, phi, "pin")
                 continue
@@ -239,7 +231,7 @@ class ExudynEngine:
         for j, gam in kin.ground_slides.items():
             e = np.array([math.cos(gam), math.sin(gam)])
             P, vP, _ = mo.joint(j)
-            body = self._block(mbs, P[0], vP[0], gam, 0.0)
+            body = light_block(mbs, P[0], vP[0], gam, 0.0)
             mbs.AddObject(ObjectJointPrismatic2D(
                 markerNumbers=[mbs.AddMarker(MarkerBodyRigid(bodyNumber=ground, localPosition=[P[0, 0], P[0, 1], 0.0])),
                                mbs.AddMarker(MarkerBodyRigid(bodyNumber=body, localPosition=[0.0, 0.0, 0.0]))],
@@ -257,7 +249,7 @@ class ExudynEngine:
                   mbs.AddMarker(MarkerBodyRigid(bodyNumber=elems[-1],
                                                 localPosition=[guide.member("a", "b").segment_lengths[-1], 0, 0])))
             P, vP, _ = mo.joint(sl.block)
-            body = self._block(mbs, P[0], vP[0], phi, float(mo.link(sl.along).omega[0]))
+            body = light_block(mbs, P[0], vP[0], phi, float(mo.link(sl.along).omega[0]))
             mbs.AddObject(ObjectJointPrismatic2D(
                 markerNumbers=[m0, mbs.AddMarker(MarkerBodyRigid(bodyNumber=body, localPosition=[0.0, 0.0, 0.0]))],
                 axisMarker0=[1.0, 0.0, 0.0], normalMarker1=[0.0, 1.0, 0.0], constrainRotation=True))
@@ -283,7 +275,7 @@ class ExudynEngine:
                 # the two ends make in the drawn linkage (a kink, an arm square to its block).
                 turn = _wrap(base[2] - x[2])
                 m1 = (MarkerBodyRigid(bodyNumber=x[1][0], localPosition=x[1][1]) if abs(turn) < 1e-15 else
-                      MarkerBodyRigid(bodyNumber=x[1][0], localHT=exu.HT(rotation=_rz(turn), translation=x[1][1])))
+                      MarkerBodyRigid(bodyNumber=x[1][0], localHT=exu.HT(rotation=rz(turn), translation=x[1][1])))
                 mbs.AddObject(GenericJoint(markerNumbers=[mbs.AddMarker(MarkerBodyRigid(bodyNumber=base[1][0],
                                                                                         localPosition=base[1][1])),
                                                           mbs.AddMarker(m1)], constrainedAxes=[1, 1, 0, 0, 0, 1]))
@@ -344,33 +336,6 @@ class ExudynEngine:
                                                         writeToFile=False, outputVariableType=OVT.Force))
         self._node_sensors = station_sensors
         mbs.Assemble()
-
-    def _rigid_link(self, mbs, link, mo, gravity):
-        """A rigid link as one rigid body at its centre of mass (exact mass properties of the
-        link, its end blocks and point masses). Returns its end position markers, the rigid marker
-        at its start as (body, local position), and position sensors at its stations (for drawing)."""
-        m, xc, Jc = link.rigid_body()
-        lm = mo.link(link.name)
-        pos, vel, _ = lm.point(np.array([xc]))
-        node = mbs.AddNode(NodeRigidBody2D(referenceCoordinates=[pos[0, 0, 0], pos[0, 0, 1], float(lm.angle[0])],
-                                           initialVelocities=[vel[0, 0, 0], vel[0, 0, 1], float(lm.omega[0])]))
-        body = mbs.AddObject(ObjectRigidBody2D(nodeNumber=node, mass=m, inertia=Jc))
-        if gravity is not None:
-            mbs.AddLoad(LoadMassProportional(markerNumber=mbs.AddMarker(MarkerBodyMass(bodyNumber=body)),
-                                             loadVector=[gravity[0], gravity[1], 0.0]))
-
-        def at(x, kind):
-            return mbs.AddMarker(kind(bodyNumber=body, localPosition=[x - xc, 0.0, 0.0]))
-        sensors = [mbs.AddSensor(SensorBody(bodyNumber=body, localPosition=[x - xc, 0.0, 0.0], storeInternal=True,
-                                            writeToFile=False, outputVariableType=OVT.Position))
-                   for x in link.stations]
-        return (at(0.0, MarkerBodyPosition), at(link.length_m, MarkerBodyPosition)), (body, [-xc, 0.0, 0.0]), sensors
-
-    def _block(self, mbs, position, velocity, angle, omega):
-        """A light rigid block (slider) at ``position`` turned by ``angle``."""
-        node = mbs.AddNode(NodeRigidBody2D(referenceCoordinates=[position[0], position[1], angle],
-                                           initialVelocities=[velocity[0], velocity[1], omega]))
-        return mbs.AddObject(ObjectRigidBody2D(nodeNumber=node, mass=HUB_MASS_KG, inertia=HUB_INERTIA_KG_M2))
 
     def _init_solver(self, settings):
         sims = exu.SimulationSettings()
