@@ -181,38 +181,6 @@ class MotorParameters:
                        speed_kp_A_s_rad=kpw, speed_ki_A_rad=kpw * wc / 4.0, kp_V_s_rad=0.0, ki_V_rad=0.0)
 
 
-def derive_pm_dc_motor(rated_power_W: float, rated_speed_rad_s: float, rated_voltage_V: float,
-                       efficiency: float = 0.8, copper_loss_share: float = 0.5, coulomb_share: float = 0.4,
-                       electrical_time_constant_s: float = 0.01, rotor_inertia_per_W: float = 2.5e-6):
-    """Defensible PM DC motor constants from the nameplate (rated output power, speed, voltage).
-
-    At the rated point the input power is P / efficiency; ``copper_loss_share`` of the losses is
-    R i^2, the rest friction (``coulomb_share`` of it Coulomb, the remainder viscous). Then
-    i = P_in / V, R = copper loss / i^2, Ke = Kt = (V - R i) / omega, L = R * electrical time
-    constant, J_rotor = rotor_inertia_per_W * P (catalogue fractional-horsepower PM DC motors:
-    roughly 1e-3 kg m^2 for 0.5 hp). Returns a dict of values and a dict of rationales.
-    """
-    P, w, V = rated_power_W, rated_speed_rad_s, rated_voltage_V
-    if not (P > 0 and w > 0 and V > 0 and 0 < efficiency < 1):
-        raise InputError(f"motor rating must be positive with 0 < efficiency < 1, got P={P!r}, w={w!r}, V={V!r}, "
-                         f"efficiency={efficiency!r}")
-    P_in = P / efficiency
-    losses = P_in - P
-    i = P_in / V
-    R = copper_loss_share * losses / i**2
-    K = (V - R * i) / w
-    friction = (1 - copper_loss_share) * losses / w            # torque at rated speed
-    values = {"resistance_ohm": R, "inductance_H": R * electrical_time_constant_s, "torque_constant_Nm_A": K,
-              "back_emf_V_s_rad": K, "rotor_inertia_kg_m2": rotor_inertia_per_W * P,
-              "coulomb_friction_Nm": coulomb_share * friction,
-              "viscous_friction_Nm_s_rad": (1 - coulomb_share) * friction / w}
-    why = (f"derived from the rating ({P:.4g} W at {w * 30 / math.pi:.5g} rpm, {V:.4g} V): efficiency {efficiency:.0%}, "
-           f"{copper_loss_share:.0%} of the losses in the armature resistance, friction {coulomb_share:.0%} Coulomb; "
-           f"Ke = Kt = (V - R i)/omega; L/R = {electrical_time_constant_s * 1e3:.3g} ms; rotor inertia "
-           f"{rotor_inertia_per_W:.2g} kg m^2 per W (catalogue fractional-hp PM DC motors)")
-    return values, why
-
-
 @dataclass(frozen=True)
 class MotorState:
     """Motor state at time ``t`` [s]; energies are cumulative from the start [J]."""

@@ -1,5 +1,5 @@
 """The ``[motor]`` table of a scenario: the drive train written from its rating (the constants the
-sources do not give are derived by :func:`cosim.motor.derive_pm_dc_motor` and listed as
+sources do not give are derived by :func:`derive_pm_dc_motor` and listed as
 assumptions), flywheels, shaft, controller and set-point, as :class:`cosim.motor.MotorParameters`.
 
 Owns: the motor design from a scenario file. The motor's physics is :mod:`cosim.motor`.
@@ -23,8 +23,40 @@ MOTOR_CONSTANTS = {"resistance": ("resistance_ohm", "ohm"), "inductance": ("indu
                    "coulomb_friction": ("coulomb_friction_Nm", "N*m")}
 
 
+def derive_pm_dc_motor(rated_power_W: float, rated_speed_rad_s: float, rated_voltage_V: float,
+                       efficiency: float = 0.8, copper_loss_share: float = 0.5, coulomb_share: float = 0.4,
+                       electrical_time_constant_s: float = 0.01, rotor_inertia_per_W: float = 2.5e-6):
+    """Defensible PM DC motor constants from the nameplate (rated output power, speed, voltage).
+
+    At the rated point the input power is P / efficiency; ``copper_loss_share`` of the losses is
+    R i^2, the rest friction (``coulomb_share`` of it Coulomb, the remainder viscous). Then
+    i = P_in / V, R = copper loss / i^2, Ke = Kt = (V - R i) / omega, L = R * electrical time
+    constant, J_rotor = rotor_inertia_per_W * P (catalogue fractional-horsepower PM DC motors:
+    roughly 1e-3 kg m^2 for 0.5 hp). Returns a dict of values and a dict of rationales.
+    """
+    P, w, V = rated_power_W, rated_speed_rad_s, rated_voltage_V
+    if not (P > 0 and w > 0 and V > 0 and 0 < efficiency < 1):
+        raise InputError(f"motor rating must be positive with 0 < efficiency < 1, got P={P!r}, w={w!r}, V={V!r}, "
+                         f"efficiency={efficiency!r}")
+    P_in = P / efficiency
+    losses = P_in - P
+    i = P_in / V
+    R = copper_loss_share * losses / i**2
+    K = (V - R * i) / w
+    friction = (1 - copper_loss_share) * losses / w            # torque at rated speed
+    values = {"resistance_ohm": R, "inductance_H": R * electrical_time_constant_s, "torque_constant_Nm_A": K,
+              "back_emf_V_s_rad": K, "rotor_inertia_kg_m2": rotor_inertia_per_W * P,
+              "coulomb_friction_Nm": coulomb_share * friction,
+              "viscous_friction_Nm_s_rad": (1 - coulomb_share) * friction / w}
+    why = (f"derived from the rating ({P:.4g} W at {w * 30 / math.pi:.5g} rpm, {V:.4g} V): efficiency {efficiency:.0%}, "
+           f"{copper_loss_share:.0%} of the losses in the armature resistance, friction {coulomb_share:.0%} Coulomb; "
+           f"Ke = Kt = (V - R i)/omega; L/R = {electrical_time_constant_s * 1e3:.3g} ms; rotor inertia "
+           f"{rotor_inertia_per_W:.2g} kg m^2 per W (catalogue fractional-hp PM DC motors)")
+    return values, why
+
+
 def motor(r: Reader, data, drive: DriveSpec, mech):
-    from .motor import MotorParameters, SetPoint, derive_pm_dc_motor
+    from .motor import MotorParameters, SetPoint
 
     knobs = {"efficiency": ("efficiency", ""), "copper_loss_share": ("copper_loss_share", ""),
              "coulomb_share": ("coulomb_share", ""), "electrical_time_constant": ("electrical_time_constant_s", "s"),

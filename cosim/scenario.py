@@ -36,7 +36,7 @@ File layout (all tables except ``[scenario]``, ``[linkage]``, ``[links.*]`` are 
     [solver.exudyn] elements, step, spectral_radius, newton_tolerance
     [solver.mujoco] step, servo_frequency, solref_factor, solimp
     [motor]         rated_power, rated_speed, rated_voltage (derive the constants below that are not
-                    given: :func:`cosim.motor.derive_pm_dc_motor`, its knobs efficiency,
+                    given: :func:`cosim.motor_design.derive_pm_dc_motor`, its knobs efficiency,
                     copper_loss_share, coulomb_share, electrical_time_constant, rotor_inertia_per_power),
                     resistance, inductance, torque_constant, back_emf, rotor_inertia, viscous_friction,
                     coulomb_friction, supply_voltage, gear_ratio, flywheel_inertia | flywheels =

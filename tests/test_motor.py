@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from cosim import scenario as sc
-from cosim.motor import Motor, MotorParameters, SetPoint, derive_pm_dc_motor
+from cosim.motor import Motor, MotorParameters, SetPoint
+from cosim.motor_design import derive_pm_dc_motor
 from tmm_core import InputError
 
 RPM = math.pi / 30
