@@ -1,4 +1,4 @@
-"""General planar linkages: closed-form kinematics by modules, and the mechanism behind every engine.
+"""General planar linkages: closed-form kinematics by modules (Shin's component-module approach).
 
 Kinematics (Shin 1986, Ch. 2 and App. A, the component-module approach; notes seed000 §4). A
 linkage is a set of rigid *bodies* (each a list of joints that keep their relative positions: a
