@@ -113,7 +113,7 @@ def _executor_arguments(parser, jobs: str) -> None:
     parser.add_argument("--scheduler", help=f"Dask scheduler address (e.g. tcp://10.0.0.5:8786): run the {jobs} there")
 
 
-def _parser() -> argparse.ArgumentParser:
+def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog="cosim",
         description="Flexible-linkage co-simulation bench: a transfer-matrix model (after Shin 1986) with exudyn "
@@ -213,7 +213,7 @@ def _parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = _parser()
+    parser = build_parser()
     args = parser.parse_args(argv)
     setup_logging(getattr(args, "verbose", 0) + getattr(args, "verbose_top", 0), _quiet(args))
     log = logging.getLogger("cosim.cli")
@@ -310,7 +310,7 @@ def compare_main(folder) -> int:
 def run_main(scenario: str, args=None) -> int:
     """``cosim run``; also what each scenario script calls (``python scenarios/<name>.py``)."""
     if args is None:      # a scenario script: its own command line with the same options
-        args = _parser().parse_args(["run", scenario] + sys.argv[1:])
+        args = build_parser().parse_args(["run", scenario] + sys.argv[1:])
         setup_logging(args.verbose, args.quiet)
     from .report import comparison_table
     from .run import RunOptions, run_scenario

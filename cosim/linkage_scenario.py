@@ -101,8 +101,8 @@ import numpy as np
 from tmm_core import Damping, Link, PointMass, TMMError
 from tmm_core.linkage import (MODULE_KINDS, GuidedSlider, LinkageKinematics, LinkageMechanism, Module, Plate,
                               carrier_link, polygon_properties)
-from tmm_core.structure import Spring
 
+from .joint_tables import read_loads, read_springs
 from .scenario_reader import G0
 
 SUPPORTS = ("free", "pinned", "slider")
@@ -448,30 +448,12 @@ def build_mechanism(r, top: dict, materials: dict, sections: dict, viscos: dict,
         sliders.append(GuidedSlider(name, block, guide, part))
 
     # -- springs and loads ------------------------------------------------------------------------
-    springs = []
-    for name, d in r.table(top.get("springs", {}), "springs", set(top.get("springs", {}))).items():
-        key = f"springs.{name}"
-        d = r.table(d, key, {"between", "stiffness", "free_length"}, {"between", "stiffness", "free_length"})
-        ends = r.unwrap(d["between"], f"{key}.between")
-        if not isinstance(ends, list) or len(ends) != 2:
-            raise r.fail(f"{key}.between", "must list two joints", ends)
-        a, b = joint_ref(ends[0], f"{key}.between"), joint_ref(ends[1], f"{key}.between")
-        if a == b:
-            raise r.fail(f"{key}.between", "a spring needs two different joints", ends)
-        springs.append(Spring(name, a, b, r.quantity(d["stiffness"], f"{key}.stiffness", "N/m", positive=True),
-                              r.quantity(d["free_length"], f"{key}.free_length", "m", nonnegative=True)))
-    loads = {}
-    for name, d in r.table(top.get("loads", {}), "loads", set(top.get("loads", {}))).items():
-        key = f"loads.{name}"
-        d = r.table(d, key, {"joint", "force", "moment"}, {"joint"})
-        f = r.unwrap(d.get("force", ["0 N", "0 N"]), f"{key}.force")
-        if not isinstance(f, list) or len(f) != 2:
-            raise r.fail(f"{key}.force", "must be a list of two force components", f)
-        vec = np.array([r.quantity(f[0], f"{key}.force[0]", "N"), r.quantity(f[1], f"{key}.force[1]", "N"),
-                        r.quantity(d.get("moment", "0 N*m"), f"{key}.moment", "N*m")])
+    springs = read_springs(r, top, joint_ref)
+    loads, plate_names = {}, {p.name for p in plates}
+    for key, d, vec in read_loads(r, top, {"joint", "force", "moment"}, {"joint"}):
         j = joint_ref(d["joint"], f"{key}.joint")
         target = next(((m[0], 0 if m[1] == j else m[0].total_segments) for m in members
-                       if j in (m[1], m[2]) and not m[0].rigid and m[0].name not in plates_named(plates)), None)
+                       if j in (m[1], m[2]) and not m[0].rigid and m[0].name not in plate_names), None)
         if target is None:
             raise r.fail(f"{key}.joint", "no flexible link ends at this joint", j)
         link, node = target
@@ -499,10 +481,6 @@ def build_mechanism(r, top: dict, materials: dict, sections: dict, viscos: dict,
             raise r.fail(f"{key}.position", f"lies beyond the end of the {link} ({starts[-1]:.6g} m)", gd["position"])
         return names[k], float(np.clip(x - starts[k], 0.0, starts[k + 1] - starts[k]))
     return mech, gauge_link
-
-
-def plates_named(plates) -> set:
-    return {p.name for p in plates}
 
 
 def _part_index(starts, x):

@@ -65,3 +65,19 @@ def apply_overrides(raw: dict, overrides: dict) -> dict:
     for key, value in overrides.items():
         set_key(data, str(key), value)
     return data
+
+
+class Variants:
+    """``with_overrides`` for a loaded scenario of any kind (it has ``raw``, ``path`` and ``name``)."""
+
+    def with_overrides(self, overrides: dict):
+        """A variant of this scenario with key paths of its file set to new values, e.g.
+        ``{"drive.speed": "300 rpm", "links.coupler.damping.ratio": "3 %"}``, validated by the
+        loader (its errors name the key)."""
+        from .scenario import ScenarioError, from_dict
+        label = f"{self.path or self.name} (with {', '.join(f'{k} = {v!r}' for k, v in overrides.items())})"
+        try:
+            data = apply_overrides(self.raw, overrides)
+        except OverrideError as exc:
+            raise ScenarioError(f"scenario '{self.path or self.name}': {exc}") from None
+        return from_dict(data, label, default_name=self.name)

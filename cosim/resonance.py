@@ -106,7 +106,7 @@ def plot_sweep(folder, name: str, points: list, fmap: dict | None, marks_rpm=(),
         if y[0] > fmax:
             break
         a2.plot(rr, y, color="0.4", lw=0.7)
-    _harmonic_labels(a2, r_lo, r_hi, fmax, max_harmonic)
+    harmonic_labels(a2, r_lo, r_hi, fmax, max_harmonic)
     for r in marks_rpm:
         a2.axvline(r, color="k", lw=0.8, ls=":")
     a2.set_xlim(r_lo, r_hi)
@@ -119,7 +119,7 @@ def plot_sweep(folder, name: str, points: list, fmap: dict | None, marks_rpm=(),
     return paths
 
 
-def _harmonic_labels(ax, r_lo: float, r_hi: float, fmax: float, max_harmonic: int, min_gap: float = 0.045) -> None:
+def harmonic_labels(ax, r_lo: float, r_hi: float, fmax: float, max_harmonic: int, min_gap: float = 0.045) -> None:
     """Label each harmonic line "kx" where it leaves the plot (right edge, or top edge for the
     steep ones), skipping a label that would land within ``min_gap`` (fraction of the axis) of
     one already placed: with 20 harmonics the right-edge labels would otherwise overprint."""

@@ -13,6 +13,8 @@ from pathlib import Path
 
 from tmm_core import Coupling, FourBarMechanism, InputError, SliderCrankMechanism
 
+from .overrides import Variants
+
 
 class ScenarioError(InputError):
     """A scenario file is malformed; the message names the file, the key and the value."""
@@ -91,7 +93,7 @@ class OutputSettings:
 
 
 @dataclass(frozen=True)
-class Scenario:
+class Scenario(Variants):
     """A resolved scenario, SI throughout."""
 
     name: str
@@ -132,19 +134,6 @@ class Scenario:
     @property
     def crank_speed_rad_s(self) -> float:
         return self.drive.speed_rad_s
-
-    def with_overrides(self, overrides: dict) -> "Scenario":
-        """A variant of this scenario with key paths of its file set to new values, e.g.
-        ``{"drive.speed": "300 rpm", "links.coupler.damping.ratio": "3 %"}``, validated by the
-        loader (its errors name the key). See :mod:`cosim.overrides`."""
-        from .overrides import OverrideError, apply_overrides
-        label = f"{self.path or self.name} (with {', '.join(f'{k} = {v!r}' for k, v in overrides.items())})"
-        try:
-            data = apply_overrides(self.raw, overrides)
-        except OverrideError as exc:
-            raise ScenarioError(f"scenario '{self.path or self.name}': {exc}") from None
-        from .scenario import from_dict
-        return from_dict(data, label, default_name=self.name)
 
     @property
     def revolution_period_s(self) -> float:

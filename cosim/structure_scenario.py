@@ -26,20 +26,22 @@ holds); a plate vertex used twice; a mechanism type the bench does not run.
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from tmm_core import Joint, LoadCase, Member, Structure, TMMError, external_resultant, solve_static, surface_stresses
-from tmm_core.structure import RigidBody, SliderJoint, Spring
+from tmm_core.structure import RigidBody, SliderJoint
+
+from .joint_tables import read_loads, read_springs
+from .overrides import Variants
 
 ANALYSES = ("linear", "beam_column", "large_deflection")
 
 
 @dataclass(frozen=True)
-class StaticScenario:
+class StaticScenario(Variants):
     """A resolved structure scenario (SI)."""
 
     name: str
@@ -130,16 +132,7 @@ def build(r, top: dict, path: str, default_name: str, materials: dict, sections:
                 raise r.fail(f"{key}.vertices", f"joint '{v}' is already a vertex of plate '{seen[v]}'", v)
             seen[v] = name
         plates.append(RigidBody(name, joint_ref(d["centroid"], f"{key}.centroid"), tuple(verts)))
-    springs = []
-    for name, d in r.table(top.get("springs", {}), "springs", set(top.get("springs", {}))).items():
-        key = f"springs.{name}"
-        d = r.table(d, key, {"between", "stiffness", "free_length"}, {"between", "stiffness", "free_length"})
-        ends = r.unwrap(d["between"], f"{key}.between")
-        if not isinstance(ends, list) or len(ends) != 2:
-            raise r.fail(f"{key}.between", "must list two joints", ends)
-        springs.append(Spring(name, joint_ref(ends[0], f"{key}.between"), joint_ref(ends[1], f"{key}.between"),
-                              r.quantity(d["stiffness"], f"{key}.stiffness", "N/m", positive=True),
-                              r.quantity(d["free_length"], f"{key}.free_length", "m", nonnegative=True)))
+    springs = read_springs(r, top, joint_ref)
     sliders = []
     for name, d in r.table(top.get("sliders", {}), "sliders", set(top.get("sliders", {}))).items():
         key = f"sliders.{name}"
@@ -154,14 +147,7 @@ def build(r, top: dict, path: str, default_name: str, materials: dict, sections:
         sliders.append(SliderJoint(name, joint_ref(d["block"], f"{key}.block"), guide, member.name))
 
     loads = {}
-    for name, d in r.table(top.get("loads", {}), "loads", set(top.get("loads", {}))).items():
-        key = f"loads.{name}"
-        d = r.table(d, key, {"joint", "link", "position", "force", "moment"})
-        f = d.get("force", ["0 N", "0 N"])
-        if not isinstance(f, list) or len(f) != 2:
-            raise r.fail(f"{key}.force", "must be a list of two force components", f)
-        vec = np.array([r.quantity(f[0], f"{key}.force[0]", "N"), r.quantity(f[1], f"{key}.force[1]", "N"),
-                        r.quantity(d.get("moment", "0 N*m"), f"{key}.moment", "N*m")])
+    for key, d, vec in read_loads(r, top, {"joint", "link", "position", "force", "moment"}):
         member, node = _load_node(r, key, d, members, parts, positions)
         loads.setdefault(member.name, np.zeros((member.n_segments + 1, 3)))[node] += vec
 

@@ -75,7 +75,9 @@ def sweep_point(raw: dict, path: str, rpm: float, engines: tuple, revolutions: f
     return out
 
 
-def _periodic(sc):
+def periodic_solution(sc):
+    """The scenario's periodic steady state (``tmm_core.periodic.periodic_steady_state``) with its
+    TMM settings at its drive speed."""
     from tmm_core import TimeDomain
     from tmm_core.periodic import periodic_steady_state
     s = sc.tmm
@@ -90,7 +92,7 @@ def periodic_point_histories(sc, n_grid: int = 360) -> dict:
     {"status", "angle_deg", "gauges": {g: {"bending_ue", "axial_ue"}}} (lists, picklable)."""
     from tmm_core import TMMError
     try:
-        p = _periodic(sc)
+        p = periodic_solution(sc)
     except TMMError as exc:
         return {"status": "failed", "error": f"{type(exc).__name__}: {exc}"}
     grid = np.arange(n_grid) * 360.0 / n_grid
@@ -108,7 +110,7 @@ def periodic_point(sc) -> dict:
     torque range and the largest Floquet multiplier (|mu| > 1: parametric resonance)."""
     from tmm_core import TMMError
     try:
-        p = _periodic(sc)
+        p = periodic_solution(sc)
     except TMMError as exc:
         return {"status": "failed", "error": f"{type(exc).__name__}: {exc}"}
     d = {"status": "completed", "error": None, "method": "periodic", "floquet_max": float(np.abs(p.multipliers[0])),

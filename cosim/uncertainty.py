@@ -169,7 +169,7 @@ def run_uncertainty(scenario: str, samples: int | None = None, seed: int | None 
     summary["records"] = record_check(sc, summary["band"], records_dir)
     summary["status"] = "completed" if not summary["failed_samples"] else "completed with failed samples"
     write_csv(folder / "band.csv", rows)
-    summary["figures"] = [p.name for p in _plot(folder, sc.name, rows, summary["records"])]
+    summary["figures"] = [p.name for p in plot_band(folder, sc.name, rows, summary["records"])]
     write_json(folder / "summary.json", summary)
     if record:
         _record(folder / "uncertainty.rrd", sc, rows, summary["records"])
@@ -236,7 +236,7 @@ def _map(fn, argsets, workers, scheduler, desc: str | None = None):
         return [f.result() for f in futures]
 
 
-def _plot(folder, name, rows, records):
+def plot_band(folder, name, rows, records):
     from .figures import gauge_label, new_figure, save
     gauges = sorted({r["gauge"] for r in rows})
     fig = new_figure(figsize=(6.5 * len(gauges), 4.6), layout="constrained")

@@ -5,7 +5,6 @@ partial results and bad input.
 The monolithic reference (tests/monolithic.py) writes the rigid four-bar and the motor as one ODE
 solved by scipy at rtol 1e-11; it shares no code with cosim.motor or cosim.master.
 """
-import copy
 import math
 
 import numpy as np
@@ -19,16 +18,14 @@ from tests.monolithic import RigidFourBarWithMotor
 REVS = 3
 
 
-def _fe_raw():
-    raw = copy.deepcopy(sc.load("crank_rocker_373rpm").raw)
-    raw.pop("gauges")        # the rigid reference has no strains; MuJoCo then skips its strain solve
-    return raw
+def _fe(name="crank_rocker_373rpm", **overrides):
+    """The rig without gauges (the rigid reference has no strains; MuJoCo then skips its strain
+    solve), with key-path overrides."""
+    return sc.load(name).with_overrides({"gauges": None, **overrides})
 
 
-def _scenario(raw, **coupling):
-    raw = copy.deepcopy(raw)
-    raw["coupling"].update(coupling)
-    return sc.from_dict(raw, "test.toml")
+def _scenario(base, **coupling):
+    return base.with_overrides({f"coupling.{k}": v for k, v in coupling.items()})
 
 
 def _last_revolution(run, period):
@@ -50,7 +47,7 @@ def _compare(channel, ref, scenario):
 
 @pytest.fixture(scope="module")
 def fe_mujoco():
-    s = _scenario(_fe_raw(), scheme="gauss_seidel", extrapolation="linear")
+    s = _scenario(_fe(), scheme="gauss_seidel", extrapolation="linear")
     ref = RigidFourBarWithMotor(s.mechanism, s.motor).solve(REVS * s.revolution_period_s,
                                                             None, None, scenario=s)
     res = CoSimulation(s, ("mujoco",), mode="motor").run(revolutions=REVS)
@@ -62,11 +59,9 @@ def stiff_tmm():
     """The FE rig with links 10^6 times stiffer (the toggle makes the instantaneous structure
     soft: at 1000x a 248 Hz mode remains near 0 deg), 2 segments, linear beams; compared with the
     monolithic model of the same lumped masses."""
-    raw = _fe_raw()
-    for mat in raw["materials"].values():
-        mat["E"] = "1e13 psi"
-    raw["solver"]["tmm"].update({"segments": 2, "beam_column": False, "step": "1 deg"})
-    s = _scenario(raw, scheme="iterated", macro_step="2 deg", tolerance=1e-6)
+    base = _fe(**{"materials.aluminium.E": "1e13 psi", "solver.tmm.segments": 2, "solver.tmm.beam_column": False,
+                 "solver.tmm.step": "1 deg"})
+    s = _scenario(base, scheme="iterated", macro_step="2 deg", tolerance=1e-6)
     ref = RigidFourBarWithMotor(s.mechanism, s.motor, "lumped").solve(REVS * s.revolution_period_s, None, None,
                                                                        scenario=s)
     res = CoSimulation(s, ("tmm",), mode="motor").run(revolutions=REVS)
@@ -111,13 +106,12 @@ def test_coupling_error_shrinks_at_the_scheme_order():
     coupling of the same engine at a small macro step, which removes MuJoCo's own O(h) error.
     Measured (x1e-4 of the mean speed at 4, 2, 1 deg): constant 501, 234, 111; linear 68.5,
     15.6, 3.7."""
-    raw = _fe_raw()
-    raw["solver"]["mujoco"] = {"step": "0.1 deg"}
-    s = _scenario(raw)
+    base = _fe(**{"solver.mujoco.step": "0.1 deg"})
+    s = _scenario(base)
     w = s.drive.speed_rad_s
 
     def run(scheme, extrapolation, macro):
-        si = _scenario(raw, scheme=scheme, extrapolation=extrapolation, macro_step=macro)
+        si = _scenario(base, scheme=scheme, extrapolation=extrapolation, macro_step=macro)
         return CoSimulation(si, ("mujoco",), mode="motor").run(revolutions=REVS)["mujoco"].run
 
     ref = run("iterated", "linear", "0.5 deg")
@@ -137,9 +131,7 @@ def test_removing_the_flywheels_raises_the_speed_fluctuation(fe_mujoco):
     """FE crank-rocker rig at 373 rpm (MuJoCo, motor as declared in the scenario). Measured:
     0.585 with the two aluminium flywheels, 0.719 without."""
     s, _, with_fw = fe_mujoco
-    raw = _fe_raw()
-    raw["motor"].pop("flywheels")
-    bare = _scenario(raw)
+    bare = _fe(**{"motor.flywheels": None})
     assert bare.motor.flywheel_inertia_kg_m2 == 0.0
     without = CoSimulation(bare, ("mujoco",), mode="motor").run(revolutions=REVS)["mujoco"]
     a = with_fw.speed_fluctuation()["fluctuation"][-1]
@@ -153,21 +145,20 @@ def test_stiff_speed_loop_converges_to_the_prescribed_strains():
     control for the stiff loops): the strain difference from the prescribed-speed run over the
     last revolution falls as the speed-loop bandwidth rises. MuJoCo's rigid strains; measured
     (follower) 8.4 %, 4.6 %, 1.1 % at 2, 32, 128 Hz."""
-    raw = copy.deepcopy(sc.load("alexander_lawrence_400rpm").raw)
-    raw["motor"] = {"rated_power": "0.5 hp", "rated_speed": "1750 rpm", "rated_voltage": "90 V", "gear_ratio": 4,
-                    "flywheel_inertia": "2e-3 kg*m^2", "reversible": True}
-    raw["coupling"] = {"macro_step": "2 deg"}
-    raw["solver"]["mujoco"] = {"step": "0.2 deg"}
-    s = sc.from_dict(raw, "al.toml")
+    motor = {"rated_power": "0.5 hp", "rated_speed": "1750 rpm", "rated_voltage": "90 V", "gear_ratio": 4,
+             "flywheel_inertia": "2e-3 kg*m^2", "reversible": True}
+    s = sc.load("alexander_lawrence_400rpm").with_overrides({"motor": motor, "coupling": {"macro_step": "2 deg"},
+                                                             "solver.mujoco.step": "0.2 deg"})
     prescribed = CoSimulation(s, ("mujoco",), mode="prescribed").run(revolutions=2)["mujoco"].run
     lastp = _last_revolution(prescribed, s.revolution_period_s)
     key = np.mod(prescribed.crank_angle[lastp], 2 * math.pi)
     order = np.argsort(key)
     errors = []
     for bw in (2, 32, 128):
-        raw["motor"]["controller"] = ({"bandwidth": f"{bw} Hz"} if bw < 10 else
-                                      {"bandwidth": f"{bw} Hz", "current_bandwidth": f"{4 * bw} Hz"})
-        run = CoSimulation(sc.from_dict(raw, "al.toml"), ("mujoco",), mode="motor").run(revolutions=2)["mujoco"].run
+        controller = ({"bandwidth": f"{bw} Hz"} if bw < 10 else
+                      {"bandwidth": f"{bw} Hz", "current_bandwidth": f"{4 * bw} Hz"})
+        run = CoSimulation(s.with_overrides({"motor.controller": controller}), ("mujoco",),
+                           mode="motor").run(revolutions=2)["mujoco"].run
         last = _last_revolution(run, s.revolution_period_s)
         worst = 0.0
         for g, (bending, _) in run.gauges.items():
@@ -203,7 +194,7 @@ def test_macro_step_time_comes_from_the_step_count(fe_mujoco):
 
 
 def test_callback_streams_and_stops_early():
-    s = _scenario(_fe_raw())
+    s = _scenario(_fe())
     seen = []
 
     def callback(step):
@@ -257,9 +248,7 @@ def test_weak_drive_pushes_the_rocker_past_its_euler_load_and_the_tmm_carries_on
 
 
 def test_macro_step_that_is_not_a_multiple_of_an_engine_step_is_refused():
-    raw = _fe_raw()
-    raw["coupling"]["macro_step"] = "1.5e-4 s"
-    s = sc.from_dict(raw, "bad.toml")
+    s = _fe(**{"coupling.macro_step": "1.5e-4 s"})
     with pytest.raises(CouplingError, match=r"not a whole multiple of the mujoco step .*solver.mujoco.step"):
         CoSimulation(s, ("mujoco",), mode="motor")
 
@@ -272,10 +261,9 @@ def test_motor_mode_needs_a_motor_table():
 
 def test_start_from_rest_follows_the_ramp():
     # The thesis's drive alone: the default drive's added flywheel could not follow a 0.3 s ramp.
-    raw = copy.deepcopy(sc.load("crank_rocker_373rpm_weak_drive").raw)
-    raw.pop("gauges")
-    raw["motor"]["setpoint"] = {"profile": "ramp", "start": "0 rpm", "duration": "0.3 s"}
-    s = _scenario(raw, start="rest")
+    base = _fe("crank_rocker_373rpm_weak_drive",
+               **{"motor.setpoint": {"profile": "ramp", "start": "0 rpm", "duration": "0.3 s"}})
+    s = _scenario(base, start="rest")
     ch = CoSimulation(s, ("mujoco",), mode="motor").run(0.6)["mujoco"]
     assert ch.status == "completed"
     assert ch.run.crank_speed[0] < 0.05 * s.drive.speed_rad_s

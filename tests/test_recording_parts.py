@@ -110,12 +110,12 @@ def test_chart_ticks():
     (["--save", "--stdout"], "save", None, None, True),
 ])
 def test_viewer_flags(argv, viewer, url, save, stdout):
-    from cosim.cli import _parser
+    from cosim.cli import build_parser
     from cosim.recording.options import viewer_from_args
-    options, path = viewer_from_args(_parser().parse_args(["run", "x", *argv]))
+    options, path = viewer_from_args(build_parser().parse_args(["run", "x", *argv]))
     assert (options.viewer, options.url, None if path is None else str(path), options.stdout) == \
         (viewer, url, save, stdout)
-    assert viewer_from_args(_parser().parse_args(["sweep", "x", "--rpm", "1", "--no-record"])) == (None, None)
+    assert viewer_from_args(build_parser().parse_args(["sweep", "x", "--rpm", "1", "--no-record"])) == (None, None)
 
 
 def test_linkage_animation_gif(tmp_path):

@@ -140,7 +140,7 @@ def test_history_records_are_drawn_as_curves(run95, tmp_path):
 
 def test_sweep_figure_shows_measured_peaks_and_campbell_labels_do_not_overlap(tmp_path):
     from cosim.figures import peaks_by_speed
-    from cosim.resonance import _harmonic_labels, plot_sweep
+    from cosim.resonance import harmonic_labels, plot_sweep
     peaks = peaks_by_speed("fe_crank_rocker", 90, 400)
     assert {p["rpm"] for p in peaks} == {95.0, 241.0, 373.0}
     points = [{"rpm": r, "engines": {"tmm": {"status": "completed", "gauges": {
@@ -159,7 +159,7 @@ def test_sweep_figure_shows_measured_peaks_and_campbell_labels_do_not_overlap(tm
     ax = fig.subplots()
     ax.set_xlim(100, 400)
     ax.set_ylim(0, 130)
-    _harmonic_labels(ax, 100, 400, 130, 20)
+    harmonic_labels(ax, 100, 400, 130, 20)
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     renderer = FigureCanvasAgg(fig).get_renderer()
     boxes = [t.get_window_extent(renderer) for t in ax.texts]
@@ -168,13 +168,13 @@ def test_sweep_figure_shows_measured_peaks_and_campbell_labels_do_not_overlap(tm
 
 
 def test_band_figure_uses_readable_names(tmp_path):
-    from cosim.uncertainty import _plot
+    from cosim.uncertainty import plot_band
     rows = [{"gauge": g, "crank_angle_deg": a, "nominal_ue": math.sin(math.radians(a)) * 100, "low_ue": -120.0,
              "high_ue": 120.0, "p5_ue": -110.0, "p95_ue": 110.0} for g in ("coupler_mid", "rocker_mid")
             for a in range(0, 360, 10)]
     records = [{"record": "fe_table1", "title": "FE crank-rocker thesis, TABLE I (measurement)", "gauge": "coupler_mid",
                 "peak": "+", "recorded_ue": 79.3, "band_ue": [60, 90], "inside": True}]
-    _plot(tmp_path, "crank_rocker_373rpm", rows, records)
+    plot_band(tmp_path, "crank_rocker_373rpm", rows, records)
     svg = (tmp_path / "band.svg").read_text(encoding="utf-8")
     assert "coupler, mid-span" in svg and "FE crank-rocker thesis, TABLE I (measurement) +peak (inside the band)" in svg
     assert "fe_table1" not in svg and "coupler_mid" not in svg

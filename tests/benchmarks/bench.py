@@ -136,10 +136,10 @@ def _steady_cost(rig, engine, setting, max_revolutions, tol=0.01):
     sc = _scenario(rig, engine, setting)
     periodic = None
     if engine == "tmm":
-        from cosim.sweep import _periodic
+        from cosim.sweep import periodic_solution
         tic = time.perf_counter()
         try:
-            _periodic(sc)
+            periodic_solution(sc)
             periodic = time.perf_counter() - tic
         except Exception as exc:      # e.g. its maps exceed the memory budget at fine steps
             periodic = f"{type(exc).__name__}: {exc}"
