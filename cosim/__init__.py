@@ -2,6 +2,9 @@
 
 ``cosim.load_run(folder)`` loads a run folder (traces as a long pandas DataFrame, the summary);
 see :mod:`cosim.results`.
+
+Owns: the package's public names (load, load_run, run_scenario). Boundaries: it imports nothing
+heavy at import time (engines load lazily).
 """
 __version__ = "0.1.0"
 __all__ = ["__version__", "load_run", "RunData"]

@@ -12,6 +12,9 @@ beside the engines, every record sample needs both coordinates:
   speed continues it.
 
 Pure numpy; used by the recording (:mod:`cosim.recording.writer`).
+
+Owns: placing a record on a run's time and crank-angle axes. Boundaries: no scoring
+(cosim.compare) and no file reading (cosim.records).
 """
 from __future__ import annotations
 

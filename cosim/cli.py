@@ -18,6 +18,9 @@ recording goes there, and the tables to stderr); progress bars and messages
 go to stderr through :mod:`logging` (``-v`` adds detail, ``-q`` leaves only warnings and errors
 and switches the bars off; bars are off anyway when stderr is not a terminal). Results are
 written under ``./logs/`` of the current directory unless ``--out`` says otherwise.
+
+Owns: the ``cosim`` command: arguments, dispatch, exit codes, logging set-up. Boundaries: no
+numerics and no file formats: it calls run, sweep, uncertainty, identify, report.
 """
 from __future__ import annotations
 

@@ -18,6 +18,9 @@ A belt between the motor and the crank shaft makes the motor's share of ``J_d`` 
 dependent; its two limits (belt rigid: the rotor counts; belt soft: only the crank-shaft disks)
 bound the effective ``J_d``, which is how the bench declares the drive's compliance (the belt's
 own torsional mode is not modelled).
+
+Owns: the periodic crank history of a free-wheeling drive of finite inertia. Boundaries: pure
+numerics; the motor model itself is cosim.motor.
 """
 from __future__ import annotations
 

@@ -6,6 +6,9 @@ as text (``svg.fonttype = 'none'``), so labels stay editable in Inkscape or Illu
 
 Readable names: gauges are written as "coupler, mid-span" rather than ``coupler_mid``
 (:func:`gauge_label`), records by their source and table (``Record.title``).
+
+Owns: the run's strain figures and the shared PNG+SVG writer. Boundaries: no data reading beyond
+the run's tables it is given.
 """
 from __future__ import annotations
 

@@ -28,6 +28,9 @@ predict held-out scenarios without ever reading their records during the fit.
 
 Output folder: ``identification.json``, ``identification.png/.svg`` (recorded against predicted
 peaks with the strain over the revolution, per scenario and gauge) and ``identification.rrd``.
+
+Owns: ``cosim identify``: calibration, confidence, held-out validation. Boundaries: held-out
+records are read only after the fit; the model run is cosim.unknowns.
 """
 from __future__ import annotations
 

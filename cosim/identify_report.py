@@ -1,6 +1,9 @@
 """Figure and rerun recording of an identification (:mod:`cosim.identify`): per scenario and
 gauge, the calibrated model's bending strain over the revolution, the scenario as declared (the
-nominal model), and the recorded +/- peaks, marked as calibration or held out."""
+nominal model), and the recorded +/- peaks, marked as calibration or held out.
+
+Owns: the identification's figure and recording. Boundaries: no fitting.
+"""
 from __future__ import annotations
 
 import numpy as np

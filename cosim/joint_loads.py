@@ -25,6 +25,9 @@ the crank speed, so the friction's shape does not depend on the speed).
 The moment on a rigid crank (pin B) is carried to the drive torque. Only the transfer-matrix
 model carries these moments: the exudyn and MuJoCo engines are never given this mechanism (it is
 built only by :mod:`cosim.uncertainty` and :mod:`cosim.identify` for periodic TMM solves).
+
+Owns: moments at a four-bar's pins as TMM applied loads. Boundaries: no scenario parsing
+(cosim.unknowns declares them).
 """
 from __future__ import annotations
 

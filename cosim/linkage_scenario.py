@@ -91,6 +91,9 @@ to an rpr's slide, two slides parallel), naming the module and the crank angle. 
 instantaneous structure of the transfer-matrix model clamps the crank at its pivot (Shin); a
 straight link with interior joints is split into parts ``name[a-b]`` (gauges, point masses and loads are placed along the
 whole path and land on the part).
+
+Owns: the ``type = "linkage"`` format and its load-time assembly check. Boundaries: no run logic;
+shared springs and loads are cosim.joint_tables.
 """
 from __future__ import annotations
 

@@ -41,6 +41,9 @@ integrator in equilibrium) or ``rest``.
 After every macro step ``callback(MacroStep)`` is called; returning True stops the run early. An
 engine that fails stops only its own channel; every result up to the failure is kept. A
 KeyboardInterrupt during the run ends it with status ``interrupted`` and the results so far.
+
+Owns: ``CoSimulation``: macro steps, coupling schemes, motors per engine, the steady-state stop.
+Boundaries: no engine internals (protocol only) and no files (cosim.run).
 """
 from __future__ import annotations
 

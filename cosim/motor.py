@@ -28,6 +28,9 @@ rigid shaft: the motor then integrates the rotor (theta_m, omega_m) and hands th
 the crank side. A macro step is integrated with classical Runge-Kutta on fixed substeps sized
 from the fastest rate of the linearised equations (pure Python floats: the state has at most ten
 entries, and fixed substeps put samples exactly on the engines' step grid).
+
+Owns: the motor's physics: one right-hand side, its integration and traces. Boundaries: no
+scenario parsing (cosim.motor_design).
 """
 from __future__ import annotations
 

@@ -1,6 +1,9 @@
 """One executor interface for independent jobs (sweep points, uncertainty samples): a process pool
 on the local cores, or a Dask distributed cluster given its scheduler address. Both hand out
-``concurrent.futures`` futures, so callers do not care which one runs them."""
+``concurrent.futures`` futures, so callers do not care which one runs them.
+
+Owns: one executor interface (local processes or Dask). Boundaries: no job logic.
+"""
 from __future__ import annotations
 
 import os

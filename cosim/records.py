@@ -38,6 +38,9 @@ means, zero at the start of the recording), zero-phase low-pass filtering (Butte
 cut-off, ensemble averaging over revolutions with a spread band, bending/axial separation from
 top and bottom gauges, and strain-to-deflection calibration as Wang used (a simply supported
 span under a central load: deflection / surface strain = L^2 / (6 h)).
+
+Owns: the record format, strict loading and ingestion of raw recordings. Boundaries: no scoring
+(cosim.compare); units through cosim.units.
 """
 from __future__ import annotations
 

@@ -1,7 +1,11 @@
 """Text tables of a results folder (``cosim compare <folder>``), read from its summary.json: a
 run's comparison table, a sweep's peaks per speed, an uncertainty run's band, a static
 structure's results (:func:`report` picks the one that fits the folder). A summary that is not a
-JSON object, or a folder that is still running or was cut short, is said so, never a traceback."""
+JSON object, or a folder that is still running or was cut short, is said so, never a traceback.
+
+Owns: the text tables of ``cosim compare`` from a folder's summary.json. Boundaries: reads only
+summary.json; computes nothing new.
+"""
 from __future__ import annotations
 
 import json

@@ -6,6 +6,9 @@ a revolution. The crank excites the harmonics k f_rev (f_rev = rpm / 60) of its 
 harmonic that enters a band is a resonance candidate. :func:`campbell` lists, per mode and
 harmonic, the speed range over which that happens; :func:`plot_sweep` draws the peaks of a
 sweep, the Campbell diagram and the frequencies over the crank angle into PNG and SVG files.
+
+Owns: natural-frequency maps against crank angle and speed, the Campbell diagram. Boundaries: no
+sweep running (cosim.sweep).
 """
 from __future__ import annotations
 

@@ -27,6 +27,9 @@ Units: the engines return gauges as ``(bending, axial)`` tuples of *dimensionles
 When a run ends, :func:`write_parquet` stores the long table as ``traces.parquet`` (smaller and
 much faster to read than the CSV); :func:`load_run` reads it, or builds the table from the CSV when
 there is no parquet file (a killed run) or the CSV is newer.
+
+Owns: ``cosim.load_run`` and ``traces.parquet``. Boundaries: reads a run folder; never writes
+outside it.
 """
 from __future__ import annotations
 

@@ -24,6 +24,9 @@
 seconds, so a run that is killed leaves a summary that says so; an interrupted run (Ctrl-C,
 SIGTERM) writes ``"interrupted"``; a run in which an engine failed writes ``"failed"`` with the
 engine's message and keeps the other engines' results.
+
+Owns: one run: folder, traces, recording, summary, scores, figures, interruption. Boundaries: no
+engine numerics and no recording internals (cosim.recording).
 """
 from __future__ import annotations
 

@@ -3,6 +3,9 @@
 Results go where the user is: ``logs/`` under the *current working directory*, not next to the
 package (an installed package's folder may be read-only, and a user running from their own
 project expects their results there). ``--out`` on every command overrides it.
+
+Owns: run folders and atomic JSON/CSV writers. Boundaries: nothing is written outside the folder
+it makes or is given.
 """
 from __future__ import annotations
 

@@ -23,6 +23,8 @@ mechanism::
 ``segments`` is per part of the path (between consecutive key joints). Topology errors name the
 item: unknown joints, links or sections; a link that dangles (a revolute at a joint nothing else
 holds); a plate vertex used twice; a mechanism type the bench does not run.
+
+Owns: the ``type = "structure"`` format and its static run. Boundaries: no time-domain runs.
 """
 from __future__ import annotations
 

@@ -10,6 +10,9 @@ Output folder ``logs/<scenario>-sweep-<timestamp>/``: ``sweep.csv`` (one row per
 and gauge), ``summary.json`` and ``sweep.rrd`` (peaks, Floquet multipliers and natural frequencies
 against speed as 2D charts, :mod:`cosim.recording.summaries`). Rows are appended as points
 finish, so an interrupted sweep keeps what it computed.
+
+Owns: speed sweeps (periodic or marched) and their folder. Boundaries: the recording's charts are
+cosim.recording.summaries.
 """
 from __future__ import annotations
 

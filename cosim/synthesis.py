@@ -13,6 +13,8 @@ in line (MB = a + b), at the *folded* limit folded on each other (MB = b - a); t
 * ``oscillation`` = phi2 - phi4: the rocker swing (Delta phi).
 * ``mu2``, ``mu4``: angle M-B-Q (the transmission angle) at the extended / folded limit.
 * ``mu1``: transmission angle with the crank along M->Q (crank angle 0), the smallest of a revolution.
+
+Owns: rigid four-bar synthesis and ``cosim synthesize``. Boundaries: no flexible analysis.
 """
 from __future__ import annotations
 

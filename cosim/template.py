@@ -6,6 +6,9 @@ SCENARIO`` it copies that scenario's file (comments kept) and the base files it 
 with the new name. Either way the written file is loaded before this returns, so a template that
 does not load is an error here, not at the user's first run. An existing file is never
 overwritten.
+
+Owns: ``cosim new``: the commented template or a copy with its bases. Boundaries: writes only the
+files it names.
 """
 from __future__ import annotations
 

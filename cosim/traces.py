@@ -9,6 +9,9 @@ cell is empty where a trace has no sample.
 The file is appended macro step by macro step, one write and flush per step, so a run that is
 interrupted or killed leaves every completed step on disk; :func:`read_traces` reads such a file
 and drops (and reports) a last line cut off by the kill.
+
+Owns: ``traces.csv``: column names with units, appending per macro step. Boundaries: no post-
+processing.
 """
 from __future__ import annotations
 

@@ -28,6 +28,9 @@ solve. Runs go to a ``concurrent.futures`` executor (local processes or a Dask c
   between its values), and the unknowns are ranked by their mean normalized ``mu*``.
 * **Records**: each recorded +/- peak of the rig at the speed, inside or outside the band of
   that peak.
+
+Owns: ``cosim uncertainty``: the band, the Morris ranking, records inside or outside. Does not:
+the unknowns and the model run are cosim.unknowns.
 """
 from __future__ import annotations
 

@@ -28,6 +28,9 @@ A key is one of three kinds:
 with one revolution of factorized configurations reused (the compiled kernel), which measured
 6-8x faster than the periodic shooting solver for the same peaks (README, "How far the bench is
 from the measurement").
+
+Owns: declared unknowns and the fast model run of bands and identification. Boundaries: no fitting
+(cosim.identify) and no sampling design (cosim.uncertainty).
 """
 from __future__ import annotations
 

@@ -7,6 +7,8 @@ reference-engine run). The rig turns the crank at constant speed, samples the ga
 white noise, a slow linear drift and a once-per-revolution trigger pulse whose timing jitters.
 The record's provenance is ``synthetic``: it is never a measurement and only ever used to test
 the pipeline.
+
+Owns: synthetic records from known truth. Boundaries: no fitting and no scoring.
 """
 from __future__ import annotations
 

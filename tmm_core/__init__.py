@@ -2,6 +2,8 @@
 
 Pure numpy/scipy, no I/O. Units are SI throughout; see :mod:`tmm_core.matrices` for the state
 vector and sign convention.
+
+Owns: the public API of the solver. Boundaries: no cosim import, no I/O.
 """
 from .errors import (AssemblyError, BucklingError, ConvergenceError, InputError, SingularStructureError,
                      TMMError)

@@ -3,6 +3,8 @@
 Every error names the offending field and its value, so a user can find the bad input
 without a traceback. All derive from ``ValueError`` so callers that only care about
 "bad input" can catch one type.
+
+Owns: the exception types: bad input versus hard problems. Boundaries: no logic.
 """
 from __future__ import annotations
 

@@ -15,6 +15,8 @@ and the answer is exact for the distributed-mass model, independent of the segme
 
 Rotary inertia of the strip and shear are neglected (Euler-Bernoulli, as in Shin and the FE
 thesis); the rigid-body motion of the mechanism is frozen (no rotating-frame terms).
+
+Owns: natural frequencies of an instantaneous structure. Boundaries: no time stepping.
 """
 from __future__ import annotations
 

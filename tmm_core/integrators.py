@@ -8,6 +8,8 @@ mass m then acts on the instantaneous structure as a spring ``m c_a`` to ground 
 ``c_a = 2/dt^2``).
 
 States are dictionaries of arrays shaped like the displacement vector.
+
+Owns: the implicit integrators' coefficients and updates. Boundaries: no structure or loads.
 """
 from __future__ import annotations
 

@@ -18,6 +18,8 @@ refactorizes at the step's own axial forces) and resumes.
 
 Kernels are compiled on first use and cached on disk (numba ``cache=True``). Integrator codes:
 0 Newmark (average acceleration), 1 Houbolt, 2 generalized-alpha.
+
+Owns: the compiled march. Boundaries: the numpy path (tmm_core.time_step) stays the reference.
 """
 from __future__ import annotations
 

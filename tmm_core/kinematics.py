@@ -11,6 +11,8 @@ along +x), ``-1`` on the right.
 Slider-crank: crank A-B, coupler B-C, slider C on a line parallel to the ground direction at
 signed offset ``offset`` (left of the ground direction positive). ``branch = +1`` puts the
 slider ahead of B along the ground direction.
+
+Owns: closed-form four-bar and slider-crank kinematics. Boundaries: no dynamics.
 """
 from __future__ import annotations
 

@@ -17,6 +17,9 @@ enters the time domain exactly.
 :func:`as_linkage` gives the same description of a :class:`FourBarMechanism` or
 :class:`SliderCrankMechanism`, so the exudyn and MuJoCo engines build every mechanism from one
 description.
+
+Owns: ``LinkageMechanism`` and ``as_linkage``. Boundaries: the kinematics are
+tmm_core.linkage_kinematics.
 """
 from __future__ import annotations
 

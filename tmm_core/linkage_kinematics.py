@@ -49,6 +49,9 @@ line, a joint closer to a guide's pivot than the guide's slide line passes) or t
 links of a dyad collinear, a link perpendicular to its slide, the line from a guide's pivot square
 to its slide, two slides parallel) raises :class:`tmm_core.errors.AssemblyError` naming the module
 and the crank angle.
+
+Owns: the closed-form module kinematics of any planar linkage. Boundaries: no structure or
+dynamics.
 """
 from __future__ import annotations
 

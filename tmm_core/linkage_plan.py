@@ -3,6 +3,8 @@
 :func:`plan_modules` checks that every body is posed by exactly one module and every joint is
 placed, and precomputes what each step of :meth:`tmm_core.linkage_kinematics.LinkageKinematics.solve`
 needs (reference vectors, slide directions, branches). Pure: reads the kinematics description only.
+
+Owns: the module order check and each step's fixed data. Boundaries: no solving.
 """
 from __future__ import annotations
 

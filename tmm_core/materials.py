@@ -2,6 +2,8 @@
 
 Both act on the *elastic* deformation of a link in its moving frame, never on the rigid-body
 motion.
+
+Owns: damping and viscoelastic material models. Boundaries: no structure.
 """
 from __future__ import annotations
 

@@ -49,6 +49,8 @@ for ``|s| < 4`` where the closed forms cancel.
 The load column follows from integrating the state equations above. Shin's printed axial
 load terms (F1, F6 of Eq. 3.17) are mutually inconsistent; here ``N1 = N0 - p L`` and
 ``u1 = u0 + N0 L/EA - p L**2/(2 EA)``, which a hanging-bar test checks.
+
+Owns: the 7x7 transfer matrices. Boundaries: no chaining (tmm_core.riccati).
 """
 from __future__ import annotations
 

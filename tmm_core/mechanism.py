@@ -6,6 +6,9 @@ crank at B and to the rocker at C, and the rocker is pinned to the ground at D.
 
 Member orientation (local x) and therefore the local +y ("top") face:
 crank A->B, coupler B->C, rocker D->C (from its ground pivot).
+
+Owns: the four-bar and slider-crank descriptions and their instantaneous structures. Does not:
+no analysis.
 """
 from __future__ import annotations
 

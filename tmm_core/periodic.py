@@ -21,6 +21,9 @@ and the linearized revolution for the monodromy matrix (one batched march of eve
 through the step's exact Jacobian), starting from the periodic solution of the linear
 (quasi-static axial force) model. The multipliers are those of the linearization about the
 periodic orbit.
+
+Owns: periodic steady state and Floquet multipliers. Boundaries: the step is tmm_core's public
+step API.
 """
 from __future__ import annotations
 

@@ -1,4 +1,7 @@
-"""Plane vectors as arrays (..., 2): the small operations of closed-form planar kinematics."""
+"""Plane vectors as arrays (..., 2): the small operations of closed-form planar kinematics.
+
+Owns: plane-vector helpers. Boundaries: no kinematics of its own.
+"""
 from __future__ import annotations
 
 import math

@@ -4,6 +4,8 @@ Faces: "top" is the local +y surface (y = +h/2), "bottom" the -y surface. With t
 convention of :mod:`tmm_core.matrices` the surface stress is ``sigma = N/A - M y / I``, so
 ``sigma_top = N/A - M/Z`` and ``sigma_bottom = N/A + M/Z``; tension is positive. (Shin writes
 ``N/A + M/Z`` for the top with his clockwise-positive M.)
+
+Owns: stresses, strains, distortion, safety factors from solved states. Boundaries: no solving.
 """
 from __future__ import annotations
 

@@ -26,6 +26,8 @@ lose digits).
 This is the von Karman beam in the moving frame of each link: strain u' + w'^2/2, bending
 equilibrium with the actual axial force. Its error against a geometrically exact beam is of
 order (slope)^2 of the elastic deflection relative to the link.
+
+Owns: the second-order beam terms as pseudo-loads. Boundaries: no step driver.
 """
 from __future__ import annotations
 

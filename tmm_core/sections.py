@@ -1,4 +1,7 @@
-"""Materials and cross-sections (SI units)."""
+"""Materials and cross-sections (SI units).
+
+Owns: materials and sections. Boundaries: no analysis.
+"""
 from __future__ import annotations
 
 from dataclasses import dataclass

@@ -10,6 +10,8 @@ chord frame, rotated by the chord angle of the previous iterate, and forces are 
 that frame (see :func:`tmm_core.matrices.field_matrix`). As the segment count grows this
 converges to the geometrically exact (elastica) solution; Shin's ch. 4 method is the same idea
 with the chord angle approximated by half the segment slope.
+
+Owns: static analysis of an instantaneous structure. Boundaries: no time domain.
 """
 from __future__ import annotations
 

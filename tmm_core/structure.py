@@ -15,6 +15,9 @@ branches) without special-case algebra.
 
 Everything broadcasts over leading batch dimensions of the :class:`LoadCase` arrays (e.g. one
 entry per crank position).
+
+Owns: the instantaneous structure: factorize once, solve many. Boundaries: no mechanism
+kinematics.
 """
 from __future__ import annotations
 

@@ -2,6 +2,9 @@
 
 The reference engines import their libraries lazily, so a missing or broken exudyn or MuJoCo
 install only disables that engine, with a message saying how to fix it.
+
+Owns: the engine registry (``make_engine``, ``ENGINES``) and lazy engine imports. Boundaries: no
+engine code.
 """
 from __future__ import annotations
 

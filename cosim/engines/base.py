@@ -18,6 +18,9 @@ transfer-matrix model with the crank clamped at its pivot) or *torque-driven* (t
 crank; a motor coupled to them puts its rotor and flywheel inertia on their crank through
 ``reset(..., drive_inertia_kg_m2=...)``). ``save()``/``restore()`` let a master repeat a macro
 step (iterated coupling).
+
+Owns: the engine protocol, ``EngineOutput``/``DriveInput``/``EngineRun`` and ``run_prescribed``.
+Boundaries: no engine-specific code; the run loop itself is cosim.master.
 """
 from __future__ import annotations
 

@@ -34,6 +34,9 @@ members and makes the adaptive step collapse; engine_pitfalls.md), sparse linear
 Outputs are sampled once per macro step, at its end: crank angle and speed, drive torque,
 gauge strains (curvature and axial strain of the cable; at a node between two elements the two
 neighbours are averaged, because cable curvature jumps there), and all node positions.
+
+Owns: the exudyn engine: model build, stepping, save/restore, sampled outputs. Boundaries: no
+scenario parsing (it reads a Scenario) and no files except the solution file it is asked for.
 """
 from __future__ import annotations
 

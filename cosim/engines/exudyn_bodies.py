@@ -1,6 +1,9 @@
 """Rigid bodies of the exudyn model: a rigid link at its centre of mass, a light slider block,
 and the rotation of a weld's marker frame. Pure builders on an exudyn ``MainSystem``; the engine
-(:mod:`cosim.engines.exudyn`) owns the model and its state."""
+(:mod:`cosim.engines.exudyn`) owns the model and its state.
+
+Owns: exudyn rigid-body builders. Boundaries: no engine state.
+"""
 from __future__ import annotations
 
 import math

@@ -46,6 +46,9 @@ constant loads and the springs) on the instantaneous structure, solved linearly 
 :func:`tmm_core.solve_static`, with the joints where the closed-form kinematics puts them at
 MuJoCo's crank angle (the structure needs exact link lengths; they differ from MuJoCo's own
 joint positions by the size of ``loop_closure_m``).
+
+Owns: the MuJoCo engine: MJCF, servo or motor torque, stepping, rigid strains. Boundaries: no
+kinematics of its own: loops close with tmm_core's closed-form modules.
 """
 from __future__ import annotations
 

@@ -1,7 +1,11 @@
 """The MuJoCo body tree of a linkage: bodies with their frames at the reference configuration
 and exact mass properties, their parents and joints from the closed-form modules, and the loop
 closures (``connect`` constraints). Pure data built from :func:`tmm_core.linkage.as_linkage`;
-the engine (:mod:`cosim.engines.mujoco`) writes it as MJCF."""
+the engine (:mod:`cosim.engines.mujoco`) writes it as MJCF.
+
+Owns: the MuJoCo body tree of a linkage (frames, masses, parents, closures). Boundaries: no MJCF
+text and no simulation.
+"""
 from __future__ import annotations
 
 import math

@@ -68,6 +68,9 @@ Entity layout (``<e>`` an engine: tmm, exudyn, mujoco; ``<g>`` a gauge)
 Every scalar entity carries a static ``SeriesLines`` naming the engine (or record), the quantity
 and its unit, so legends are self-explanatory; the strain plots hold one series per engine and
 record, so their legends stay small.
+
+Owns: the recording package's public names and the entity list. Boundaries: no rerun import at
+package import.
 """
 from __future__ import annotations
 

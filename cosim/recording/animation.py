@@ -1,6 +1,8 @@
 """A GIF of the linkage over the last revolution, every engine in its colour (``cosim run
 --animation``): the same drawing as the recording's linkage view (:mod:`cosim.recording.linkage`),
 for a slide or a report where no viewer is at hand. matplotlib and Pillow only.
+
+Owns: ``linkage.gif``. Boundaries: no rerun.
 """
 from __future__ import annotations
 

@@ -7,6 +7,9 @@ one :class:`dict` per engine, which the writer sends as one chunk per entity
 macro step, at most ``linkage_fps`` frames per simulated second (and every ``linkage_every``-th
 macro step), and always the run's last step. Drawing every macro step cost most of the
 recording's time and gave frames no viewer shows.
+
+Owns: macro steps collected into batches; the linkage at display rate. Boundaries: no rerun
+import.
 """
 from __future__ import annotations
 

@@ -6,6 +6,8 @@ every record), a tab row with the drive torque, the axial strains, the crank spe
 engines' extras, the linkage of every engine in 2D with an engine legend, and (motor runs) the
 motor's current, voltage and torque, or (prescribed runs) the drive power. :func:`views` lists
 the views of a blueprint (for tests and readers).
+
+Owns: the default layout, a pure function of the spec. Boundaries: no data.
 """
 from __future__ import annotations
 

@@ -9,6 +9,8 @@ dots at the data points, and a legend of labelled dots. Static data show at ever
 the timeline.
 
 :func:`log_chart` logs one :class:`Chart` under its root entity and returns its view.
+
+Owns: x-y charts in rerun's 2D view. Boundaries: no sweep or band logic.
 """
 from __future__ import annotations
 

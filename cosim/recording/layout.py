@@ -5,6 +5,8 @@ values) lives here, so the writer (:mod:`cosim.recording.writer`), the blueprint
 (:mod:`cosim.recording.blueprint`) and the tests agree on one definition, and the main process
 of a run can prepare data for the recording without importing rerun (see
 :mod:`cosim.recording.process`).
+
+Owns: entity names, colours and timeline values. Boundaries: no rerun import.
 """
 from __future__ import annotations
 

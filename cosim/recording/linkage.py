@@ -15,6 +15,9 @@ bench mechanism, so the line is also the link's undeformed shape.
 
 The factor is chosen from the largest offset seen (:func:`auto_factor`): a 1-2-5 number that
 draws it at about 5 % of the longest link.
+
+Owns: the linkage drawing from the engines' nodes and its exaggeration factor. Boundaries: no
+kinematics.
 """
 from __future__ import annotations
 

@@ -11,6 +11,8 @@ script conventions (``rr.script_add_args`` in rerun 0.41: ``--headless``, ``--co
 * ``--stdout`` writes the finished file after the run, not a live stream, and the tables go to
   stderr;
 * ``--headless`` is the default (rerun's scripts spawn a viewer unless told otherwise).
+
+Owns: the viewer flags (argparse) and ``ViewerOptions`` from them. Boundaries: no recording.
 """
 from __future__ import annotations
 

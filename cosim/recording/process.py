@@ -18,6 +18,8 @@ Messages (pickled tuples on the child's stdin): ``("open", kwargs of StreamWrite
 ``("text", path, text)``, ``("close",)``. The child answers on its stdout with JSON lines:
 ``{"serving": url}`` (serve mode, once everything is flushed) and ``{"warnings": [...]}`` when the
 file is finished.
+
+Owns: the recorder in a child process. Boundaries: the rerun side is cosim.recording.recorder.
 """
 from __future__ import annotations
 

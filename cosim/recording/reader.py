@@ -4,6 +4,8 @@ rerun 0.41 has no dataframe reader in the SDK proper: ``rerun.dataframe`` was re
 and ``rerun.recording`` in 0.34, and the catalog query API (``rerun.server.Server`` +
 ``CatalogClient``) needs the ``datafusion`` extra and a local server. Its public reader is
 ``rerun.chunk.RrdReader`` (chunks as Arrow record batches); these few functions sit on it.
+
+Owns: reading a recording back with rerun's public reader. Boundaries: read only.
 """
 from __future__ import annotations
 

@@ -5,6 +5,8 @@ has the same methods and does the rerun side in a child process (what ``cosim ru
 run then pays only for collecting its arrays). Both take a macro step after every step of the
 master (``log_macro_step`` is a ready-made callback body), records (``log_reference``) and text
 (``log_text``), and :meth:`close` finishes the file.
+
+Owns: ``Recorder``: the recording of one run in this process. Boundaries: no run logic.
 """
 from __future__ import annotations
 

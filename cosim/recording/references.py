@@ -2,6 +2,8 @@
 timelines when the recording closes (:func:`cosim.alignment` functions, in the writer).
 
 Pure numpy: the checks run in the run's own process, so a bad record is refused there.
+
+Owns: records drawn beside the engines. Boundaries: no scoring.
 """
 from __future__ import annotations
 

@@ -22,6 +22,9 @@ timeout), because rerun's gRPC sink blocks ``send`` for seconds and ``flush`` wi
 it retries (found here: a run with ``--connect`` to a closed port never ended). The stream then
 goes to the file alone, with a warning naming the URL. Flushing to a viewer that goes away later
 is bounded by ``timeout_s``; rerun's own disconnect waits at most 5 s for a last attempt.
+
+Owns: the file and at most one viewer, with bounded waits. Boundaries: never waits without a
+bound.
 """
 from __future__ import annotations
 

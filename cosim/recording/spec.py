@@ -3,6 +3,8 @@
 :func:`spec_from_scenario` reads it once in the run's own process; the writer (possibly in a
 child process, :mod:`cosim.recording.process`) and the blueprint work from the spec alone, so
 neither imports the scenario loader or the kinematics.
+
+Owns: what the recording needs from a scenario, as plain data. Boundaries: no rerun import.
 """
 from __future__ import annotations
 

@@ -10,6 +10,8 @@ panel shows at once, whatever the timeline.
 
 Both are written to their file only; ``cosim sweep/uncertainty`` then show the finished file in
 a viewer if asked (:func:`cosim.recording.sinks.show_file`).
+
+Owns: the sweep and uncertainty recordings. Boundaries: no sweep or band computation.
 """
 from __future__ import annotations
 

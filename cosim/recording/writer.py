@@ -5,6 +5,8 @@ when the recording closes (or when an entity holds ``max_rows`` samples), so the
 chunk per entity and ``rerun rrd stats`` finds it optimal; with a viewer attached, every
 ``live_interval_s`` seconds of wall time, so the viewer follows the run. Each send is one
 ``send_columns`` call per entity on all four timelines (:mod:`cosim.recording.layout`).
+
+Owns: batches turned into rerun chunks. Boundaries: no layout decisions (cosim.recording.layout).
 """
 from __future__ import annotations
 
