@@ -95,6 +95,16 @@ def plan_modules(kin, ref_positions: dict) -> tuple:
             raise InputError(f"{name}: {label}: link '{body}' already has joint(s) {kj} placed by other links: it "
                              "is over-constrained")
 
+    def unplaced_block(block, along, P, label):
+        """An rpr's or rpp's block and the link it slides along are not placed yet, and the
+        block's one known joint is P."""
+        for b in (block, along):
+            if b in posed:
+                raise InputError(f"{name}: {label}: link '{b}' is already placed by an earlier module")
+        if known_joints(block) != [P]:
+            raise InputError(f"{name}: {label}: block '{block}' already has joints {known_joints(block)} placed: "
+                             f"it is over-constrained (its one known joint is '{P}')")
+
     def block_on(block, guide, label):
         if block not in kin.guided or kin.guided[block][0] != guide:
             raise InputError(f"{name}: {label}: link '{block}' is not a block sliding along link '{guide}'")
@@ -197,13 +207,7 @@ def plan_modules(kin, ref_positions: dict) -> tuple:
                 raise InputError(f"{name}: {label}: the guide '{guide}' slides along "
                                  f"{guide_text(kin.guided[guide][0])}: an rpr module turns its guide about a "
                                  "pivot (use rpp for a guide that slides)")
-            for b in (block, guide):
-                if b in posed:
-                    raise InputError(f"{name}: {label}: link '{b}' is already placed by an earlier module")
-            if known_joints(block) != [P]:
-                raise InputError(f"{name}: {label}: block '{block}' already has joints "
-                                 f"{known_joints(block)} placed: it is over-constrained (its one known joint is "
-                                 f"'{P}')")
+            unplaced_block(block, guide, P, label)
             Q = known_joint(guide, None, label)
             u = ref[P] - ref[Q]
             if np.hypot(*u) <= 0:
@@ -255,13 +259,7 @@ def plan_modules(kin, ref_positions: dict) -> tuple:
             guide, d2 = kin.guided[mid]
             if guide is not None and guide not in posed:
                 raise InputError(f"{name}: {label}: the guide '{guide}' of link '{mid}' is not placed yet")
-            for b in (block, mid):
-                if b in posed:
-                    raise InputError(f"{name}: {label}: link '{b}' is already placed by an earlier module")
-            if known_joints(block) != [P]:
-                raise InputError(f"{name}: {label}: block '{block}' already has joints "
-                                 f"{known_joints(block)} placed: it is over-constrained (its one known joint is "
-                                 f"'{P}')")
+            unplaced_block(block, mid, P, label)
             fresh(mid, label)
             e1, e2 = _unit(d1), _unit(d2)
             if abs(float(_cross(e1, e2))) <= LOCK_TOLERANCE:
