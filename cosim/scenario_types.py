@@ -48,6 +48,11 @@ class TMMSettings:
     start: str = "quasi_static"
     coupling: Coupling = Coupling.all()
     axial_force: str = "dynamic"
+    #: "full" (every node) or "reduced" (link modes plus a static correction, tmm_core.reduced):
+    #: periodic solves of sweeps, bands and identification; time-marching runs refuse "reduced".
+    model: str = "full"
+    #: Mode shapes of the reduced model (tmm_core.reduced.DEFAULT_MODES: README "Reduced model").
+    modes: int = 4
 
 
 @dataclass(frozen=True)

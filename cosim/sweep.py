@@ -86,6 +86,12 @@ def periodic_solution(sc):
     s = sc.tmm
     td = TimeDomain(sc.mechanism, integrator=s.integrator, coupling=s.coupling, beam_column=s.beam_column,
                     gravity=sc.gravity, gauges=sc.gauges, axial_force=s.axial_force)
+    if s.model == "reduced":
+        # solver.tmm.model = "reduced": link modes plus a static correction (tmm_core.reduced).
+        from tmm_core.reduced import ReducedOptions
+        from tmm_core.reduced_periodic import periodic_steady_state_reduced
+        return periodic_steady_state_reduced(td, sc.drive.speed_rad_s, start_angle=sc.drive.start_angle_rad,
+                                             options=ReducedOptions(modes=s.modes))
     return periodic_steady_state(td, sc.drive.speed_rad_s, step_s=sc.engine_step_s("tmm"),
                                  start_angle=sc.drive.start_angle_rad)
 
@@ -116,7 +122,8 @@ def periodic_point(sc) -> dict:
         p = periodic_solution(sc)
     except TMMError as exc:
         return {"status": "failed", "error": f"{type(exc).__name__}: {exc}"}
-    d = {"status": "completed", "error": None, "method": "periodic", "floquet_max": float(np.abs(p.multipliers[0])),
+    d = {"status": "completed", "error": None, "method": "periodic", "model": p.info.get("model", "full"),
+         "floquet_max": float(np.abs(p.multipliers[0])),
          "parametric_resonance": bool(np.abs(p.multipliers[0]) > 1.0), "residual": p.residual,
          "drive_torque_max_Nm": float(p.drive_torque.max()), "drive_torque_min_Nm": float(p.drive_torque.min()),
          "gauges": {}}

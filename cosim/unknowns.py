@@ -266,6 +266,9 @@ class Settings:
     tolerance: float = 1e-6
     max_revolutions: int = 80
     n_grid: int = 360
+    #: "full" (marched), "reduced" (tmm_core.reduced: periodic shooting on link modes plus a static
+    #: correction), or None: the scenario's solver.tmm.model.
+    model: str | None = None
 
 
 def _joint_laws(model: dict):
@@ -323,21 +326,38 @@ def solve(sc, model: dict | None = None, settings: Settings = Settings()) -> dic
     try:
         td = TimeDomain(mech, integrator=s.integrator, coupling=s.coupling, beam_column=s.beam_column,
                         gravity=sc.gravity, gauges=sc.gauges, axial_force=s.axial_force)
-        n = int(round(360.0 / settings.step_deg))
+        kind = settings.model or s.model
+        if kind not in ("full", "reduced"):
+            raise ScenarioError(f"fast model: model must be 'full' or 'reduced', got {kind!r}")
+        if kind == "reduced":
+            from tmm_core.reduced import ReducedOptions
+            options = ReducedOptions(modes=s.modes)
+            n = options.steps
+        else:
+            n = int(round(360.0 / settings.step_deg))
+        out["model"] = kind
         w = sc.drive.speed_rad_s
         if "model.drive_inertia" in model:
             crank, info = free_wheel(base, w, model["model.drive_inertia"], n, start_angle=sc.drive.start_angle_rad,
                                      gravity=sc.gravity, applied=mech if laws else None)
             out["speed_fluctuation"] = info["speed_fluctuation"]
         else:
-            crank = CrankMotion.constant_speed(w, step_deg=settings.step_deg, revolutions=1.0,
+            crank = CrankMotion.constant_speed(w, step_deg=360.0 / n, revolutions=1.0,
                                                start_angle=sc.drive.start_angle_rad)
-        outs, revs, change = steady_march(td, crank, settings.tolerance, settings.max_revolutions)
+        if kind == "reduced":
+            from tmm_core.reduced_periodic import periodic_steady_state_reduced
+            p = periodic_steady_state_reduced(td, crank=crank, options=options)
+            angles = p.angle
+            outs = np.column_stack([p.drive_torque] + [np.column_stack(p.gauges[g.name]) for g in sc.gauges])
+            revs, change = 1, p.residual
+        else:
+            outs, revs, change = steady_march(td, crank, settings.tolerance, settings.max_revolutions)
+            angles = crank.angle[1:]
     except (TMMError, FloatingPointError, np.linalg.LinAlgError) as exc:
         out.update(error=f"{type(exc).__name__}: {exc}", wall_time_s=time.perf_counter() - tic)
         return out
     grid = np.arange(settings.n_grid) * 360.0 / settings.n_grid
-    a = np.mod(np.degrees(crank.angle[1:]), 360.0)
+    a = np.mod(np.degrees(angles), 360.0)
     order = np.argsort(a)
     out.update(status="completed" if change < settings.tolerance else "not steady", revolutions=revs, change=change,
                angle_deg=grid.tolist(), gauges={}, peaks={}, wall_time_s=time.perf_counter() - tic)

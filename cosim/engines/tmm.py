@@ -38,6 +38,11 @@ class TMMEngine:
         """Start at crank ``angle`` [rad] and ``speed`` [rad/s] at ``t0`` [s]. The drive's inertia
         stays with the motor (the crank motion is prescribed), so ``drive_inertia_kg_m2`` is unused."""
         s = scenario.tmm
+        if s.model == "reduced":
+            # The reduced model (tmm_core.reduced) solves the periodic steady state; it has no
+            # incremental march behind this protocol (motor drives, co-simulation, node output).
+            raise EngineError("tmm: solver.tmm.model = \"reduced\" is for periodic solves (cosim sweep, uncertainty, "
+                              "identify); a time-marching run needs model = \"full\" (or drop the key)")
         self.scenario = scenario
         self.td = TimeDomain(scenario.mechanism, integrator=s.integrator, coupling=s.coupling,
                              beam_column=s.beam_column, gravity=scenario.gravity, gauges=scenario.gauges,

@@ -1,0 +1,145 @@
+"""The reduced transfer-matrix model (tmm_core.reduced): link modes plus a static correction.
+
+Every expected value comes from the full transfer-matrix model (its frequency search, its
+periodic steady state) or from a closed form, never from the reduced code itself."""
+import math
+
+import numpy as np
+import pytest
+
+from cosim.scenario import ScenarioError, load
+from cosim.units import FOOT, INCH, PSI, SLUG
+from tmm_core import Joint, Material, Member, Section, Structure, TimeDomain
+from tmm_core.frequencies import frequency_model, natural_frequencies
+from tmm_core.periodic import periodic_steady_state
+from tmm_core.reduced import ReducedOptions, build_basis, reduced_frequencies
+from tmm_core.reduced_periodic import periodic_steady_state_reduced
+
+ALU = Material("aluminium", 10.3e6 * PSI, 5.292 * SLUG / FOOT**3)
+STRIP = Section.rectangle(INCH, 0.125 * INCH)
+
+
+def _time_domain(sc, **kw):
+    s = sc.tmm
+    args = dict(integrator=s.integrator, coupling=s.coupling, beam_column=s.beam_column, gravity=sc.gravity,
+                gauges=sc.gauges, axial_force=s.axial_force)
+    args.update(kw)
+    return TimeDomain(sc.mechanism, **args)
+
+
+@pytest.mark.parametrize("load_factor", [0.0, -0.4, 0.6])
+def test_reduced_modes_reproduce_the_tmm_frequencies_under_a_constant_axial_load(load_factor):
+    """A pinned-pinned 12 in strip of 8 segments with the lumped masses of the time domain, under a
+    constant axial load (a fraction of its Euler load; compression negative): the reduced model's
+    frequencies (three modes, geometric stiffness linear in the axial force) against the TMM's own
+    exact frequency search of the same lumped model (Wittrick-Williams, beam-column field matrices)."""
+    L, n = 12 * INCH, 8
+    EI = ALU.E_Pa * STRIP.inertia_m4
+    P = load_factor * math.pi**2 * EI / L**2
+    beam = Member.uniform("beam", "A", "B", L, n, STRIP, ALU)
+    structure = Structure((Joint("A", "pinned"), Joint("B", "pinned")), (beam,))
+    joints = {"A": np.zeros(2), "B": np.array([L, 0.0])}
+    seg_mass = ALU.density_kg_m3 * STRIP.area_m2 * L / n
+    lumped = np.full(n + 1, seg_mass)
+    lumped[[0, -1]] = 0.5 * seg_mass
+    got = reduced_frequencies(structure, joints, {"beam": lumped}, 3, {"beam": np.full(n, P)})[:3]
+    massless = Material("massless", ALU.E_Pa, 0.0)
+    tmm = Structure(structure.joints, (Member.uniform("beam", "A", "B", L, n, STRIP, massless),))
+    model = frequency_model(tmm, joints, 2 * np.pi * 5000, point_mass={"beam": lumped},
+                            axial_force={"beam": np.full(n, P)})
+    expected = natural_frequencies(model, 3, 2 * np.pi * 5000)
+    np.testing.assert_allclose(got, expected, rtol=2e-3)
+    # And the lumped model's first mode is the closed form of the beam-column within its lumping error.
+    mu = ALU.density_kg_m3 * STRIP.area_m2
+    closed = (math.pi / L) ** 2 * math.sqrt(EI / mu) * math.sqrt(1 + load_factor) / (2 * math.pi)
+    assert got[0] == pytest.approx(closed, rel=2e-2)
+
+
+def test_basis_is_admissible_and_its_stiffness_is_the_links():
+    """On the FE rig (no springs) the basis stiffness W^T F W equals T^T K T of the links' own
+    segment stiffness (the full model's), at every grid position."""
+    sc = load("crank_rocker_241rpm").with_overrides({"solver.tmm.segments": 4})
+    td = _time_domain(sc)
+    b = build_basis(td, 0.0, ReducedOptions(modes=3, positions=24, mode_positions=6))
+    K = td.K_local.toarray()
+    TKT = np.einsum("jnr,nm,jms->jrs", b.T, K, b.T)
+    np.testing.assert_allclose(b.K, TKT, rtol=1e-7, atol=1e-7 * np.max(np.abs(b.K)))
+
+
+def _worst_peak_error(red, ref):
+    return max(abs(v / ref[g][i] - 1) for g, (bend, _) in red.gauges.items()
+               for i, v in enumerate((bend.max(), bend.min())))
+
+
+def test_peak_error_against_the_full_periodic_state_falls_as_modes_are_added():
+    """FE rig at 373 rpm, 4 segments per link, linear theory: the reduced model's +/- bending peaks
+    against the full TMM's periodic steady state at 0.25 deg. Measured: 1 mode 0.96 %, 2 modes
+    0.28 %, 4 modes 0.26 % (the rest is the full model's own step error)."""
+    sc = load("crank_rocker_373rpm").with_overrides({"solver.tmm.segments": 4})
+    td = _time_domain(sc, beam_column=False)
+    full = periodic_steady_state(td, sc.drive.speed_rad_s, step_deg=0.25)
+    ref = {g: (bend.max(), bend.min()) for g, (bend, _) in full.gauges.items()}
+    errors = []
+    for modes in (1, 2, 4):
+        options = ReducedOptions(modes=modes)
+        red = periodic_steady_state_reduced(td, sc.drive.speed_rad_s, options=options)
+        errors.append(_worst_peak_error(red, ref))
+    assert errors[0] > 2 * errors[1]
+    assert errors[2] <= errors[1] + 1e-4
+    assert errors[2] < 0.005
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("scenario", ["crank_rocker_241rpm", "crank_rocker_373rpm"])
+def test_reduced_peaks_within_one_percent_of_the_full_tmm_at_the_default_mode_count(scenario):
+    """The issue's check: the FE rig (rigid crank) at the scenario's default physics (8 segments,
+    second-order axial force, rotating-frame terms): the reduced model at its default mode count
+    against the full TMM's periodic steady state, every +/- bending peak within 1 %. The full TMM
+    runs at 0.25 deg: at the scenarios' 0.5 deg its own 373 rpm coupler + peak is 0.9 % below its
+    0.25 deg answer (1744 against 1760 microstrain), and the reduced model (1767) is 1.35 % from it
+    (measured; README, "Reduced model"). Measured against 0.25 deg: at most 0.4 % at 373 rpm and
+    0.4 % at 241 rpm."""
+    sc = load(scenario)
+    td = _time_domain(sc)
+    full = periodic_steady_state(td, sc.drive.speed_rad_s, step_deg=0.25)
+    ref = {g: (bend.max(), bend.min()) for g, (bend, _) in full.gauges.items()}
+    red = periodic_steady_state_reduced(td, sc.drive.speed_rad_s, options=ReducedOptions(modes=sc.tmm.modes))
+    assert _worst_peak_error(red, ref) < 0.01
+
+
+# -- scenario settings ----------------------------------------------------------------------------
+def test_scenario_selects_the_reduced_model_and_refuses_bad_values():
+    sc = load("crank_rocker_241rpm").with_overrides({"solver.tmm.model": "reduced", "solver.tmm.modes": 4})
+    assert (sc.tmm.model, sc.tmm.modes) == ("reduced", 4)
+    assert load("crank_rocker_241rpm").tmm.model == "full"
+    with pytest.raises(ScenarioError, match="solver.tmm.model"):
+        load("crank_rocker_241rpm").with_overrides({"solver.tmm.model": "modal"})
+    with pytest.raises(ScenarioError, match="solver.tmm.modes"):
+        load("crank_rocker_241rpm").with_overrides({"solver.tmm.modes": 4})
+    with pytest.raises(ScenarioError, match="solver.tmm.modes"):
+        load("crank_rocker_241rpm").with_overrides({"solver.tmm.model": "reduced", "solver.tmm.modes": 0})
+    with pytest.raises(ScenarioError, match="quasi_static"):
+        load("crank_rocker_241rpm").with_overrides({"solver.tmm.model": "reduced",
+                                                     "solver.tmm.axial_force": "quasi_static"})
+
+
+def test_time_marching_engine_refuses_the_reduced_model():
+    from cosim.engines.base import EngineError
+    from cosim.engines.tmm import TMMEngine
+    sc = load("crank_rocker_241rpm").with_overrides({"solver.tmm.model": "reduced"})
+    with pytest.raises(EngineError, match="reduced"):
+        TMMEngine().reset(sc, 0.0, 0.0, sc.drive.speed_rad_s)
+
+
+def test_fast_model_of_bands_uses_the_reduced_model_when_asked():
+    """cosim.unknowns.solve with the scenario's model = "reduced": the same peaks as the marched
+    full model of the same settings within 2.5 % (4 segments; measured 1.9 % on the rocker + peak, of which
+    about 1 % is the marched model's own 0.5 deg step error: README, "Reduced model")."""
+    from cosim.unknowns import Settings, solve
+    sc = load("crank_rocker_241rpm")
+    full = solve(sc, {}, Settings(model="full"))
+    red = solve(sc.with_overrides({"solver.tmm.model": "reduced"}), {})
+    assert (full["model"], red["model"], red["status"]) == ("full", "reduced", "completed")
+    for g, p in full["peaks"].items():
+        for k in ("bending_max_ue", "bending_min_ue"):
+            assert red["peaks"][g][k] == pytest.approx(p[k], rel=0.025), (g, k)

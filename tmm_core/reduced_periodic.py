@@ -1,0 +1,331 @@
+"""Reduced transfer-matrix model: the equations on the basis, their propagator and the periodic
+steady state by shooting (the basis is :mod:`tmm_core.reduced`).
+
+With ``q = T(theta) eta`` the Galerkin equations in the coordinates ``eta`` (r of them) are::
+
+    M_r eta'' + C_r eta' + K_r eta + N(eta, eta') = f_r
+    M_r = T^T M T
+    C_r = T^T (2 M T' theta' + (D + C_K + G_c) T)
+    K_r = W^T F W + T^T (M (T'' theta'^2 + T' theta'') + (D + C_K + G_c) T' theta' + K_c T)
+    N   = sum_s P_s T^T E_s^T G_s E_s T eta + F_s (T_end,u - T_start,u)          (second order)
+    f_r = T^T f(theta, theta', theta'')
+
+(symbols as in :mod:`tmm_core.reduced`; all of them at the crank state of the instant). ``N`` is
+the second-order beam of the full model's default (``axial_force = 'dynamic'``): the segment
+axial force ``P_s = EA/L (e + beta e') + F_s`` from the elongation ``e`` of the segment's nodes
+and the shortening force ``F_s = EA/L (Delta + beta Delta')``, ``Delta = 1/2 d^T G d``, i.e. the
+geometric stiffness is linear in the axial force and the axial force is the step's own (the
+quasi-static part is in the static correction, so it needs no separate estimate). With
+``axial_force = 'none'`` (linear theory) ``N = 0`` and the model is linear time-periodic.
+
+Propagator: the 3-stage Radau IIA collocation (order 5, L-stable: the stiff axial content of the
+static correction is damped as generalized-alpha damps it in the full model), at a fixed number of
+steps per revolution chosen for accuracy; each step solves its stage equations by Newton with
+the exact Jacobian. The step's Jacobian with respect to the state is exact too, so the product
+over a revolution is the monodromy matrix of the discrete map. Periodic shooting: the linear
+part gives the first guess in one linear solve ``(I - Phi) x0 = c``; Newton on ``x_N(x0) = x0``
+(state ``x = (eta, eta')``, 2r) then handles the axial-force term.
+
+Outputs per step: gauge bending and axial strain [-] (the axial strain with the shortening from
+bending, as the full model reports it) and the drive torque [N m, CCW +] from the loads on the
+instantaneous structure (D'Alembert, elastic inertia, rotating-frame and mass-proportional
+damping terms; the second-order terms' share of the reactions is left out).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from scipy.interpolate import CubicHermiteSpline
+from scipy.linalg import lu_factor, lu_solve
+
+from .errors import ConvergenceError, InputError
+from .ked import CrankMotion, rigid_body_loads
+from .periodic import PeriodicResult
+from .reduced import ReducedBasis, ReducedOptions, build_basis, geometric_matrices
+
+_S6 = math.sqrt(6.0)
+#: Radau IIA, 3 stages: Butcher matrix and nodes.
+RADAU_A = np.array([[(88 - 7 * _S6) / 360, (296 - 169 * _S6) / 1800, (-2 + 3 * _S6) / 225],
+                    [(296 + 169 * _S6) / 1800, (88 + 7 * _S6) / 360, (-2 - 3 * _S6) / 225],
+                    [(16 - _S6) / 36, (16 + _S6) / 36, 1.0 / 9.0]])
+CHORD_RATE = 0.25      # keep the monodromy while the shooting residual falls at least this fast
+RADAU_C = np.array([(4 - _S6) / 10, (4 + _S6) / 10, 1.0])
+
+
+class ReducedModel:
+    """The reduced equations at the stage points of a crank history (one period).
+
+    ``td``: the :class:`tmm_core.TimeDomain` whose physics is reduced (mass model, damping,
+    coupling, axial-force model, gravity, gauges). ``crank``: one period of the crank history
+    (N + 1 samples, the last one revolution after the first). ``basis``: from
+    :func:`tmm_core.reduced.build_basis` (geometry only: it may serve every speed)."""
+
+    def __init__(self, td, crank: CrankMotion, basis: ReducedBasis):
+        if any(link.viscoelastic is not None for link in td.links):
+            raise InputError("the reduced model does not carry viscoelastic (standard-linear-solid) links; use "
+                             "solver.tmm.model = 'full'")
+        if td.axial_force == "quasi_static":
+            raise InputError("the reduced model carries the step's own axial force (axial_force 'dynamic', the "
+                             "default) or none (beam_column = false); axial_force 'quasi_static' needs "
+                             "solver.tmm.model = 'full'")
+        if td.axial_force == "dynamic" and set(td.dynamic_terms) != {"shortening", "axial_force"}:
+            raise InputError("the reduced model carries both second-order terms or neither")
+        self.td, self.basis = td, basis
+        self.nonlinear = td.axial_force == "dynamic"
+        N = len(crank.t) - 1
+        self.N, self.h = N, crank.dt
+        # Stage crank states: Hermite interpolation of the samples (exact for constant speed).
+        t = np.asarray(crank.t) - crank.t[0]
+        ts = (t[:-1, None] + RADAU_C[None, :] * self.h).ravel()
+        self.stage_time = crank.t[0] + ts
+        th = CubicHermiteSpline(t, crank.angle, crank.speed)(ts)
+        w = CubicHermiteSpline(t, crank.speed, crank.acceleration)(ts)
+        al = np.interp(ts, t, crank.acceleration)
+        self.stage_angle = th
+        self._stages(th, w, al)
+
+    def _stages(self, th, w, al):
+        td, b = self.td, self.basis
+        sT, sK, sO = b.splines()
+        x = b.angles[0] + np.mod(th - b.angles[0], 2 * np.pi)
+        T, T1, T2 = sT(x), sT(x, 1), sT(x, 2)
+        Td = T1 * w[:, None, None]
+        Tdd = T2 * (w**2)[:, None, None] + T1 * al[:, None, None]
+        m = td.m_vec
+        mech = td.mech
+        motion = mech.motion(th, w, al)
+        cp = td.coupling
+        om = np.stack([np.concatenate([np.full(3 * l.n_nodes, 1.0) * motion.link(l.name).omega[p]
+                                       for l in td.links]) for p in range(len(th))]) if cp.any else None
+        alpha = np.stack([np.concatenate([np.full(3 * l.n_nodes, 1.0) * motion.link(l.name).alpha[p]
+                                          for l in td.links]) for p in range(len(th))]) if cp.any else None
+        Kl = td.K_local.toarray()
+        bn = td.beta_node
+        iu = np.arange(0, td.n_dof, 3)
+
+        def damp(X, p_om):
+            """(D + C_K + G_c) X for X (P, n, r)."""
+            out = (m * td.aM_vec)[None, :, None] * X + bn[None, :, None] * np.einsum("ij,pjr->pir", Kl, X)
+            if cp.coriolis:
+                c = 2.0 * m[None, :] * p_om
+                out[:, iu] -= c[:, iu, None] * X[:, iu + 1]
+                out[:, iu + 1] += c[:, iu + 1, None] * X[:, iu]
+            return out
+
+        Mr = np.einsum("pnr,n,pns->prs", T, m, T)
+        Cr = np.einsum("pnr,pns->prs", T, 2.0 * m[None, :, None] * Td + damp(T, om))
+        KX = m[None, :, None] * Tdd + damp(Td, om)
+        if cp.centrifugal:
+            KX = KX - (m[None, :] * om**2)[:, :, None] * T
+        if cp.angular_acceleration:
+            c = m[None, :] * alpha
+            KX[:, iu] -= c[:, iu, None] * T[:, iu + 1]
+            KX[:, iu + 1] += c[:, iu + 1, None] * T[:, iu]
+        Kr = sK(x) + np.einsum("pnr,pns->prs", T, KX)
+        f = td.stack(rigid_body_loads(mech, motion, td.gravity, frame="local"))
+        self.T, self.Td, self.Tdd, self.Mr, self.Cr, self.Kr = T, Td, Tdd, Mr, Cr, Kr
+        self.fr = np.einsum("pnr,pn->pr", T, f)
+        # Drive torque at the stage points: the reaction part per unit load, the rigid crank's part.
+        self.torque_map = sO(x)
+        _, _, offset = mech.drive_torque_terms(motion, td.gravity)
+        self.torque_offset = np.broadcast_to(np.asarray(offset, dtype=float), th.shape)
+        self.f, self.om, self.alpha = f, om, alpha
+        seg = td.segments
+        self.k, self.beta, self.G = seg.stiffness, seg.beta, geometric_matrices(seg.length)
+        wdofs = np.stack([seg.start + 1, seg.start + 2, seg.end + 1, seg.end + 2], axis=1)
+        self.Ed, self.Edd = T[:, wdofs], Td[:, wdofs]                     # (P, n_seg, 4, r)
+        self.GEd = self.G[None] @ self.Ed
+        self.A2 = RADAU_A @ RADAU_A
+        self.stage_acc = None                  # stage accelerations of the last revolution (guesses)
+        self.a, self.ad = T[:, seg.end] - T[:, seg.start], Td[:, seg.end] - Td[:, seg.start]
+        # Gauge segments (for the shortening part of the axial strain).
+        seg_offset = np.cumsum([0] + [l.total_segments for l in td.links])
+        names = [l.name for l in td.links]
+        self.gauge_segment = np.array([seg_offset[names.index(g.link)] + int(np.clip(
+            np.searchsorted(td.links[names.index(g.link)].stations, g.position_m, side="right") - 1, 0,
+            td.links[names.index(g.link)].total_segments - 1)) for g in td.gauges], dtype=int)
+
+    # -- the second-order term -----------------------------------------------------------------
+    def second_order(self, P, eta, v, jacobian=True):
+        """``N``, ``dN/deta``, ``dN/deta'`` at the stage points ``P`` (k,) for ``eta, v`` (k, r), and
+        ``(P_s, Delta)`` per segment (k, n_seg): batched matrix products over the stages."""
+        Ed, GEd, Edd, a, ad = self.Ed[P], self.GEd[P], self.Edd[P], self.a[P], self.ad[P]
+        k, beta = self.k, self.beta
+        col = lambda x: x[:, None, :, None]  # noqa: E731  (k, r) -> (k, 1, r, 1) against (k, s, 4, r)
+        d = (Ed @ col(eta))[..., 0]                                   # (k, s, 4)
+        dd = (Ed @ col(v) + Edd @ col(eta))[..., 0]
+        Gd = (GEd @ col(eta))[..., 0]
+        delta = 0.5 * np.sum(d * Gd, axis=-1)                         # (k, s)
+        rate = np.sum(dd * Gd, axis=-1)
+        F = k * (delta + beta * rate)
+        e = (a @ eta[:, :, None])[..., 0]
+        ed = (a @ v[:, :, None] + ad @ eta[:, :, None])[..., 0]
+        Pax = k * (e + beta * ed) + F
+        b = (np.swapaxes(GEd, -1, -2) @ d[..., None])[..., 0]          # dDelta/deta (k, s, r)
+        aT = np.swapaxes(a, 1, 2)
+        N = (np.swapaxes(b, 1, 2) @ Pax[..., None] + aT @ F[..., None])[..., 0]
+        if not jacobian:
+            return N, None, None, Pax, delta
+        # dDelta'/deta = Edd^T G d + Ed^T G dd ; G dd = GEd v + G Edd eta
+        rate_eta = (np.swapaxes(Edd, -1, -2) @ Gd[..., None])[..., 0] + \
+            (np.swapaxes(GEd, -1, -2) @ dd[..., None])[..., 0]
+        F_eta = k[:, None] * (b + beta[:, None] * rate_eta)
+        F_v = (k * beta)[:, None] * b
+        P_eta = k[:, None] * (a + beta[:, None] * ad) + F_eta
+        P_v = (k * beta)[:, None] * a + F_v
+        ns, r = Ed.shape[1], Ed.shape[-1]
+        H = np.swapaxes((Ed * Pax[..., None, None]).reshape(len(P), 4 * ns, r), 1, 2) @ GEd.reshape(len(P), 4 * ns, r)
+        bT = np.swapaxes(b, 1, 2)
+        return N, bT @ P_eta + H + aT @ F_eta, bT @ P_v + aT @ F_v, Pax, delta
+
+    # -- one step ----------------------------------------------------------------------------
+    def step(self, n, eta, v, acc, nonlinear, jacobian=True, tol=1e-10, iterations=25):
+        """Radau IIA step ``n`` from ``(eta, eta')`` with a guess ``acc`` (3, r) of the stage
+        accelerations: ``(eta, eta')`` at its end, the stage accelerations and the step's Jacobian
+        ``S`` (2r, 2r) with respect to ``(eta, eta')`` (from the last Newton matrix; None unless
+        ``jacobian``)."""
+        r = len(eta)
+        h, A, A2, c = self.h, RADAU_A, self.A2, RADAU_C
+        P = 3 * n + np.arange(3)
+        Mr, Cr, Kr, fr = self.Mr[P], self.Cr[P], self.Kr[P], self.fr[P]
+        for it in range(iterations):
+            vs = v[None] + h * A @ acc
+            es = eta[None] + h * c[:, None] * v[None] + h * h * A2 @ acc
+            res = (Mr @ acc[..., None] + Cr @ vs[..., None] + Kr @ es[..., None])[..., 0] - fr
+            Ce, Ke = Cr, Kr
+            if nonlinear:
+                Nn, N_e, N_v, _, _ = self.second_order(P, es, vs)
+                res, Ce, Ke = res + Nn, Cr + N_v, Kr + N_e
+            J = (h * A[:, :, None, None] * Ce[:, None] + h * h * A2[:, :, None, None] * Ke[:, None])
+            J[np.arange(3), np.arange(3)] += Mr
+            lu = lu_factor(J.transpose(0, 2, 1, 3).reshape(3 * r, 3 * r), check_finite=False)
+            dacc = lu_solve(lu, -res.ravel(), check_finite=False).reshape(3, r)
+            acc = acc + dacc
+            if not nonlinear or np.max(np.abs(dacc)) <= tol * (np.max(np.abs(acc)) + 1e-300):
+                break
+        else:
+            raise ConvergenceError(f"reduced model: the stage equations of step {n} did not converge "
+                                   f"(crank angle {math.degrees(float(self.stage_angle[3 * n + 2])):.6g} deg)")
+        eta1, v1 = eta + h * v + h * h * A2[2] @ acc, v + h * A[2] @ acc
+        if not jacobian:
+            return eta1, v1, acc, None
+        R = np.concatenate([Ke, Ce + h * c[:, None, None] * Ke], axis=2).reshape(3 * r, 2 * r)
+        dA = -lu_solve(lu, R, check_finite=False).reshape(3, r, 2 * r)
+        S = np.zeros((2 * r, 2 * r))
+        S[:r, :r] = np.eye(r)
+        S[:r, r:] = h * np.eye(r)
+        S[r:, r:] = np.eye(r)
+        S[:r] += h * h * np.tensordot(A2[2], dA, 1)
+        S[r:] += h * np.tensordot(A[2], dA, 1)
+        return eta1, v1, acc, S
+
+    def revolution(self, x0, nonlinear, outputs=False, jacobian=True):
+        """March one period from ``x0 = (eta, eta')``: ``(x_N, monodromy or None, outputs or None)``."""
+        r = len(x0) // 2
+        eta, v = x0[:r].copy(), x0[r:].copy()
+        guess = self.stage_acc
+        if guess is None:
+            guess = np.zeros((self.N, 3, r))
+            guess[0] = np.linalg.solve(self.Mr[0], self.fr[0] - self.Cr[0] @ v - self.Kr[0] @ eta)
+        mono = np.eye(2 * r) if jacobian else None
+        outs = np.zeros((self.N, 3, 1 + 2 * len(self.td.gauges))) if outputs else None
+        h, A, A2 = self.h, RADAU_A, self.A2
+        accs = np.empty((self.N, 3, r))
+        for n in range(self.N):
+            start = guess[n] if self.stage_acc is not None or n == 0 else np.repeat(accs[n - 1][2:], 3, 0)
+            eta0, v0 = eta, v
+            eta, v, accs[n], S = self.step(n, eta, v, start, nonlinear, jacobian)
+            if outputs:
+                # Dense output: the collocation solution at the three stage points of the step.
+                vs = v0[None] + h * A @ accs[n]
+                es = eta0[None] + h * RADAU_C[:, None] * v0[None] + h * h * A2 @ accs[n]
+                for i in range(3):
+                    outs[n, i] = self.outputs(3 * n + i, es[i], vs[i], accs[n][i], nonlinear)
+            if jacobian:
+                mono = S @ mono
+        self.stage_acc = accs
+        return np.concatenate([eta, v]), mono, None if outs is None else outs.reshape(3 * self.N, -1)
+
+    def outputs(self, p, eta, v, acc, nonlinear):
+        """Drive torque and gauge strains at stage point ``p`` (step ``p // 3``)."""
+        td = self.td
+        T, Td, Tdd = self.T[p], self.Td[p], self.Tdd[p]
+        q, qd, qdd = T @ eta, T @ v + Td @ eta, T @ acc + 2 * Td @ v + Tdd @ eta
+        m = td.m_vec
+        load = self.f[p] - m * (qdd + td.aM_vec * qd)
+        cp, iu = td.coupling, np.arange(0, td.n_dof, 3)
+        if cp.coriolis:
+            c = 2.0 * m * self.om[p]
+            load[iu] += c[iu] * qd[iu + 1]
+            load[iu + 1] -= c[iu + 1] * qd[iu]
+        if cp.centrifugal:
+            load = load + m * self.om[p] ** 2 * q
+        if cp.angular_acceleration:
+            c = m * self.alpha[p]
+            load[iu] += c[iu] * q[iu + 1]
+            load[iu + 1] -= c[iu + 1] * q[iu]
+        strains = self.basis.gauge_maps @ q                          # (n_g, 2)
+        if nonlinear and len(self.gauge_segment):
+            _, _, _, _, delta = self.second_order(np.array([p]), eta[None], v[None], jacobian=False)
+            strains[:, 1] += delta[0, self.gauge_segment] / td.segments.length[self.gauge_segment]
+        return np.concatenate([[self.torque_map[p] @ load + self.torque_offset[p]], strains.ravel()])
+
+
+def periodic_steady_state_reduced(td, speed_rad_s: float | None = None, *, crank: CrankMotion | None = None,
+                                  start_angle: float = 0.0, options: ReducedOptions = ReducedOptions(),
+                                  basis: ReducedBasis | None = None, newton_tolerance: float = 1e-9,
+                                  newton_iterations: int = 20) -> PeriodicResult:
+    """Periodic steady revolution of the reduced model of ``td`` at constant ``speed_rad_s``
+    (``options.steps`` steps per revolution) or over one period of a periodic ``crank`` history
+    (N + 1 samples; its samples are the steps). Returns a :class:`tmm_core.periodic.PeriodicResult`
+    (outputs at the 3 collocation points of each step, 3N samples: the continuous solution, so that
+    sampling does not clip sharp peaks; Floquet multipliers of the reduced model, the residual of a
+    revolution marched from the periodic state). ``basis``: reuse one (it depends on the
+    geometry only); else built from ``options``."""
+    if crank is None:
+        if not speed_rad_s:
+            raise InputError("reduced model: give a non-zero crank speed or a crank history")
+        crank = CrankMotion.constant_speed(speed_rad_s, step_deg=360.0 / options.steps, revolutions=1.0,
+                                           start_angle=start_angle)
+    else:
+        turn = abs(crank.angle[-1] - crank.angle[0])
+        if abs(turn - 2 * math.pi) > 1e-9 * 2 * math.pi:
+            raise InputError("reduced model: the crank history must span exactly one revolution")
+    if basis is None:
+        basis = build_basis(td, float(crank.angle[0]), options)
+    model = ReducedModel(td, crank, basis)
+    r = basis.size
+    x_lin, mono, _ = model.revolution(np.zeros(2 * r), False)
+    x0 = np.linalg.solve(np.eye(2 * r) - mono, x_lin)
+    info = {"model": "reduced", "size": r, "modes": basis.n_modes, "static": basis.n_static, "steps_per_revolution":
+            model.N, "dt_s": model.h}
+    it, outs = 0, None
+    if model.nonlinear:
+        # Newton shooting; the monodromy (the dear part: a multi-column solve per step) is kept while
+        # the residual falls by a factor 4 per iteration (chord steps) and recomputed otherwise.
+        jac, fresh, last = mono, False, math.inf
+        for it in range(1, newton_iterations + 1):
+            xN, m_new, outs = model.revolution(x0, True, outputs=True, jacobian=not fresh and it > 1)
+            if m_new is not None:
+                jac, mono, fresh = m_new, m_new, True
+            if not np.all(np.isfinite(xN)):
+                raise ConvergenceError("reduced model: Newton shooting left the range of the model")
+            residual = float(np.max(np.abs(xN - x0)) / max(np.max(np.abs(x0)), 1e-300))
+            if residual < newton_tolerance:
+                break
+            if residual > CHORD_RATE * last:
+                fresh = False
+            last = residual
+            x0 = x0 + np.linalg.solve(np.eye(2 * r) - jac, xN - x0)
+        else:
+            raise ConvergenceError(f"reduced model: Newton shooting did not converge in {newton_iterations} "
+                                   f"iterations (last relative residual {residual:.3g})")
+        info["newton_iterations"] = it
+    else:
+        xN, _, outs = model.revolution(x0, False, outputs=True, jacobian=False)
+        residual = float(np.max(np.abs(xN - x0)) / max(np.max(np.abs(x0)), 1e-300))
+    mult = np.linalg.eigvals(mono)
+    mult = mult[np.argsort(-np.abs(mult))]
+    gauges = {g.name: (outs[:, 1 + 2 * i], outs[:, 2 + 2 * i]) for i, g in enumerate(td.gauges)}
+    return PeriodicResult(model.stage_time, model.stage_angle, outs[:, 0], gauges, mult, residual, info)
