@@ -47,6 +47,7 @@ from .errors import InputError
 from .ked import rigid_body_loads
 from .mechanism import torque_from_terms
 from .post import gauge_strains
+from .second_order import geometric_matrices
 from .structure import LoadCase, factorize, solve_factored
 
 #: Default number of link modes (chosen from the accuracy study, README "Reduced model").
@@ -199,15 +200,6 @@ def instantaneous_modes(Z: np.ndarray, m: np.ndarray, count: int):
     if np.any(lam <= 0):
         raise InputError("reduced model: fewer massive modes than requested (lower solver.tmm.modes)")
     return 1.0 / np.sqrt(lam), psi
-
-
-def geometric_matrices(L) -> np.ndarray:
-    """Consistent geometric-stiffness matrices ``G`` (n_seg, 4, 4) of cubic segments of length
-    ``L`` [m] on ``(w0, theta0, w1, theta1)`` (the same ``G`` as :mod:`tmm_core.second_order`)."""
-    L = np.asarray(L, dtype=float)[:, None, None]
-    base = np.array([[36.0, 3.0, -36.0, 3.0], [3.0, 4.0, -3.0, -1.0], [-36.0, -3.0, 36.0, -3.0], [3.0, -1.0, -3.0, 4.0]])
-    powers = np.array([[0, 1, 0, 1], [1, 2, 1, 2], [0, 1, 0, 1], [1, 2, 1, 2]])
-    return base * L ** powers / (30.0 * L)
 
 
 def segment_dofs(seg) -> np.ndarray:

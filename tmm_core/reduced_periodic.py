@@ -42,7 +42,8 @@ from scipy.linalg import lu_factor, lu_solve
 from .errors import ConvergenceError, InputError
 from .ked import CrankMotion, rigid_body_loads
 from .periodic import PeriodicResult
-from .reduced import ReducedBasis, ReducedOptions, build_basis, geometric_matrices
+from .reduced import ReducedBasis, ReducedOptions, build_basis
+from .second_order import geometric_matrices
 
 _S6 = math.sqrt(6.0)
 #: Radau IIA, 3 stages: Butcher matrix and nodes.

@@ -92,8 +92,9 @@ def pseudo_loads(seg: Segments, z: np.ndarray, v: np.ndarray, P: np.ndarray, P0:
     return f, F, delta
 
 
-def _segment_matrices(L):
-    """The consistent geometric-stiffness shape matrices ``G`` ``(n_seg, 4, 4)``."""
+def geometric_matrices(L):
+    """Consistent geometric-stiffness matrices ``G`` (n_seg, 4, 4) of cubic segments of length
+    ``L`` [m] on ``(w0, theta0, w1, theta1)``."""
     L = np.asarray(L, dtype=float)[:, None, None]
     base = np.array([[36.0, 3.0, -36.0, 3.0], [3.0, 4.0, -3.0, -1.0], [-36.0, -3.0, 36.0, -3.0], [3.0, -1.0, -3.0, 4.0]])
     powers = np.array([[0, 1, 0, 1], [1, 2, 1, 2], [0, 1, 0, 1], [1, 2, 1, 2]])
@@ -111,7 +112,7 @@ def linearization(seg: Segments, n: int, c_v: float, z, v, P, P0):
     (``h`` the velocity history): ``f_z`` (n, n), ``f_P`` (n, n_seg), ``f_h`` (n, n),
     ``F_z`` (n_seg, n), ``F_h`` (n_seg, n)."""
     ns = len(seg.length)
-    G = _segment_matrices(seg.length)
+    G = geometric_matrices(seg.length)
     idx = _dof_index(seg)
     d, vd = z[idx], v[idx]                                 # (n_seg, 4)
     a = np.einsum("sij,sj->si", G, d)                      # G d
