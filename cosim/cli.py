@@ -147,6 +147,9 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--records", type=Path, metavar="DIR",
                    help="score against the records in DIR (<name>.csv + <name>.toml each, format in "
                         "cosim/records.py) instead of the shipped scenarios/records")
+    r.add_argument("--max-hours", type=float, metavar="H",
+                   help="refuse a run whose estimated wall time exceeds H hours (default 2; the estimate is "
+                        "steps x mesh size per engine, made before anything runs)")
     from .recording.options import add_viewer_arguments
     add_viewer_arguments(r, "run.rrd", run=True)
     _verbosity_arguments(r)
@@ -252,6 +255,8 @@ def _dispatch(parser, args) -> int:
         return 0
     if args.command == "run":
         return run_main(args.scenario, args)
+    if args.command in ("sweep", "uncertainty"):
+        _refuse_structure(args.scenario, args.command)
     if args.command == "sweep":
         from .sweep import parse_rpm, run_sweep
         rpm = parse_rpm(args.rpm)
@@ -296,6 +301,15 @@ def _dispatch(parser, args) -> int:
     return 0
 
 
+def _refuse_structure(scenario: str, command: str) -> None:
+    """A structure held at one position has no speed: ``sweep`` and ``uncertainty`` refuse it."""
+    from .scenario import load
+    sc = load(scenario)
+    if getattr(sc, "kind", None) == "structure":
+        raise ValueError(f"scenario '{scenario}' is a structure held at one position (linkage.type = 'structure'): "
+                         f"it has no crank speed, so `cosim {command}` cannot run it; use `cosim run {scenario}`")
+
+
 def compare_main(folder) -> int:
     """``cosim compare``: the folder's own table; a summary that cannot be read or shown is one
     ``error:`` line and exit 2, never a traceback."""
@@ -331,13 +345,15 @@ def run_main(scenario: str, args=None) -> int:
         print(summary_table(summary))
         print(f"\nwritten to {folder}")
         return 0
-    engines = _engines(args.engines) if args.engines else sc.output.engines
+    engines = _engines(args.engines) if args.engines is not None else sc.output.engines
+    from .run_guards import MAX_HOURS
+    max_hours = MAX_HOURS if getattr(args, "max_hours", None) is None else args.max_hours
     options = RunOptions(engines=engines, mode=args.drive, revolutions=args.revolutions, out=args.out,
                          viewer="none" if viewer is None else viewer.viewer,
                          connect_url=None if viewer is None else viewer.url, save_path=save,
                          viewer_timeout_s=5.0 if viewer is None else viewer.timeout_s, exaggeration=args.exaggeration,
                          linkage_fps=args.linkage_fps, animation=args.animation, progress=not _quiet(args),
-                         records=args.records)
+                         records=args.records, max_hours=max_hours)
     result = run_scenario(sc, options)
     out = sys.stderr if viewer is not None and viewer.stdout else sys.stdout     # --stdout: the .rrd
     print(comparison_table(result.summary), file=out)

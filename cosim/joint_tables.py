@@ -1,7 +1,8 @@
-"""The ``[springs.*]`` and ``[loads.*]`` tables shared by the structure and linkage scenario
-formats: read once, with the loader's error messages (file, key, value).
+"""The ``[joints.*]`` positions, joint references, and the ``[springs.*]`` and ``[loads.*]``
+tables shared by the structure and linkage scenario formats: read once, with the loader's error
+messages (file, key, value).
 
-Owns: reading those tables into :class:`tmm_core.structure.Spring` s and load vectors. Where a
+Owns: joint positions and references, springs and load vectors. Where a
 load lands on a member's nodes is each format's own business (a structure places it by joint or
 along a link, a linkage at the flexible link ending at the joint).
 """
@@ -12,11 +13,32 @@ import numpy as np
 from tmm_core.structure import Spring
 
 
+def joint_position(r, d: dict, key: str) -> np.ndarray:
+    """A joint's ``position = ["x", "y"]`` [m] (a list of two lengths)."""
+    pos = r.unwrap(d["position"], f"{key}.position")
+    if not isinstance(pos, list) or len(pos) != 2:
+        raise r.fail(f"{key}.position", "must be a list of two coordinates", pos)
+    return np.array([r.quantity(p, f"{key}.position[{i}]", "m") for i, p in enumerate(pos)])
+
+
+def joint_checker(r, names):
+    """``joint_ref(value, key)``: the joint named by ``value``, refused naming the key unless it
+    is one of ``names``."""
+    names = set(names)
+
+    def joint_ref(value, key):
+        value = r.unwrap(value, key)
+        if not isinstance(value, str) or value not in names:
+            raise r.fail(key, f"unknown joint (joints: {', '.join(sorted(names))})", value)
+        return value
+    return joint_ref
+
+
 def read_springs(r, top: dict, joint_ref) -> list:
     """Springs between two different joints: ``between``, ``stiffness`` [N/m], ``free_length`` [m].
     ``joint_ref(value, key)`` checks a joint name."""
     springs = []
-    for name, d in r.table(top.get("springs", {}), "springs", set(top.get("springs", {}))).items():
+    for name, d in r.names(top.get("springs", {}), "springs").items():
         key = f"springs.{name}"
         d = r.table(d, key, {"between", "stiffness", "free_length"}, {"between", "stiffness", "free_length"})
         ends = r.unwrap(d["between"], f"{key}.between")
@@ -34,7 +56,7 @@ def read_loads(r, top: dict, keys: set, required: set = frozenset()):
     """Each ``[loads.<name>]`` as ``(key, table, vector)``: the table checked against ``keys``
     (``required`` among them) and the vector ``[Fx N, Fy N, M N m]`` (force default zero, a list
     of two components; moment default zero)."""
-    for name, d in r.table(top.get("loads", {}), "loads", set(top.get("loads", {}))).items():
+    for name, d in r.names(top.get("loads", {}), "loads").items():
         key = f"loads.{name}"
         d = r.table(d, key, keys, required)
         f = r.unwrap(d.get("force", ["0 N", "0 N"]), f"{key}.force")

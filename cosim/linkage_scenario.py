@@ -105,8 +105,8 @@ from tmm_core import Damping, Link, PointMass, TMMError
 from tmm_core.linkage import (MODULE_KINDS, GuidedSlider, LinkageKinematics, LinkageMechanism, Module, Plate,
                               carrier_link, polygon_properties)
 
-from .joint_tables import read_loads, read_springs
-from .scenario_reader import G0
+from .joint_tables import joint_checker, joint_position, read_loads, read_springs
+from .scenario_reader import G0, MAX_SEGMENTS
 
 SUPPORTS = ("free", "pinned", "slider")
 REVOLUTION_CHECK = 1440
@@ -132,17 +132,14 @@ def build_mechanism(r, top: dict, materials: dict, sections: dict, viscos: dict,
     crank_zero = r.quantity(lk.get("crank_zero", "0 deg"), "linkage.crank_zero", "rad")
 
     # -- joints ---------------------------------------------------------------------------------
-    joints_raw = r.table(top.get("joints", {}), "joints", set(top.get("joints", {})))
+    joints_raw = r.names(top.get("joints", {}), "joints")
     if not joints_raw:
         raise r.fail("joints", "a linkage needs [joints.<name>] tables (positions in the drawn configuration)")
     positions, support, slide_dir, block_mass = {}, {}, {}, {}
     for name, d in joints_raw.items():
         key = f"joints.{name}"
         d = r.table(d, key, {"position", "support", "direction", "mass", "weight"}, {"position"})
-        pos = r.unwrap(d["position"], f"{key}.position")
-        if not isinstance(pos, list) or len(pos) != 2:
-            raise r.fail(f"{key}.position", "must be a list of two coordinates", pos)
-        positions[name] = np.array([r.quantity(p, f"{key}.position[{i}]", "m") for i, p in enumerate(pos)])
+        positions[name] = joint_position(r, d, key)
         support[name] = r.number(d.get("support", "free"), f"{key}.support", choices=SUPPORTS)
         if support[name] == "slider":
             slide_dir[name] = r.quantity(d.get("direction", "0 deg"), f"{key}.direction", "rad")
@@ -152,18 +149,12 @@ def build_mechanism(r, top: dict, materials: dict, sections: dict, viscos: dict,
             if support[name] != "slider":
                 raise r.fail(f"{key}.mass", "only a slider joint carries a block mass (put other masses on links)")
             block_mass[name] = mass_reader(d, key)
-    jnames = set(positions)
-
-    def joint_ref(value, key):
-        value = r.unwrap(value, key)
-        if not isinstance(value, str) or value not in jnames:
-            raise r.fail(key, f"unknown joint (joints: {', '.join(sorted(jnames))})", value)
-        return value
+    joint_ref = joint_checker(r, positions)
 
     ground = {j for j, s in support.items() if s == "pinned"}
 
     # -- links ----------------------------------------------------------------------------------
-    links_raw = r.table(top["links"], "links", set(top["links"]))
+    links_raw = r.names(top["links"], "links")
     if crank_name not in links_raw:
         raise r.fail("linkage.crank", f"unknown link (links: {', '.join(sorted(links_raw))})", crank_name)
     paths, welded, link_data = {}, {}, {}
@@ -197,7 +188,7 @@ def build_mechanism(r, top: dict, materials: dict, sections: dict, viscos: dict,
                      crank_path)
 
     # -- slider blocks on moving guides ------------------------------------------------------------
-    sliders_raw = r.table(top.get("sliders", {}), "sliders", set(top.get("sliders", {})))
+    sliders_raw = r.names(top.get("sliders", {}), "sliders")
     guided_specs = []
     for name, d in sliders_raw.items():
         key = f"sliders.{name}"
@@ -251,7 +242,7 @@ def build_mechanism(r, top: dict, materials: dict, sections: dict, viscos: dict,
         bodies[bname] = tuple(js)
 
     # -- plates ---------------------------------------------------------------------------------
-    plates_raw = r.table(top.get("plates", {}), "plates", set(top.get("plates", {})))
+    plates_raw = r.names(top.get("plates", {}), "plates")
     plate_specs = []
     for name, d in plates_raw.items():
         key = f"plates.{name}"
@@ -318,8 +309,9 @@ def build_mechanism(r, top: dict, materials: dict, sections: dict, viscos: dict,
         key = f"modules[{i}]"
         m = r.table(m, key, {"type", "joint", "link", "links", "branch"}, {"type"})
         kind = r.number(m["type"], f"{key}.type", choices=MODULE_KINDS)
-        names = ([r.text(m["link"], f"{key}.link")] if "link" in m else
-                 list(r.unwrap(m.get("links", []), f"{key}.links")))
+        names = [r.text(m["link"], f"{key}.link")] if "link" in m else r.unwrap(m.get("links", []), f"{key}.links")
+        if not isinstance(names, list) or not all(isinstance(n, str) for n in names):
+            raise r.fail(f"{key}.links", "must be a list of link names", names)
         want = {"rrr": 2, "prp": 0}.get(kind, 1)
         if len(names) != want:
             raise r.fail(f"{key}.{'links' if kind == 'rrr' else 'link'}",
@@ -385,6 +377,8 @@ def build_mechanism(r, top: dict, materials: dict, sections: dict, viscos: dict,
             raise r.fail(f"{key}.material", f"unknown material (defined: {', '.join(sorted(materials)) or 'none'})",
                          mat_name)
         n = r.number(d.get("segments", segments), f"{key}.segments", int, positive=True)
+        if n > MAX_SEGMENTS:
+            raise r.fail(f"{key}.segments", f"must be at most {MAX_SEGMENTS}", n)
         rigid = r.number(d.get("rigid", False), f"{key}.rigid", bool)
         if rigid and (name != crank_name or len(route) != 2):
             raise r.fail(f"{key}.rigid", "only a binary crank can be rigid (the transfer-matrix model welds it to its "

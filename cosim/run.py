@@ -32,7 +32,6 @@ from __future__ import annotations
 
 import logging
 import math
-import signal
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -45,11 +44,12 @@ from .master import CoSimulation, InputError
 from .metrics import last_revolution, revolutions_completed, run_change
 from .runlog import run_folder, write_json
 from .scenario import Scenario, load, resolved
+from .interrupts import Interrupts, mark_interrupted
+from .run_guards import MAX_HOURS, check_cost, plausibility_notes
 from .traces import TraceWriter
 
 SUMMARY_EVERY_S = 2.0
 log = logging.getLogger(__name__)
-
 
 @dataclass
 class RunOptions:
@@ -67,6 +67,7 @@ class RunOptions:
     progress: bool = True
     records: Path | None = None          # records directory (default: the shipped scenarios/records)
     figures: bool = True                 # strains.png/.svg in the run folder
+    max_hours: float = MAX_HOURS         # refuse a run estimated to take longer (estimate_cost)
 
 
 @dataclass
@@ -76,11 +77,6 @@ class RunResult:
     result: object = None                # cosim.master.CoSimResult
     notes: list = field(default_factory=list)
     recorder: object = None              # the closed recorder (``serve_until_interrupted`` with viewer 'serve')
-
-
-def _on_sigterm(signum, frame):
-    # The master ends a run cleanly on KeyboardInterrupt, keeping its results.
-    raise KeyboardInterrupt(f"signal {signum}")
 
 
 def last_revolution_stats(run, period: float | None = None, t0: float = 0.0) -> dict:
@@ -169,6 +165,9 @@ def run_scenario(scenario, options: RunOptions = RunOptions(), callback=None) ->
     if not (isinstance(revolutions, (int, float)) and math.isfinite(revolutions) and revolutions > 0):
         raise InputError(f"revolutions must be a positive finite number, got {revolutions!r}")
     duration = cosim.duration_for(revolutions)
+    if not (isinstance(options.max_hours, (int, float)) and options.max_hours > 0):
+        raise InputError(f"max_hours (--max-hours) must be a positive number of hours, got {options.max_hours!r}")
+    cost = check_cost(sc, list(engines), duration, cosim.macro_step_s, options.max_hours)
     if options.records is not None:       # a bad user records directory is refused before the run
         from .records import records_for
         records_for(sc, Path(options.records))
@@ -182,6 +181,7 @@ def run_scenario(scenario, options: RunOptions = RunOptions(), callback=None) ->
                "engines_requested": list(options.engines), "revolutions": revolutions,
                "until_steady": until_steady, "steady_tolerance": sc.output.steady_tolerance,
                "duration_s": duration, "macro_step_s": cosim.macro_step_s,
+               "estimate": {"wall_time_s": cost["seconds"], "trace_bytes": cost["bytes"]},
                "coupling": {"scheme": cosim.coupling.scheme, "extrapolation": cosim.coupling.extrapolation}
                if mode == "motor" else None,
                "started": time.strftime("%Y-%m-%dT%H:%M:%S"), "progress": 0.0,
@@ -204,8 +204,13 @@ def run_scenario(scenario, options: RunOptions = RunOptions(), callback=None) ->
                    bar_format="{desc}: {percentage:3.0f}%|{bar}| {elapsed}<{remaining}")
     last_write = [time.monotonic()]
     failures = {}
+    written_t = [None]
+    interrupts = Interrupts()
+
     def on_step(step):
+        interrupts.check()              # a signal an engine swallowed: this macro step is not written
         writer.write_step(step.outputs)
+        written_t[0] = step.t
         if recorder[0] is not None:
             if not stations[0]:         # the engines are reset now and know their meshes
                 recorder[0].set_stations({n: e.node_stations() for n, e in engines.items() if _has_stations(e)})
@@ -222,11 +227,14 @@ def run_scenario(scenario, options: RunOptions = RunOptions(), callback=None) ->
             last_write[0] = time.monotonic()
         return callback(step) if callback is not None else None
 
-    previous = signal.signal(signal.SIGTERM, _on_sigterm)
     status, result = None, None
     try:
-        result = cosim.run(duration, callback=on_step, until_steady=until_steady)
+        with interrupts:
+            result = cosim.run(duration, callback=on_step, until_steady=until_steady)
         status = result.status
+        if interrupts.signal is not None:
+            mark_interrupted(result, written_t[0], failures)
+            status = result.status
         if status == "interrupted":
             notes.append("interrupted by the user or a signal; the files hold every completed macro step")
     except KeyboardInterrupt:          # during set-up, before the master's loop
@@ -237,7 +245,6 @@ def run_scenario(scenario, options: RunOptions = RunOptions(), callback=None) ->
             recorder[0].close()
         raise
     finally:
-        signal.signal(signal.SIGTERM, previous)
         writer.close()
         if bar is not None:
             bar.close()
@@ -256,6 +263,10 @@ def run_scenario(scenario, options: RunOptions = RunOptions(), callback=None) ->
         if unsteady:
             notes.append(f"not steady: {', '.join(unsteady)} (the last two revolutions differ by more than "
                          f"{100 * sc.output.steady_tolerance:.2g} %); its peaks are a transient, not a steady state")
+        implausible = plausibility_notes(sc, summary)
+        for text in implausible:
+            log.warning(text)
+        notes += implausible
         try:
             score_records(sc, result, summary, recorder[0], options.records)
             if options.records is not None:
@@ -277,7 +288,12 @@ def run_scenario(scenario, options: RunOptions = RunOptions(), callback=None) ->
     for name in engines:
         summary["engines"].setdefault(name, {"status": "interrupted"})
     _finish_exports(exports, engines, result, folder, summary, notes, options)
-    if writer.columns is not None:
+    if writer.columns is not None and status == "interrupted":
+        # Stop promptly (a signal asks for it): traces.csv is the run's file, which cosim.load_run
+        # reads; the parquet copy and the figure are not made.
+        notes.append("traces.parquet and the strain figure are not written for an interrupted run "
+                     "(cosim.load_run reads traces.csv)")
+    elif writer.columns is not None:
         _write_results(folder, sc, summary, notes, options)
     if notes:
         summary["notes"] = notes

@@ -30,11 +30,20 @@ def __getattr__(name):
 
 def run_folder(name: str, out: Path | None = None) -> Path:
     """``out`` or ``./logs/<name>-<timestamp>`` (created). Two runs started in the same second get
-    distinct folders (``-2``, ``-3`` ...) rather than writing into each other."""
+    distinct folders (``-2``, ``-3`` ...) rather than writing into each other; an ``out`` that
+    already holds a run (its ``summary.json``) is refused, and ``name`` must be a plain name (no
+    path: the folder stays under ``./logs``)."""
     if out is not None:
         folder = Path(out)
+        if folder.exists() and not folder.is_dir():
+            raise FileExistsError(f"{folder}: exists and is not a folder; give another --out")
+        if (folder / "summary.json").exists():
+            raise FileExistsError(f"{folder}: holds another run (its summary.json); give a new folder with --out, "
+                                  "or remove that one")
         folder.mkdir(parents=True, exist_ok=True)
         return folder
+    if not name or Path(name).name != name or name in (".", "..") or "\\" in name:
+        raise ValueError(f"run folder name {name!r} must be a plain name, not a path")
     stem = log_root() / f"{name}-{time.strftime('%Y%m%d-%H%M%S')}"
     for k in range(1, 1000):
         folder = stem if k == 1 else stem.with_name(f"{stem.name}-{k}")

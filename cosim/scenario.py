@@ -58,7 +58,10 @@ of every engine's step.
 """
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import math
+import re
 import tomllib
 from pathlib import Path
 
@@ -74,6 +77,9 @@ from .scenario_types import (Assumption, CouplingSettings, DriveSpec, ExudynSett
                              OutputSettings, Scenario, ScenarioError, TMMSettings)
 from .units import UREG  # noqa: F401
 
+if TYPE_CHECKING:
+    from .structure_scenario import StaticScenario
+
 SCENARIO_DIR = Path(__file__).resolve().parent.parent / "scenarios"
 
 
@@ -83,7 +89,7 @@ SCENARIO_DIR = Path(__file__).resolve().parent.parent / "scenarios"
 LINKAGE_TYPES = ("four-bar", "slider-crank", "linkage", "structure")
 
 
-def load(path_or_name) -> Scenario:
+def load(path_or_name) -> "Scenario | StaticScenario":
     """Load a scenario from a path or from the name of a file in ``scenarios/``; a loaded
     :class:`Scenario` (a variant made with ``with_overrides``) is returned as it is."""
     if isinstance(path_or_name, Scenario):
@@ -94,33 +100,62 @@ def load(path_or_name) -> Scenario:
     if not path.exists():
         available = ", ".join(scenario_names())
         raise ScenarioError(f"scenario '{path_or_name}' not found (file {path}); available: {available}")
+    if path.is_dir():
+        raise ScenarioError(f"scenario '{path_or_name}': is a folder, not a scenario file")
     data = _read_with_bases(path, [])
     return from_dict(data, str(path), default_name=path.stem)
 
 
-def _read_with_bases(path: Path, chain: list) -> dict:
+#: The largest scenario file read (a scenario is a few kB; a wrong path must not be read whole).
+MAX_FILE_BYTES = 1_000_000
+
+
+def _read_with_bases(path: Path, chain: list, root: Path | None = None) -> dict:
     """Parse a scenario file; ``extends = "base/name"`` (relative to the file, ``.toml`` optional)
     merges the file over its base (tables merge key by key, other values replace), so a rig is
-    written once and each test speed only states what differs."""
+    written once and each test speed only states what differs.
+
+    Where a base may be: a ``.toml`` file named by a relative path, inside the folder of the
+    scenario that was loaded or its parent (``extends = "../base/rig"`` from a folder of speed
+    files), or a shipped base or scenario (under ``scenarios/``, also by its absolute path). Any
+    other absolute path, or one that climbs higher, is refused; a file that is not a scenario is
+    never echoed in a message."""
     if path.resolve() in chain:
         raise ScenarioError(f"scenario '{path}': 'extends' loops back ({' -> '.join(str(p) for p in chain)})")
+    if root is None:
+        root = path.resolve().parent.parent
     try:
+        if path.stat().st_size > MAX_FILE_BYTES:
+            raise ScenarioError(f"scenario '{path}': larger than {MAX_FILE_BYTES // 1000} kB; not a scenario file")
         data = tomllib.loads(path.read_text(encoding="utf-8"))
     except tomllib.TOMLDecodeError as exc:
         raise ScenarioError(f"scenario '{path}': not valid TOML: {exc}") from None
+    except UnicodeDecodeError:
+        raise ScenarioError(f"scenario '{path}': not a UTF-8 text file (save it as UTF-8; UTF-16 and other "
+                            "encodings are not read)") from None
     except OSError as exc:
         raise ScenarioError(f"scenario '{path}': cannot be read ({exc.strerror})") from None
     base = data.pop("extends", None)
     if base is None:
         return data
-    if not isinstance(base, str):
+    if not isinstance(base, str) or not base.strip():
         raise ScenarioError(f"scenario '{path}': key 'extends' = {base!r}: must be the name of a base file")
-    base_path = path.parent / base
-    if not base_path.suffix:
-        base_path = base_path.with_suffix(".toml")
-    if not base_path.exists():
+    rel = Path(base)
+    shipped_file = rel.is_absolute() and rel.resolve().is_relative_to(SCENARIO_DIR)    # a shipped scenario's path
+    if (rel.is_absolute() and not shipped_file) or rel.suffix not in ("", ".toml"):
+        raise ScenarioError(f"scenario '{path}': key 'extends' = {base!r}: must name a .toml scenario by a path "
+                            "relative to this file (e.g. 'base/rig' or '../base/rig'), or a shipped base")
+    base_path = (path.parent / rel).with_suffix(".toml")
+    shipped = (SCENARIO_DIR / rel).with_suffix(".toml")
+    if not base_path.exists() and shipped.exists() and ".." not in rel.parts:
+        base_path = shipped
+    resolved_base = base_path.resolve()
+    if not (resolved_base.is_relative_to(root) or resolved_base.is_relative_to(SCENARIO_DIR)):
+        raise ScenarioError(f"scenario '{path}': key 'extends' = {base!r}: leads outside {root} (a base must lie "
+                            "in the scenario's folder or the one above it, or be a shipped base)")
+    if not base_path.is_file():
         raise ScenarioError(f"scenario '{path}': key 'extends' = {base!r}: no file {base_path}")
-    return _merge(_read_with_bases(base_path, chain + [path.resolve()]), data)
+    return _merge(_read_with_bases(base_path, chain + [path.resolve()], root), data)
 
 
 def _merge(base: dict, over: dict) -> dict:
@@ -135,17 +170,21 @@ def scenario_names() -> list:
     return sorted(p.stem for p in SCENARIO_DIR.glob("*.toml"))
 
 
-def from_dict(data: dict, path: str = "<dict>", default_name: str = "scenario") -> Scenario:
-    """Build a :class:`Scenario` from parsed TOML data (``path`` is only used in messages)."""
+def from_dict(data: dict, path: str = "<dict>", default_name: str = "scenario") -> "Scenario | StaticScenario":
+    """Build a scenario from parsed TOML data (``path`` is only used in messages): a
+    :class:`Scenario` for a mechanism in motion (``kind`` 'four-bar', 'slider-crank' or 'linkage',
+    its ``mechanism`` of the matching type), a :class:`cosim.structure_scenario.StaticScenario`
+    for a ``type = "structure"`` held at one position."""
     r = Reader(path)
     top = r.table(data, "", {"scenario", "linkage", "materials", "sections", "links", "drive", "gravity", "gauges",
                              "solver", "output", "motor", "coupling", "joints", "plates", "springs", "sliders",
                              "loads", "uncertainty", "modules"}, {"linkage", "links"})
     meta = r.table(top.get("scenario", {}), "scenario", {"name", "description", "sources", "rig"})
+    sc_name, description, sources, rig = _meta(r, meta, default_name)
     solver = r.table(top.get("solver", {}), "solver", {"tmm", "exudyn", "mujoco"})
     tmm = rd.tmm_settings(r, solver.get("tmm", {}))
 
-    mats_raw = r.table(top.get("materials", {}), "materials", set(top.get("materials", {})))
+    mats_raw = r.names(top.get("materials", {}), "materials")
     materials = {k: rd.material(r, k, v) for k, v in mats_raw.items()}
     viscos = {}
     for k, v in mats_raw.items():
@@ -155,7 +194,7 @@ def from_dict(data: dict, path: str = "<dict>", default_name: str = "scenario") 
                 raise r.fail(f"materials.{k}.E", "must equal viscoelastic.instantaneous_modulus for a viscoelastic "
                                                  "material", v["E"])
             viscos[k] = sls
-    secs_raw = r.table(top.get("sections", {}), "sections", set(top.get("sections", {})))
+    secs_raw = r.names(top.get("sections", {}), "sections")
     sections = {k: rd.section(r, k, v) for k, v in secs_raw.items()}
 
     kind = r.number(r.table(top["linkage"], "linkage", set(top["linkage"]))["type"] if isinstance(top["linkage"], dict)
@@ -181,7 +220,7 @@ def from_dict(data: dict, path: str = "<dict>", default_name: str = "scenario") 
         raise r.fail("linkage", f"the crank cannot turn a full revolution: {exc}") from None
 
     gauges = []
-    for name, g in r.table(top.get("gauges", {}), "gauges", set(top.get("gauges", {}))).items():
+    for name, g in r.names(top.get("gauges", {}), "gauges").items():
         gk = f"gauges.{name}"
         gd = r.table(g, gk, {"link", "position", "face"}, {"link", "position"})
         link, pos = gauge_link(gk, gd)
@@ -196,7 +235,8 @@ def from_dict(data: dict, path: str = "<dict>", default_name: str = "scenario") 
 
     ex = r.table(solver.get("exudyn", {}), "solver.exudyn", {"elements", "step", "spectral_radius", "newton_tolerance"})
     exudyn = ExudynSettings(
-        r.number(ex.get("elements", 8), "solver.exudyn.elements", int, positive=True),
+        _at_most(r, r.number(ex.get("elements", 8), "solver.exudyn.elements", int, positive=True),
+                 "solver.exudyn.elements", rd.MAX_SEGMENTS),
         rd.step(r, ex.get("step", "1e-4 s"), "solver.exudyn.step"),
         r.number(ex.get("spectral_radius", 0.9), "solver.exudyn.spectral_radius"),
         r.number(ex.get("newton_tolerance", 1e-6), "solver.exudyn.newton_tolerance", positive=True))
@@ -218,17 +258,99 @@ def from_dict(data: dict, path: str = "<dict>", default_name: str = "scenario") 
                             r.number(out.get("max_revolutions", 30.0), "output.max_revolutions", positive=True),
                             r.quantity(out.get("steady_tolerance", "0.5 %"), "output.steady_tolerance", "",
                                        positive=True))
+    if not output.steady_tolerance < 1:
+        raise r.fail("output.steady_tolerance", "must be below 100 % (revolutions that differ by more are not "
+                                                "steady)", out["steady_tolerance"])
     motor = read_motor(r, top["motor"], drive, mech) if "motor" in top else None
     if drive.mode == "motor" and motor is None:
         raise r.fail("drive.mode", "needs a [motor] table", "motor")
     coupling = rd.coupling(r, top.get("coupling", {}))
-    sources = meta.get("sources", [])
+    _check_stiffness(r, top, mech, drive)
+    if "uncertainty" in top:
+        _check_uncertainty(r, top["uncertainty"], path)
+    return Scenario(sc_name, description, Path(path) if path != "<dict>" else None, sources, mech, drive,
+                    tuple(gauges), gravity, tmm, exudyn, mujoco, output, tuple(r.assumptions), data, motor, coupling,
+                    rig)
+
+
+def _at_most(r: Reader, value, key: str, limit):
+    if value > limit:
+        raise r.fail(key, f"must be at most {limit}", value)
+    return value
+
+
+#: A scenario's name names its run folders: a plain identifier, never a path.
+NAME_PATTERN = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]{0,99}$")
+
+
+def _meta(r: Reader, meta: dict, default_name: str):
+    """``(name, description, sources, rig)`` of the ``[scenario]`` table, each checked: the name
+    is a plain identifier (it names the run folder: no path, no ``..``)."""
+    if "name" in meta:
+        name = r.text(meta["name"], "scenario.name")
+    else:                       # the file's name, made plain ("my rig.toml" -> "my_rig")
+        name = re.sub(r"[^A-Za-z0-9_.-]", "_", str(default_name)).strip("._-")[:100] or "scenario"
+    if not NAME_PATTERN.match(name) or ".." in name:
+        raise r.fail("scenario.name",
+                     "must be a plain name of letters, digits, '_', '-' and '.' (it names the run folder; no path)",
+                     name)
+    description = r.text(meta.get("description", ""), "scenario.description")
+    sources = r.unwrap(meta.get("sources", []), "scenario.sources")
     if isinstance(sources, str):
         sources = [sources]
-    return Scenario(str(meta.get("name", default_name)), str(meta.get("description", "")),
-                    Path(path) if path != "<dict>" else None, tuple(sources), mech, drive, tuple(gauges), gravity,
-                    tmm, exudyn, mujoco, output, tuple(r.assumptions), data, motor, coupling,
-                    str(meta["rig"]) if "rig" in meta else None)
+    if not isinstance(sources, list) or not all(isinstance(x, str) for x in sources):
+        raise r.fail("scenario.sources", "must be a string or a list of strings", sources)
+    rig = r.text(meta["rig"], "scenario.rig") if "rig" in meta else None
+    return name, description, tuple(sources), rig
+
+
+def _check_stiffness(r: Reader, top: dict, mech, drive) -> None:
+    """Refuse a link far too soft for any linkage (a modulus or section written in the wrong unit):
+    its first bending frequency (pinned-pinned span) below the crank's turning frequency, where
+    the transfer matrices of the turning link overflow. Names the material's modulus."""
+    speed = abs(drive.speed_rad_s)
+    links = getattr(mech, "links", None)
+    if not speed or links is None:
+        return
+    for link in links():
+        if link.rigid:
+            continue
+        m = link.section.area_m2 * link.material.density_kg_m3
+        EI = link.material.E_Pa * link.section.inertia_m4
+        if not m > 0:
+            continue
+        omega1 = (math.pi / link.length_m) ** 2 * math.sqrt(EI / m)      # first bending mode [rad/s]
+        if omega1 < speed:
+            raise r.fail(f"materials.{link.material.name}.E",
+                         f"the {link.name} is far too soft for a linkage: its first bending frequency "
+                         f"{omega1 / (2 * math.pi):.3g} Hz lies below the crank's {speed / (2 * math.pi):.3g} Hz "
+                         "(check the modulus, the section and their units)",
+                         rd.peek(top.get("materials", {}).get(link.material.name, {}).get("E", link.material.E_Pa)))
+
+
+_UNCERTAINTY_KEYS = {"samples", "seed", "parameters", "identify", "morris_trajectories"}
+_UNKNOWN_KEYS = {"keys", "distribution", "unit", "low", "high", "mean", "std", "values", "rationale", "assumption",
+                 "source"}
+
+
+def _check_uncertainty(r: Reader, data, path: str) -> None:
+    """The ``[uncertainty]`` table's keys at load (every command, ``run`` too); its values are
+    read by :func:`cosim.unknowns.declared`, which names the key."""
+    u = r.table(data, "uncertainty", _UNCERTAINTY_KEYS)
+    for k in ("samples", "seed", "morris_trajectories"):
+        if k in u and (isinstance(u[k], bool) or not isinstance(u[k], int) or (k != "seed" and u[k] <= 0)):
+            raise r.fail(f"uncertainty.{k}", "must be a plain " + ("integer" if k == "seed" else "positive integer"),
+                         u[k])
+    if "identify" in u and not (isinstance(u["identify"], list) and all(isinstance(x, str) for x in u["identify"])):
+        raise r.fail("uncertainty.identify", "must be a list of the names of declared unknowns", u["identify"])
+    if "parameters" not in u:
+        return
+    params = r.names(u["parameters"], "uncertainty.parameters")
+    for name, d in params.items():
+        r.table(d, f"uncertainty.parameters.{name}", _UNKNOWN_KEYS, {"keys", "distribution"})
+    if params:
+        from .unknowns import declared
+        declared({"uncertainty": u}, path)
 
 
 def _main_loop(r: Reader, top: dict, kind: str, materials: dict, sections: dict, viscos: dict, segments: int):

@@ -19,6 +19,14 @@ from .scenario_types import (Assumption, CouplingSettings, DriveSpec, ScenarioEr
 from .units import UREG, has_number, quantity as parse_quantity
 
 G0 = 9.80665           # standard gravity [m/s^2], for weights written in force units
+#: Magnitudes a value may have in SI units: beyond them no rig is meant and the arithmetic of
+#: masses, inertias and stiffnesses (d**4, E*I, ...) overflows or underflows.
+MAX_MAGNITUDE, MIN_MAGNITUDE = 1e20, 1e-30
+#: A mesh finer than this is refused at load (its arrays alone would not fit; the run's cost is
+#: estimated and refused separately, cosim.run.estimate_cost).
+MAX_SEGMENTS = 10_000
+#: A modal damping ratio at or above critical (100 %) is refused.
+MAX_DAMPING_RATIO = 1.0
 
 
 class Reader:
@@ -39,8 +47,9 @@ class Reader:
         unknown = set(data) - allowed - {"assumption", "source"}
         if unknown:
             bad = sorted(unknown)[0]
-            raise self.fail(f"{key}.{bad}" if key else bad, f"unknown key (allowed: {', '.join(sorted(allowed))})",
-                            data[bad])
+            # The key is named, its value never shown: a file that is not a scenario (a wrong
+            # 'extends') must not have its content echoed.
+            raise self.fail(f"{key}.{bad}" if key else bad, f"unknown key (allowed: {', '.join(sorted(allowed))})")
         missing = required - set(data)
         if missing:
             raise self.fail(f"{key}.{sorted(missing)[0]}" if key else sorted(missing)[0], "is required")
@@ -48,6 +57,11 @@ class Reader:
             self.assumptions.append(Assumption(key, short({k: v for k, v in data.items() if k != "assumption"}),
                                                str(data["assumption"])))
         return data
+
+    def names(self, data, key: str) -> dict:
+        """A table of named entries (``[materials.*]``, ``[gauges.*]``): a table, or a message
+        naming the key (a scalar written in its place)."""
+        return self.table(data, key, set(data) if isinstance(data, dict) else set())
 
     def unwrap(self, value, key):
         if isinstance(value, dict) and "value" in value:
@@ -86,10 +100,17 @@ class Reader:
             except pint.DimensionalityError:
                 raise self.fail(key, f"has the wrong dimension: expected {target.dimensionality}, got "
                                      f"{parsed.dimensionality}", raw) from None
+            except (OverflowError, ZeroDivisionError, TypeError, ValueError):
+                raise self.fail(key, "is not a number with a unit that can be converted (too large, or not a "
+                                     "number)", raw) from None
         else:
             raise self.fail(key, f"must be a quantity in {unit}", raw)
         if not math.isfinite(q):
             raise self.fail(key, "must be finite", raw)
+        if abs(q) > MAX_MAGNITUDE or 0 < abs(q) < MIN_MAGNITUDE:
+            raise self.fail(key, f"is {q:.3g} {unit or '(dimensionless)'} in SI units, outside "
+                                 f"{MIN_MAGNITUDE:g}..{MAX_MAGNITUDE:g}: no rig is that size (check the number and "
+                                 "its unit)", raw)
         if positive and q <= 0:
             raise self.fail(key, "must be positive", raw)
         if nonnegative and q < 0:
@@ -111,6 +132,10 @@ class Reader:
             return raw
         elif isinstance(raw, bool) or not isinstance(raw, (int, float)):
             raise self.fail(key, "must be a number", raw)
+        if isinstance(raw, float) and not math.isfinite(raw):
+            raise self.fail(key, "must be finite", raw)
+        if abs(raw) > MAX_MAGNITUDE:
+            raise self.fail(key, f"must be at most {MAX_MAGNITUDE:g} in magnitude", raw)
         if positive and raw <= 0:
             raise self.fail(key, "must be positive", raw)
         return kind(raw)
@@ -148,8 +173,12 @@ def material(r: Reader, name, data) -> Material:
         opt["endurance_limit_Pa"] = r.quantity(d["endurance_limit"], f"{key}.endurance_limit", "Pa", positive=True)
     if "poisson" in d:
         opt["poisson"] = r.number(d["poisson"], f"{key}.poisson")
-    return Material(name, r.quantity(d["E"], f"{key}.E", "Pa", positive=True),
-                    r.quantity(d["density"], f"{key}.density", "kg/m**3", nonnegative=True), **opt)
+    E = r.quantity(d["E"], f"{key}.E", "Pa", positive=True)
+    density = r.quantity(d["density"], f"{key}.density", "kg/m**3", positive=True)
+    try:
+        return Material(name, E, density, **opt)
+    except TMMError as exc:
+        raise r.fail(key, str(exc)) from None
 
 
 def viscoelastic(r: Reader, name, data):
@@ -158,9 +187,13 @@ def viscoelastic(r: Reader, name, data):
     key = f"materials.{name}.viscoelastic"
     d = r.table(data["viscoelastic"], key, {"instantaneous_modulus", "relaxed_modulus", "relaxation_time"},
                 {"instantaneous_modulus", "relaxed_modulus", "relaxation_time"})
-    return StandardLinearSolid(r.quantity(d["instantaneous_modulus"], f"{key}.instantaneous_modulus", "Pa", True),
-                               r.quantity(d["relaxed_modulus"], f"{key}.relaxed_modulus", "Pa", True),
-                               r.quantity(d["relaxation_time"], f"{key}.relaxation_time", "s", True))
+    values = (r.quantity(d["instantaneous_modulus"], f"{key}.instantaneous_modulus", "Pa", True),
+              r.quantity(d["relaxed_modulus"], f"{key}.relaxed_modulus", "Pa", True),
+              r.quantity(d["relaxation_time"], f"{key}.relaxation_time", "s", True))
+    try:
+        return StandardLinearSolid(*values)
+    except TMMError as exc:
+        raise r.fail(key, str(exc)) from None
 
 
 def section(r: Reader, name, data) -> Section:
@@ -170,11 +203,19 @@ def section(r: Reader, name, data) -> Section:
     if "width" in d:
         if "area" in d or "inertia" in d:
             raise r.fail(key, "give either width or area and inertia, not both")
-        return Section.rectangle(r.quantity(d["width"], f"{key}.width", "m", positive=True), depth)
+        width = r.quantity(d["width"], f"{key}.width", "m", positive=True)
+        try:
+            return Section.rectangle(width, depth)
+        except TMMError as exc:
+            raise r.fail(key, str(exc)) from None
     if "area" not in d or "inertia" not in d:
         raise r.fail(f"{key}.width", "is required (or give both area and inertia)")
-    return Section(r.quantity(d["area"], f"{key}.area", "m**2", positive=True),
-                   r.quantity(d["inertia"], f"{key}.inertia", "m**4", positive=True), depth)
+    area = r.quantity(d["area"], f"{key}.area", "m**2", positive=True)
+    inertia = r.quantity(d["inertia"], f"{key}.inertia", "m**4", positive=True)
+    try:
+        return Section(area, inertia, depth)
+    except TMMError as exc:
+        raise r.fail(key, str(exc)) from None
 
 
 def lookup(r, table, name, key, what):
@@ -190,7 +231,14 @@ def damping(r: Reader, data, key) -> Damping:
             raise r.fail(key, "give either ratio and frequency or Rayleigh stiffness/mass coefficients")
         if "frequency" not in d:
             raise r.fail(f"{key}.frequency", "is required with a damping ratio (the frequency it holds at)")
-        ratio = r.quantity(d["ratio"], f"{key}.ratio", "", nonnegative=True)
+        raw_ratio = r.unwrap(d["ratio"], f"{key}.ratio")
+        if not (isinstance(raw_ratio, str) and ("%" in raw_ratio or "percent" in raw_ratio)):
+            # A plain "2" would be 200 %: the ratio is written in percent, always.
+            raise r.fail(f"{key}.ratio", "write the damping ratio in percent, e.g. '2 %'", raw_ratio)
+        ratio = r.quantity(raw_ratio, f"{key}.ratio", "", nonnegative=True)
+        if ratio >= MAX_DAMPING_RATIO:
+            raise r.fail(f"{key}.ratio", f"must be below {100 * MAX_DAMPING_RATIO:g} % (critical damping is 100 %; "
+                                         "a linkage's structural damping is a few percent)", raw_ratio)
         return Damping.modal(ratio, r.quantity(d["frequency"], f"{key}.frequency", "Hz", positive=True))
     return Damping(r.quantity(d.get("stiffness", "0 s"), f"{key}.stiffness", "s", nonnegative=True),
                    r.quantity(d.get("mass", "0 1/s"), f"{key}.mass", "1/s", nonnegative=True))
@@ -211,6 +259,8 @@ def link(r: Reader, name, data, sections, materials, viscos, segments) -> Link:
     mat_name = r.text(d["material"], f"{key}.material")
     mat = lookup(r, materials, mat_name, f"{key}.material", "material")
     n = r.number(d.get("segments", segments), f"{key}.segments", int, positive=True)
+    if n > MAX_SEGMENTS:
+        raise r.fail(f"{key}.segments", f"must be at most {MAX_SEGMENTS}", n)
     masses = []
     pms = d.get("point_masses", [])
     if not isinstance(pms, list):
@@ -222,9 +272,13 @@ def link(r: Reader, name, data, sections, materials, viscos, segments) -> Link:
             raise r.fail(pk, "give exactly one of mass and weight")
         mass = (r.quantity(p["mass"], f"{pk}.mass", "kg", nonnegative=True) if "mass" in p
                 else r.quantity(p["weight"], f"{pk}.weight", "N", nonnegative=True) / G0)
-        masses.append(PointMass(r.quantity(p["position"], f"{pk}.position", "m"), mass,
+        pos = r.quantity(p["position"], f"{pk}.position", "m")
+        if not 0 <= pos <= length * (1 + 1e-12):
+            raise r.fail(f"{pk}.position", f"must lie on the {name}, between 0 and its length {length:.6g} m",
+                         p["position"])
+        masses.append(PointMass(pos, mass,
                                 r.quantity(p.get("inertia", "0 kg*m^2"), f"{pk}.inertia", "kg*m**2", nonnegative=True),
-                                str(p.get("label", f"{name} mass {i}"))))
+                                r.text(p.get("label", f"{name} mass {i}"), f"{pk}.label")))
     blocks = {}
     for end in ("start_block", "end_block"):
         if end in d:
@@ -236,10 +290,18 @@ def link(r: Reader, name, data, sections, materials, viscos, segments) -> Link:
                                            "material"))
     link_damping = damping(r, d["damping"], f"{key}.damping") if "damping" in d else Damping()
     try:
-        return Link(name, length, sec, mat, n, tuple(masses), link_damping, None if rigid else viscos.get(mat_name), **blocks,
-                    rigid=rigid)
+        built = Link(name, length, sec, mat, n, tuple(masses), link_damping, None if rigid else viscos.get(mat_name),
+                     **blocks, rigid=rigid)
     except TMMError as exc:
         raise r.fail(key, str(exc)) from None
+    x = built.stations
+    for i, pm in enumerate(masses):       # every engine lumps a point mass at a node of the mesh
+        if min(abs(x - pm.position_m)) > 1e-9 * length:
+            raise r.fail(f"{key}.point_masses[{i}].position",
+                         f"is not at a node of the {name}'s mesh of {n} segments (nodes at "
+                         f"{', '.join(f'{v:.6g}' for v in x)} m): move it to one, or change {key}.segments",
+                         pms[i].get("position") if isinstance(pms[i], dict) else None)
+    return built
 
 
 def step(r: Reader, value, key: str) -> float:
@@ -282,7 +344,7 @@ def drive(r: Reader, data) -> DriveSpec:
 
 def tmm_settings(r: Reader, data) -> TMMSettings:
     d = r.table(data, "solver.tmm", {"segments", "integrator", "step", "beam_column", "start", "coupling",
-                                     "axial_force"})
+                                     "axial_force", "model", "modes"})
     step_s = step_rad = None
     if "step" in d:
         raw = r.unwrap(d["step"], "solver.tmm.step")
@@ -307,8 +369,21 @@ def tmm_settings(r: Reader, data) -> TMMSettings:
     if peek(d.get("axial_force")) == "iterated":
         raise r.fail("solver.tmm.axial_force", "'iterated' was replaced by 'dynamic' (the step's own axial force "
                                                "together with the axial shortening from bending)", "iterated")
+    segments = r.number(d.get("segments", 8), "solver.tmm.segments", int, positive=True)
+    if segments > MAX_SEGMENTS:
+        raise r.fail("solver.tmm.segments", f"must be at most {MAX_SEGMENTS}", segments)
+    # The reduced model (tmm_core.reduced): link modes plus a static correction, for periodic solves.
+    model = r.number(d.get("model", "full"), "solver.tmm.model", choices=("full", "reduced"))
+    if "modes" in d and model != "reduced":
+        raise r.fail("solver.tmm.modes", "only applies to the reduced model: add solver.tmm.model = \"reduced\" or "
+                                         "remove it", d["modes"])
+    modes = r.number(d.get("modes", TMMSettings.modes), "solver.tmm.modes", int, positive=True)
+    if model == "reduced" and peek(d.get("axial_force")) == "quasi_static":
+        raise r.fail("solver.tmm.axial_force", "'quasi_static' is not carried by the reduced model (it carries the "
+                                               "step's own axial force, 'dynamic', or none): use model = \"full\"",
+                     "quasi_static")
     return TMMSettings(
-        r.number(d.get("segments", 8), "solver.tmm.segments", int, positive=True),
+        segments,
         r.number(d.get("integrator", "generalized_alpha"), "solver.tmm.integrator",
                  choices=("generalized_alpha", "newmark", "houbolt")),
         step_s, step_rad,
@@ -316,4 +391,4 @@ def tmm_settings(r: Reader, data) -> TMMSettings:
         r.number(d.get("start", "quasi_static"), "solver.tmm.start", choices=("quasi_static", "rest")),
         coupling,
         r.number(d.get("axial_force", "dynamic"), "solver.tmm.axial_force",
-                 choices=("dynamic", "quasi_static", "none")))
+                 choices=("dynamic", "quasi_static", "none")), model=model, modes=modes)

@@ -36,7 +36,8 @@ import numpy as np
 from tmm_core import Joint, LoadCase, Member, Structure, TMMError, external_resultant, solve_static, surface_stresses
 from tmm_core.structure import RigidBody, SliderJoint
 
-from .joint_tables import read_loads, read_springs
+from .joint_tables import joint_checker, joint_position, read_loads, read_springs
+from .scenario_reader import MAX_SEGMENTS
 from .overrides import Variants
 
 ANALYSES = ("linear", "beam_column", "large_deflection")
@@ -66,31 +67,22 @@ def build(r, top: dict, path: str, default_name: str, materials: dict, sections:
     lk = r.table(top["linkage"], "linkage", {"type", "analysis"}, {"type"})
     analysis = r.number(lk.get("analysis", "beam_column"), "linkage.analysis", choices=ANALYSES)
 
-    joints_raw = r.table(top.get("joints", {}), "joints", set(top.get("joints", {})))
+    joints_raw = r.names(top.get("joints", {}), "joints")
     if not joints_raw:
         raise r.fail("joints", "a structure needs [joints.<name>] tables")
     positions, joints = {}, []
     for name, d in joints_raw.items():
         key = f"joints.{name}"
         d = r.table(d, key, {"position", "support", "direction"}, {"position"})
-        pos = d["position"]
-        if not isinstance(pos, list) or len(pos) != 2:
-            raise r.fail(f"{key}.position", "must be a list of two coordinates", pos)
-        positions[name] = np.array([r.quantity(p, f"{key}.position[{i}]", "m") for i, p in enumerate(pos)])
+        positions[name] = joint_position(r, d, key)
         support = r.number(d.get("support", "free"), f"{key}.support",
                            choices=("free", "pinned", "clamped", "slider", "sliding_clamp"))
         joints.append(Joint(name, support, r.quantity(d.get("direction", "0 deg"), f"{key}.direction", "rad")))
-    jnames = set(positions)
-
-    def joint_ref(value, key):
-        value = r.unwrap(value, key)
-        if not isinstance(value, str) or value not in jnames:
-            raise r.fail(key, f"unknown joint (joints: {', '.join(sorted(jnames))})", value)
-        return value
+    joint_ref = joint_checker(r, positions)
 
     clamped = {j.name for j in joints if j.support in ("clamped", "sliding_clamp")}
     members, parts = [], {}
-    links_raw = r.table(top.get("links", {}), "links", set(top.get("links", {})))
+    links_raw = r.names(top.get("links", {}), "links")
     for name, d in links_raw.items():
         key = f"links.{name}"
         d = r.table(d, key, {"path", "section", "material", "segments", "welded_at"}, {"path", "section", "material"})
@@ -107,7 +99,12 @@ def build(r, top: dict, path: str, default_name: str, materials: dict, sections:
             raise r.fail(f"{key}.material", f"unknown material (defined: {', '.join(sorted(materials)) or 'none'})",
                          d["material"])
         n = r.number(d.get("segments", 4), f"{key}.segments", int, positive=True)
-        welded = {joint_ref(j, f"{key}.welded_at") for j in r.unwrap(d.get("welded_at", []), f"{key}.welded_at")}
+        if n > MAX_SEGMENTS:
+            raise r.fail(f"{key}.segments", f"must be at most {MAX_SEGMENTS}", n)
+        welds = r.unwrap(d.get("welded_at", []), f"{key}.welded_at")
+        if not isinstance(welds, list):
+            raise r.fail(f"{key}.welded_at", "must be a list of joints", welds)
+        welded = {joint_ref(j, f"{key}.welded_at") for j in welds}
         names = []
         for i, (a, b) in enumerate(zip(route[:-1], route[1:])):
             L = float(np.linalg.norm(positions[b] - positions[a]))
@@ -122,7 +119,7 @@ def build(r, top: dict, path: str, default_name: str, materials: dict, sections:
 
     plates = []
     seen = {}
-    for name, d in r.table(top.get("plates", {}), "plates", set(top.get("plates", {}))).items():
+    for name, d in r.names(top.get("plates", {}), "plates").items():
         key = f"plates.{name}"
         d = r.table(d, key, {"centroid", "vertices"}, {"centroid", "vertices"})
         verts = r.unwrap(d["vertices"], f"{key}.vertices")
@@ -136,7 +133,7 @@ def build(r, top: dict, path: str, default_name: str, materials: dict, sections:
         plates.append(RigidBody(name, joint_ref(d["centroid"], f"{key}.centroid"), tuple(verts)))
     springs = read_springs(r, top, joint_ref)
     sliders = []
-    for name, d in r.table(top.get("sliders", {}), "sliders", set(top.get("sliders", {}))).items():
+    for name, d in r.names(top.get("sliders", {}), "sliders").items():
         key = f"sliders.{name}"
         d = r.table(d, key, {"block", "guide", "along"}, {"block", "guide", "along"})
         link = r.text(d["along"], f"{key}.along")

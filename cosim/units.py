@@ -37,9 +37,11 @@ def quantity(text) -> pint.Quantity:
         raise UnitError(f"{raw!r} has no number")
     try:
         q = UREG.Quantity(raw.replace("^", "**"))
+        q = q if isinstance(q, pint.Quantity) else UREG.Quantity(q, "")
+        q = UREG.Quantity(float(q.magnitude), q.units)      # "10**400 in": an int no float can hold
     except Exception:
         raise UnitError(f"{raw!r} is not a quantity with a unit") from None
-    return q if isinstance(q, pint.Quantity) else UREG.Quantity(q, "")
+    return q
 
 
 # Names the sources use that pint spells otherwise (pint's "mil" is an angle).

@@ -1,5 +1,5 @@
 """A virtual rig: a synthetic raw lab recording made from a known strain history, to prove that
-ingestion (:func:`cosim.records.ingest`) recovers the truth.
+ingestion (:func:`cosim.record_ingest.ingest`) recovers the truth.
 
 The truth is one revolution of top- and bottom-face surface strain over crank angle (typically a
 reference-engine run). The rig turns the crank at constant speed, samples the gauges at

@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 
 from cosim.compare import circular_lag, convention_warnings, score_history
-from cosim.records import (RecordError, deflection_per_strain, ingest, load_record, peaks_at, records_for,
+from cosim.record_ingest import deflection_per_strain, ingest
+from cosim.records import (RecordError, load_record, peaks_at, records_for,
                            shipped_records)
 from cosim.scenario import load
 from cosim.virtual_rig import synthesize

@@ -445,6 +445,8 @@ class ExudynEngine:
         try:
             exu.SolveDynamic(self.mbs, self.sims, updateInitialValues=True)
         except Exception as exc:   # exudyn raises its own SolverError after printing its diagnosis
+            if "KeyboardInterrupt" in str(exc):      # Ctrl-C inside a user function: not a Newton failure
+                raise KeyboardInterrupt("interrupted in exudyn's solver") from None
             raise EngineError(f"exudyn: Newton did not converge before t = {t_next:.6g} s ({exc}); reduce "
                               "solver.exudyn.step") from None
         k0, self.k = self.k, self.k + n

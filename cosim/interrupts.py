@@ -1,0 +1,87 @@
+"""Signals during a run, and the run cut back to what was written when one arrives.
+
+SIGINT and SIGTERM are remembered and raised as KeyboardInterrupt at the next macro step, even
+when an engine's own solver swallows the exception; after the interrupt every engine ends at
+the last macro step written to ``traces.csv``.
+
+Owns: the run's signal handling and the trimming of interrupted results. Boundaries: no files.
+"""
+from __future__ import annotations
+
+import math
+import signal
+
+import numpy as np
+
+
+class Interrupts:
+    """SIGINT and SIGTERM during a run: remembered, then raised as KeyboardInterrupt. An engine
+    that swallows the exception in its own solver (exudyn's Newton loop calls Python user
+    functions) cannot hide it: the run stops at the end of that macro step."""
+
+    def __init__(self):
+        self.signal = None
+        self.previous = {}
+
+    def __enter__(self):
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            try:
+                self.previous[sig] = signal.signal(sig, self._handle)
+            except ValueError:          # not the main thread: Python's own handling stays
+                pass
+        return self
+
+    def _handle(self, signum, frame):
+        self.signal = signum
+        raise KeyboardInterrupt(f"signal {signum}")
+
+    def check(self) -> None:
+        if self.signal is not None:
+            raise KeyboardInterrupt(f"signal {self.signal}")
+
+    def __exit__(self, *exc):
+        for sig, handler in self.previous.items():
+            signal.signal(sig, handler)
+        return False
+
+
+def trim_samples(obj, t_end: float) -> None:
+    """Drop the samples after ``t_end`` (an interrupted macro step that reached some engines but
+    was never written) from an EngineRun or MotorTrace, in place."""
+    t = getattr(obj, "t", None)
+    if t is None or not len(t) or t[-1] <= t_end:
+        return
+    keep = np.asarray(t) <= t_end * (1 + 1e-12) + 1e-15
+    n = len(t)
+
+    def cut(x):
+        if isinstance(x, np.ndarray) and x.ndim and len(x) == n:
+            return x[keep]
+        if isinstance(x, tuple):
+            return tuple(cut(v) for v in x)
+        if isinstance(x, dict):
+            return {k: cut(v) for k, v in x.items()}
+        return x
+    for name, value in list(vars(obj).items()):
+        setattr(obj, name, cut(value))
+
+
+def mark_interrupted(result, written_t, failures: dict) -> None:
+    """After a signal: every engine ends at the last macro step written to traces.csv (a step
+    some engines finished and others did not is dropped), and an engine whose solver turned the
+    interrupt into a failure (exudyn reports it as a Newton failure in a user function) is
+    interrupted, not failed. ``failures``: the engines that failed in a written step."""
+    for name, ch in result.channels.items():
+        if ch.status == "failed" and name not in failures:
+            ch.status, ch.error = "interrupted", None
+        elif ch.status in ("completed", "stopped"):
+            ch.status = "interrupted"
+        if written_t is not None:
+            trim_samples(ch.run, written_t)
+            if ch.motor is not None:
+                trim_samples(ch.motor, written_t)
+        else:
+            trim_samples(ch.run, -math.inf)
+    sts = {ch.status for ch in result.channels.values()}
+    result.status = "failed" if "failed" in sts else "interrupted"
+    result.stop = "interrupted"
