@@ -254,7 +254,7 @@ def identify(calibration, validation=(), parameters=None, records_dir=None, out=
              starts: int = 3, workers=None, scheduler=None, sigma_relative: float = 0.10, sigma_absolute_ue: float = 5.0,
              max_nfev: int | None = None, seed: int = 1, record: bool = True, progress: bool = True) -> tuple:
     """Calibrate, then predict the held-out scenarios; returns ``(folder, result)``."""
-    from .uncertainty import _map
+    from .uncertainty import parallel_map
     plan = check_inputs(calibration, validation, parameters, records_dir)
     cal, val, unknowns, names = plan["calibration"], plan["validation"], plan["unknowns"], plan["parameters"]
     continuous = [n for n in names if not unknowns[n].discrete]
@@ -271,7 +271,7 @@ def identify(calibration, validation=(), parameters=None, records_dir=None, out=
     jobs = [(raws, unknowns, continuous, c, x0, plan["targets"], settings, sigma_relative, sigma_absolute_ue,
              max_nfev or 40 * (len(continuous) + 1)) for c in combos for x0 in x0s]
     tic = time.perf_counter()
-    fits = _map(fit_job, jobs, workers, scheduler, desc="identify" if progress else None)
+    fits = parallel_map(fit_job, jobs, workers, scheduler, desc="identify" if progress else None)
     ok = [f for f in fits if f["status"] == "completed"]
     result = {"status": "failed", "calibration_scenarios": [sc.name for sc in cal],
               "calibration_rpm": [rpm_of(sc) for sc in cal], "validation_scenarios": [sc.name for sc in val],

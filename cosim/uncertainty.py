@@ -90,7 +90,7 @@ def evaluate(sc, unknowns: dict, samples: list, settings: Settings = Settings(),
             index[key] = len(jobs)
             jobs.append((sc.raw, str(sc.path or sc.name), v.overrides, v.model, settings))
     log.debug("%d runs, %d distinct solves", len(samples), len(jobs))
-    results = _map(solve_job, jobs, workers, scheduler, desc=desc)
+    results = parallel_map(solve_job, jobs, workers, scheduler, desc=desc)
     return [read(results[index[v.physics_key()]], v.signs) for v in variants]
 
 
@@ -226,8 +226,10 @@ def record_check(sc, bands, records_dir=None) -> list:
     return out
 
 
-def _map(fn, argsets, workers, scheduler, desc: str | None = None):
-    """``fn(*a)`` for every argument set, in order; a bar over the finished solves when ``desc``."""
+def parallel_map(fn, argsets, workers, scheduler, desc: str | None = None):
+    """``fn(*a)`` for every argument set, in order, on ``workers`` local processes or a Dask
+    ``scheduler`` (:func:`cosim.parallel.executor`); a bar over the finished solves when ``desc``.
+    Shared by the band (here) and the identification (:mod:`cosim.identify`)."""
     from concurrent.futures import as_completed
 
     from tqdm import tqdm

@@ -58,8 +58,8 @@ def test_run_folders_of_the_same_second_do_not_collide(tmp_path, monkeypatch):
 
 
 def test_uncertainty_map_shows_a_bar_and_keeps_the_order():
-    from cosim.uncertainty import _map
-    assert _map(pow, [(2, k) for k in range(6)], workers=2, scheduler=None, desc="test") == [1, 2, 4, 8, 16, 32]
+    from cosim.uncertainty import parallel_map
+    assert parallel_map(pow, [(2, k) for k in range(6)], workers=2, scheduler=None, desc="test") == [1, 2, 4, 8, 16, 32]
 
 
 # -- item 10: cosim compare ------------------------------------------------------------------------

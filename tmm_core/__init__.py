@@ -18,6 +18,8 @@ from .materials import Damping, StandardLinearSolid
 from .mechanism import FourBarMechanism, Link, PointMass, SliderCrankMechanism
 from .post import (Gauge, bending_axial_strain, distortion, gauge_strains, soderberg, state_at, static_safety_factor,
                    surface_strains, surface_stresses)
+from .reduced import ReducedBasis, ReducedOptions, build_basis
+from .reduced_periodic import periodic_steady_state_reduced
 from .riccati import chain_product, chain_states, condense_chain, factor_chain, sweep_loads
 from .sections import Material, Section
 from .statics import StaticSolution, external_resultant, solve_static

@@ -41,6 +41,7 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
+from . import kernels_static
 from .errors import InputError, SingularStructureError, require_finite, require_positive
 from .kinematics import FourBarMotion
 from .mechanism import FourBarMechanism
@@ -149,7 +150,8 @@ class KEDResult:
     info: dict = field(default_factory=dict)
 
 
-def _node_mass_arrays(mech: FourBarMechanism):
+def node_mass_arrays(mech: FourBarMechanism):
+    """Lumped node masses and rotary inertias of every elastic link, ``{link: (m (n+1,), J (n+1,))}``."""
     out = {}
     for link in mech.elastic_links():
         m, J = link.node_masses()
@@ -180,7 +182,7 @@ def rigid_body_loads(mech: FourBarMechanism, motion: FourBarMotion, gravity=None
     return out
 
 
-def _coupling_stiffness(mech, motion, coupling: Coupling, c_a=0.0, c_v=0.0, mass_damping=None):
+def coupling_stiffness(mech, motion, coupling: Coupling, c_a=0.0, c_v=0.0, mass_damping=None):
     """Local node stiffness ``{link: (..., n+1, 3, 3)}`` of inertia and rotating-frame terms."""
     out = {}
     for link in mech.elastic_links():
@@ -202,23 +204,30 @@ def _coupling_stiffness(mech, motion, coupling: Coupling, c_a=0.0, c_v=0.0, mass
 
 def quasi_static(mech: FourBarMechanism, crank_angle, crank_speed, crank_acceleration=0.0, *, beam_column: bool = True,
                  coupling: Coupling = Coupling(), gravity=None, gauges: Sequence[Gauge] = (),
-                 tol: float = 1e-10) -> QuasiStaticResult:
+                 tol: float = 1e-10, compiled: bool = True) -> QuasiStaticResult:
     """Kineto-elastostatic response at the crank positions ``crank_angle`` (array), vectorised.
 
     ``beam_column``: iterate on the segment axial forces (Shin). ``coupling``: the centrifugal
     and angular-acceleration terms act as stiffness to ground in the rotating frame (Coriolis has
     no quasi-static effect). A speed at which ``K - w^2 M`` is singular raises
     :class:`tmm_core.errors.SingularStructureError`.
+    ``compiled``: solve in the compiled factorization (:mod:`tmm_core.kernels_static`) when numba
+    is installed and the structure is one it handles (joints and members); the numpy path
+    (:func:`tmm_core.statics.solve_static`) is the reference and the fallback.
     """
     motion = mech.motion(crank_angle, crank_speed, crank_acceleration)
     loads = rigid_body_loads(mech, motion, gravity)
-    stiffness = _coupling_stiffness(mech, motion, Coupling(False, coupling.centrifugal, coupling.angular_acceleration),
+    stiffness = coupling_stiffness(mech, motion, Coupling(False, coupling.centrifugal, coupling.angular_acceleration),
                                     mass_damping=0.0) if coupling.any else {}
     # The node stiffness above is isotropic or skew in (u, w): the same in every frame.
     case = mech.load_case(motion, loads, None, stiffness)
     try:
-        sol = solve_static(mech.structure(), case, beam_column=beam_column, tol=tol,
-                           count_inertia=True if coupling.centrifugal else None)
+        structure = mech.structure()
+        solver = solve_static
+        if compiled and kernels_static.AVAILABLE and np.ndim(crank_angle) == 1 and kernels_static.supported(structure):
+            solver = kernels_static.solve_static
+        sol = solver(structure, case, beam_column=beam_column, tol=tol,
+                     count_inertia=True if coupling.centrifugal else None)
     except SingularStructureError as exc:
         if not coupling.centrifugal:
             raise

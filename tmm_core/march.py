@@ -31,7 +31,7 @@ class March:
         self.td, self.dt = td, dt
         integ = td.integrator
         c_a, c_v = integ.coefficients(dt)
-        _, visco = td._link_factor(c_v, dt)
+        _, visco = td.link_factor(c_v, dt)
         a1 = np.array([angle])
         d0 = v0 = np.zeros(td.n_dof)
         previous = (d0, d0)
@@ -39,12 +39,12 @@ class March:
             d0, v0, a0 = (np.asarray(initial[k], dtype=float) for k in ("d", "v", "a"))
             previous = initial.get("previous", (d0, d0))
         elif start == "quasi_static":
-            d0, v0, a0, previous = td._quasi_static_start(angle, speed, accel, dt)
+            d0, v0, a0, previous = td.quasi_static_start(angle, speed, accel, dt)
         else:
             # Consistent initial acceleration from rest: M a0 = F(t0) (Newmark and generalized-alpha
             # are only first order otherwise; Houbolt does not use it).
             first = td.configurations(a1, np.array([speed]), np.array([accel]), dt, maps=False)
-            a0 = td._rest_acceleration(first["rigid"][0], first["motion"])
+            a0 = td.rest_acceleration(first["rigid"][0], first["motion"])
         self.state = integ.initial(d0, v0, a0, previous)
         # Outputs of step 0: the quasi-static state for a quasi-static start; from rest the links
         # are undeformed (zero strain) and the drive torque is the rigid-body one.
@@ -111,7 +111,7 @@ class March:
 
     def _compiled(self, cfg, indices, record_z, record_axial=False):
         td, n, integ = self.td, self.td.n_dof, self.td.integrator
-        data = td._kernel_data(cfg)
+        data = td.kernel_data(cfg)
         code = kernels.INTEGRATOR_CODES[integ.name]
         params = np.array(integ.parameters if code == kernels.GENERALIZED_ALPHA else (0.0, 0.0, 0.0, 0.0), float)
         c_a, c_v = integ.coefficients(self.dt)
@@ -130,7 +130,7 @@ class March:
         while j < len(indices):
             done = kernels.compiled_march()(
                 code, params, self.dt, c_a, c_v, indices[j:], *data, td.m_vec, td.aM_vec, td.beta_node, seg.start,
-                seg.end, seg.length, seg.EA, seg.beta, td.seg_blocks, td._gauge_segment, td.coupling.coriolis,
+                seg.end, seg.length, seg.EA, seg.beta, td.seg_blocks, td.gauge_segment, td.coupling.coriolis,
                 td.has_kv, dynamic, "shortening" in td.dynamic_terms, "axial_force" in td.dynamic_terms,
                 td.axial_tolerance, 1e-6, td.axial_iterations, ANDERSON_DEPTH, *arrays, P, outs[j:],
                 zs[j:] if record_z else zs, Ps[j:] if record_axial else Ps, iterations[j:])

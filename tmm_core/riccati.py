@@ -34,6 +34,8 @@ Factorization and loads are separated: :func:`factor_chain` works on the 6x6 (ho
 parts of the matrices only, and :func:`sweep_loads` pushes any set of load columns (column 7 of
 the matrices) through it. A time-domain solver re-uses one factorization for every step with the
 same geometry and dynamic stiffness. All arrays carry leading batch dimensions.
+
+Owns: the Riccati transfer along a chain. Boundaries: no joints (tmm_core.structure).
 """
 from __future__ import annotations
 
@@ -94,6 +96,25 @@ def _blocks(T6):
 def _split_load(t7):
     """Load column of a 7x7 (or 6-vector) into its z and f parts."""
     return t7[..., _Z], t7[..., _F]
+
+
+def inertia_count(S) -> np.ndarray:
+    """Number of negative eigenvalues of symmetric matrices ``S (..., n, n)``, vectorised, from
+    the signs of the pivots of their LDL^T factorization (Sylvester's law of inertia: the pivots
+    are ratios of successive leading principal minors), without an eigenvalue problem. An
+    exactly zero pivot (a singular leading block, e.g. exactly at a buckling load) counts as
+    non-negative."""
+    S = np.array(S, dtype=float, copy=True)
+    n = S.shape[-1]
+    negative = np.zeros(S.shape[:-2], dtype=int)
+    for k in range(n):
+        d = S[..., k, k]
+        negative = negative + (d < 0)
+        if k + 1 < n:
+            l = np.divide(S[..., k + 1:, k], d[..., None], out=np.zeros(S[..., k + 1:, k].shape),
+                          where=(d != 0.0)[..., None])
+            S[..., k + 1:, k + 1:] -= l[..., :, None] * S[..., None, k, k + 1:]
+    return negative
 
 
 KINDS = ("field", "point", "load", "rigid")
@@ -211,8 +232,7 @@ def factor_chain(matrices: Sequence[np.ndarray], kinds: Sequence, count_inertia:
             Gi = inv3(G)
             if count_inertia and kind == "field":
                 schur = np.linalg.solve(T12, G)
-                negative = negative + np.sum(
-                    np.linalg.eigvalsh(0.5 * (schur + np.swapaxes(schur, -1, -2))) < 0, axis=-1)
+                negative = negative + inertia_count(0.5 * (schur + np.swapaxes(schur, -1, -2)))
             X = T12 @ C
             HGi = (T21 + T22 @ D) @ Gi
             BGi = B @ Gi

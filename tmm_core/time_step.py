@@ -103,11 +103,11 @@ class StepSolver:
             # The axial force only feeds the geometric stiffness: 1e-6 is ample (and its round-off
             # floor, a difference of large nodal forces, sits near 1e-8).
             if dz < self.axial_tolerance and dP < 1e-6:
-                if len(self._gauge_segment) and shorten:
+                if len(self.gauge_segment) and shorten:
                     # Gauge axial strain = the full axial strain, with the shortening from bending.
                     delta = shape_products(seg, z_new)[0]
                     out = out.copy()
-                    out[2::2] += delta[self._gauge_segment] / seg.length[self._gauge_segment]
+                    out[2::2] += delta[self.gauge_segment] / seg.length[self.gauge_segment]
                 return (z_new, out, P_new), None, (it + 1, dz, dP)
             if dz > 1e3 or dP > 1e3:       # diverging: refactorize rather than iterate on
                 break
@@ -136,16 +136,17 @@ class StepSolver:
             N = maps["A"][k] @ loads + maps["a0"][k] if "A" in maps else None
             return maps["Z"][k] @ loads + maps["z0"][k], maps["O"][k] @ loads + maps["o0"][k], N
         node_loads = self._node_loads(loads)
-        if cfg["factor"].batch[0] == 1:
-            factor = cfg["factor"]
+        whole = self.factor_of(cfg)
+        if whole.batch[0] == 1:
+            factor = whole
         else:
             # Selecting one configuration walks the whole factor (4 ms at 32 segments per link):
             # keep each selection (views, no copies) for the following revolutions.
             chosen = cfg.setdefault("selected", {})
             factor = chosen.get(k)
             if factor is None:
-                factor = chosen[k] = _select(cfg["factor"], k)
-        return self._response(solve_factored(factor, node_loads, frame="local"), _terms_at(cfg["drive"], k))
+                factor = chosen[k] = select(whole, k)
+        return self._response(solve_factored(factor, node_loads, frame="local"), terms_at(cfg["drive"], k))
 
     def _response(self, sol, drive):
         """``(z, out, N)`` of a single-configuration solution: node displacements, outputs and the
@@ -163,7 +164,7 @@ class StepSolver:
         return {l.name: loads[self.offsets[l.name]:self.offsets[l.name] + 3 * l.n_nodes]
                 .reshape(l.n_nodes, 3)[None, None] for l in self.links}
 
-    def _kernel_data(self, cfg):
+    def kernel_data(self, cfg):
         """The arrays of a configuration batch the compiled march reads (cached in the batch)."""
         data = cfg.get("kernel")
         if data is None:
@@ -171,7 +172,9 @@ class StepSolver:
             B = len(cfg["rigid"])
             ns = len(self.segments.length)
             dynamic = self.axial_force == "dynamic"
-            omega = np.stack([self._node_omega(cfg, i) for i in range(B)]) if self.coupling.coriolis else \
+            motion = cfg["motion"]
+            omega = np.concatenate([np.repeat(np.asarray(motion.link(l.name).omega, float).reshape(B, 1), 3 * l.n_nodes,
+                                              axis=1) for l in self.links], axis=1) if self.coupling.coriolis else \
                 np.zeros((1, self.n_dof))
             data = cfg["kernel"] = tuple(np.ascontiguousarray(x, dtype=float) for x in (
                 maps["Z"], maps["z0"], maps["O"], maps["o0"],
@@ -180,7 +183,7 @@ class StepSolver:
         return data
 
 
-def _terms_at(terms, k):
+def terms_at(terms, k):
     """Drive-torque terms of configuration ``k`` (an index or a slice) of a batch."""
     joint, arm, offset = terms
     if arm is None:
@@ -188,7 +191,7 @@ def _terms_at(terms, k):
     return joint, arm[k], np.asarray(offset)[k]
 
 
-def _select(factor, k):
+def select(factor, k):
     """Configuration ``k`` (an index or a slice) of a factor with batch (B, 1): views, no copies."""
     sl = k if isinstance(k, slice) else slice(k, k + 1)
     n = len(range(*sl.indices(factor.batch[0])))

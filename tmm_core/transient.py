@@ -22,18 +22,18 @@ from typing import Callable, Mapping, Sequence
 
 import numpy as np
 
-from . import kernels
+from . import kernels, kernels_static
 from .errors import ConvergenceError, DynamicStabilityError, InputError, require_positive
 from .integrators import get_integrator
-from .ked import (Coupling, CrankMotion, KEDResult, _coupling_stiffness, _node_mass_arrays, quasi_static,
+from .ked import (Coupling, CrankMotion, KEDResult, coupling_stiffness, node_mass_arrays, quasi_static,
                   rigid_body_loads, segment_forces)
 from .matrices import field_matrix
 from .mechanism import FourBarMechanism, torque_from_terms
 from .post import Gauge, gauge_strains
 from .riccati import segment_stiffness
 from .second_order import Segments
-from .structure import LoadCase, factorize, solve_factored
-from .time_step import AXIAL_FORCE_MODELS, DYNAMIC_TERMS, StepSolver, _select, _terms_at
+from .structure import LoadCase, MemberResult, factorize, solve_factored
+from .time_step import AXIAL_FORCE_MODELS, DYNAMIC_TERMS, StepSolver, select, terms_at
 
 # The dense load-to-response maps cost O(n_dof^2) per configuration to build (once per revolution
 # of a periodic run) and a mat-vec per step to apply; without them every step runs the Riccati load
@@ -115,7 +115,7 @@ class TimeDomain(StepSolver):
             self.offsets[link.name] = off
             off += 3 * link.n_nodes
         self.n_dof = off
-        masses = _node_mass_arrays(mech)
+        masses = node_mass_arrays(mech)
         self.m_vec = np.concatenate([np.repeat(masses[l.name][0], 3) * np.tile([1.0, 1.0, 0.0], l.n_nodes)
                                      + np.repeat(masses[l.name][1], 3) * np.tile([0.0, 0.0, 1.0], l.n_nodes)
                                      for l in self.links])
@@ -140,7 +140,8 @@ class TimeDomain(StepSolver):
         #: Segment data of the node vector (second-order terms, axial forces).
         self.segments = Segments(starts, starts + 3, np.concatenate(lengths), np.concatenate(EA), np.concatenate(beta))
         seg_offset = np.cumsum([0] + [l.total_segments for l in self.links])
-        self._gauge_segment = np.array([
+        #: Stacked segment index of every gauge (the segment whose shortening enters its axial strain).
+        self.gauge_segment = np.array([
             seg_offset[[l.name for l in self.links].index(g.link)] + int(np.clip(
                 np.searchsorted(l.stations, g.position_m, side="right") - 1, 0, l.total_segments - 1))
             for g in self.gauges for l in self.links if l.name == g.link], dtype=int)
@@ -172,7 +173,7 @@ class TimeDomain(StepSolver):
         # the history loads are computed per member and applied at its own nodes).
         self.K_local = (self.gather.T @ self.seg_K @ self.gather).tocsr()
 
-    def _link_factor(self, c_v: float, dt: float):
+    def link_factor(self, c_v: float, dt: float):
         """Effective-modulus factor of every segment ``{link: (n,)}`` and, per link, the
         viscoelastic step coefficients ``(decay, g)`` of its span."""
         factors, visco = {}, {}
@@ -197,8 +198,8 @@ class TimeDomain(StepSolver):
         mech = self.mech
         motion = mech.motion(angle, speed, accel)
         c_a, c_v = self.integrator.coefficients(dt)
-        Kn = _coupling_stiffness(mech, motion, self.coupling, c_a, c_v)
-        factors, _ = self._link_factor(c_v, dt)
+        Kn = coupling_stiffness(mech, motion, self.coupling, c_a, c_v)
+        factors, _ = self.link_factor(c_v, dt)
         P = None
         if axial_force is not None:
             cuts = np.cumsum([l.total_segments for l in self.links])[:-1]
@@ -214,11 +215,31 @@ class TimeDomain(StepSolver):
             P = {k: segment_forces(r) for k, r in qs.solution.members.items()}
         # Batch (B, 1): the second axis carries the unit loads. Gravity acts through the lumped
         # node masses (rigid_body_loads), like every other inertial load.
-        joints = {k: v[:, None, :] for k, v in mech.joint_positions(motion).items()}
+        B = len(angle)
+        n_rows = self.n_dof + 1 + 2 * len(self.gauges) + (len(self.segments.length) if self.axial_force == "dynamic" else 0)
+        n_bytes = 8.0 * B * self.n_dof * n_rows
+        with_maps = bool(maps) and n_bytes <= self.max_map_bytes and not (maps == "auto" and self.n_dof > MAP_MAX_DOF)
+        joints_flat = mech.joint_positions(motion)
+        joints = {k: v[:, None, :] for k, v in joints_flat.items()}
         case = LoadCase(joints, {}, {}, {k: v[:, None] for k, v in Kn.items()}, frame="local")
-        factor = factorize(self.structure, case, None if P is None else {k: v[:, None] for k, v in P.items()},
-                           check_buckling=False, stiffness_factor=factors, count_inertia=True)
-        indefinite = np.any(np.reshape(factor.negative_eigenvalues, (len(angle), -1)) > 0, axis=-1)
+
+        def make_factor():
+            return factorize(self.structure, case, None if P is None else {k: v[:, None] for k, v in P.items()},
+                             check_buckling=False, stiffness_factor=factors, count_inertia=True)
+
+        compiled_maps = with_maps and self.compiled_factorization
+        if compiled_maps:
+            # The maps come from the compiled factorization (tmm_core.kernels_static); the numpy
+            # factor is built only if a step asks for it (factor_of).
+            prep = kernels_static.prepare(self.structure, LoadCase(joints_flat, {}, {}, Kn, frame="local"),
+                                          stiffness_factor=factors)
+            P_stacked = kernels_static.stack_segments(prep, P or {})
+            maps, negative = self._compiled_maps(prep, P_stacked, motion)
+            factor = None
+        else:
+            factor = make_factor()
+            negative = factor.negative_eigenvalues
+        indefinite = np.any(np.reshape(negative, (len(angle), -1)) > 0, axis=-1)
         if np.any(indefinite) and (self.axial_force != "dynamic" or axial_force is not None):
             # The axial forces are those the step uses: the step's dynamic system is indefinite.
             raise DynamicStabilityError(
@@ -229,15 +250,15 @@ class TimeDomain(StepSolver):
         loads_local = rigid_body_loads(mech, motion, self.gravity, frame="local")
         drive = mech.drive_torque_terms(motion, self.gravity)
         P0 = None if P is None else np.concatenate([P[l.name] for l in self.links], axis=-1)
-        B = len(angle)
-        n_rows = self.n_dof + 1 + 2 * len(self.gauges) + (len(self.segments.length) if self.axial_force == "dynamic" else 0)
-        n_bytes = 8.0 * B * self.n_dof * n_rows
-        base = {"factor": factor, "rigid": self._stack(loads_local), "motion": motion, "maps": None, "drive": drive,
+        base = {"factor": factor, "make_factor": make_factor, "rigid": self._stack(loads_local), "motion": motion,
+                "maps": None, "drive": drive,
                 "P0": P0, "crank": (np.asarray(angle, float), np.asarray(speed, float), np.asarray(accel, float)),
                 # Configurations whose estimated axial forces leave the step indefinite: the
                 # dynamic step refactorizes them at its own axial forces.
                 "indefinite": indefinite}
-        if not maps or n_bytes > self.max_map_bytes or (maps == "auto" and self.n_dof > MAP_MAX_DOF):
+        if compiled_maps:
+            return {**base, "maps": maps}
+        if not with_maps:
             return base
         unit = {}
         for link in self.links:
@@ -260,10 +281,10 @@ class TimeDomain(StepSolver):
             maps["A"], maps["a0"] = np.empty((B, n_seg, self.n_dof)), np.empty((B, n_seg))
         for c0 in range(0, B, chunk):
             sl = slice(c0, min(B, c0 + chunk))
-            sol = solve_factored(factor if (sl.start, sl.stop) == (0, B) else _select(factor, sl), unit, frame="local")
+            sol = solve_factored(factor if (sl.start, sl.stop) == (0, B) else select(factor, sl), unit, frame="local")
             z = np.concatenate([sol.members[l.name].state[..., 0, :3].reshape(sl.stop - sl.start, self.n_dof + 1, -1)
                                 for l in self.links], axis=-1)                 # (b, loads+1, n_dof)
-            torque = torque_from_terms(sol.reactions, *_terms_at(drive, sl))   # (b, loads+1)
+            torque = torque_from_terms(sol.reactions, *terms_at(drive, sl))   # (b, loads+1)
             g_out = [np.stack(gauge_strains(sol.members[g.link], g), -1) for g in self.gauges]
             outs = np.concatenate([torque[..., None]] + g_out, axis=-1) if g_out else torque[..., None]
             maps["Z"][sl] = np.swapaxes(z[:, :-1] - z[:, -1:], 1, 2)
@@ -276,6 +297,89 @@ class TimeDomain(StepSolver):
                 maps["a0"][sl] = N[:, -1]
             del sol
         return {**base, "maps": maps}
+
+    @property
+    def compiled_factorization(self) -> bool:
+        """Build the configurations' load-to-response maps in the compiled factorization
+        (:mod:`tmm_core.kernels_static`): with ``compiled``, for a structure of joints and members
+        whose members are the elastic links in order."""
+        if not self.compiled or not kernels_static.AVAILABLE or not kernels_static.supported(self.structure):
+            return False
+        return [m.name for m in self.structure.members] == [l.name for l in self.links] and \
+            all(m.n_segments + 1 == l.n_nodes for m, l in zip(self.structure.members, self.links))
+
+    def _compiled_maps(self, prep, P, motion):
+        """The load-to-response maps (as the numpy path of :meth:`configurations`) from one
+        compiled factorization per configuration solved for every unit load; returns the maps
+        and the inertia count ``(B,)``."""
+        B = len(P)
+        n = self.n_dof
+        # Unit loads (stacked node vector order = the compiled node order) plus a zero column.
+        unit = np.zeros((1, n + 1, n // 3, 3))
+        unit[0, np.arange(n), np.arange(n) // 3, np.arange(n) % 3] = 1.0
+        lay = prep.layout
+        index = {lab: k for k, lab in enumerate(lay.labels)}
+        supports = [(j.name, j.support) for j in self.structure.joints if j.support != "free"]
+        n_out = 1 + 2 * len(self.gauges)
+        axial = self.axial_force == "dynamic"
+        maps = {"Z": np.empty((B, n, n)), "z0": np.empty((B, n)), "O": np.empty((B, n_out, n)), "o0": np.empty((B, n_out))}
+        if axial:
+            n_seg = len(self.segments.length)
+            maps["A"], maps["a0"] = np.empty((B, n_seg, n)), np.empty((B, n_seg))
+        negative = np.empty(B, dtype=int)
+        drive = self.mech.drive_torque_terms(motion, self.gravity)
+        members = {m.name: (i, m) for i, m in enumerate(self.structure.members)}
+        # The gauges read the right-side state of the node that starts their segment.
+        gauge_at = []
+        for g in self.gauges:
+            i, m = members[g.link]
+            j = int(np.clip(np.searchsorted(m.stations, g.position_m, side="right") - 1, 0, m.n_segments - 1))
+            gauge_at.append(int(lay.node_off[i]) + j)
+        chunk = max(1, int(MAP_CHUNK_BYTES // (8.0 * (n + 1) * (2 * n + 6 * len(self.gauges) + 8))))
+        for c0 in range(0, B, chunk):
+            sl = slice(c0, min(B, c0 + chunk))
+            part = kernels_static.Prepared(prep.structure, prep.case, lay, prep.angle[sl],
+                                           {k: v[sl] for k, v in prep.origin.items()}, prep.factor[sl],
+                                           prep.factor_given, prep.qloc[sl], prep.Kn[sl], prep.Fn[sl])
+            (z, N, gstates), _, reaction, neg = kernels_static.solve_prepared(
+                part, P[sl], check_buckling=False, count_inertia=True, node_loads=unit, compact_nodes=gauge_at)
+            negative[sl] = neg                                      # z: (b, n_dof, loads+1), N: (b, n_seg, loads+1)
+            reactions = {}
+            for name, support in supports:
+                r = np.zeros(reaction.shape[:-1] + (3,))
+                r[..., 0] = reaction[..., index[(name, "x")]]
+                r[..., 1] = reaction[..., index[(name, "y")]]
+                if support == "clamped":
+                    r[..., 2] = reaction[..., index[(name, "r")]]
+                reactions[name] = r
+            torque = torque_from_terms(reactions, *terms_at(drive, sl))          # (b, loads+1)
+            g_out = []
+            for k, g in enumerate(self.gauges):
+                i, m = members[g.link]
+                # Only the state gauge_strains reads (node j, right side) is real: a broadcast view.
+                gs = np.moveaxis(gstates[:, k], 1, -1)                                    # (b, loads+1, 6)
+                state = np.broadcast_to(gs[:, :, None, None, :], gs.shape[:2] + (m.n_segments + 1, 2, 6))
+                res = MemberResult(m, part.angle[:, i, None], part.origin[m.name][:, None], state,
+                                   P[sl, None, lay.seg_off[i]:lay.seg_off[i + 1]], np.zeros((1, 1, m.n_segments)),
+                                   part.factor[:, None, lay.seg_off[i]:lay.seg_off[i + 1]])
+                g_out.append(np.stack(gauge_strains(res, g), -1))
+            outs = np.concatenate([torque[..., None]] + g_out, axis=-1) if g_out else torque[..., None]
+            np.subtract(z[:, :, :-1], z[:, :, -1:], out=maps["Z"][sl])
+            maps["z0"][sl] = z[:, :, -1]
+            maps["O"][sl] = np.swapaxes(outs[:, :-1] - outs[:, -1:], 1, 2)
+            maps["o0"][sl] = outs[:, -1]
+            if axial:
+                np.subtract(N[:, :, :-1], N[:, :, -1:], out=maps["A"][sl])
+                maps["a0"][sl] = N[:, :, -1]
+            del z, N, gstates
+        return maps, negative
+
+    def factor_of(self, cfg):
+        """The numpy factorization of a configuration batch (built on first use when the maps
+        came from the compiled factorization)."""
+        if cfg["factor"] is None:
+            cfg["factor"] = cfg["make_factor"]()
+        return cfg["factor"]
 
     def stack(self, per_link):
         """Stack per-link arrays ``{link: (..., n+1, 3)}`` into the node vector ``(..., n_dof)``."""
@@ -406,7 +510,7 @@ class TimeDomain(StepSolver):
             loads = loads - self.gather.T @ (decay * q_sls - gain * (self.seg_K @ (self.gather @ d)))
         return loads
 
-    def _rest_acceleration(self, loads, motion):
+    def rest_acceleration(self, loads, motion):
         """Accelerations of the lumped masses under ``loads`` (stacked local) with the structure at
         rest and undeformed: each mass alone, except at joints, where all member ends share the
         translation (and, for rigid connections, the rotation); supported DOFs stay at rest."""
@@ -443,7 +547,7 @@ class TimeDomain(StepSolver):
         return np.concatenate([np.full(3 * l.n_nodes, float(motion.link(l.name).omega[idx]))
                                for l in self.links])
 
-    def _quasi_static_start(self, th, w, a, dt):
+    def quasi_static_start(self, th, w, a, dt):
         """Elastic state of the quasi-static solution at the first crank positions."""
         angles = th + np.array([-2.0, -1.0, 0.0, 1.0]) * w * dt
         qs = quasi_static(self.mech, angles, w, a, beam_column=self.beam_column, coupling=Coupling(),
