@@ -51,10 +51,29 @@ def _engines(text: str) -> tuple:
     names = tuple(x.strip() for x in text.split(",") if x.strip())
     for n in names:
         if n not in ENGINES:
-            raise ValueError(f"unknown engine {n!r}; choose from {', '.join(ENGINES)}")
+            raise ValueError(f"--engines: unknown engine {n!r}; choose from {', '.join(ENGINES)}")
     if not names:
-        raise ValueError("give at least one engine")
+        raise ValueError("--engines: give at least one engine")
+    if len(set(names)) != len(names):
+        raise ValueError(f"--engines: an engine is named twice ({text!r})")
     return names
+
+
+#: The largest counts the command line takes (each sample or trajectory is a model run; more would
+#: allocate their design, gigabytes, before anything could say so).
+MAX_COUNT = {"--samples": 10_000, "--trajectories": 1_000, "--workers": 1_024}
+
+
+def _positive(args, flags) -> None:
+    """Each numeric flag given must be a positive finite number (counts at most MAX_COUNT); the
+    error names the flag. Checked before anything runs."""
+    import math
+    for flag in flags:
+        value = getattr(args, flag.lstrip("-").replace("-", "_"), None)
+        if value is not None and not (math.isfinite(value) and value > 0):
+            raise ValueError(f"{flag} must be a positive finite number, got {value!r}")
+        if value is not None and value > MAX_COUNT.get(flag, math.inf):
+            raise ValueError(f"{flag} must be at most {MAX_COUNT[flag]}, got {value!r}")
 
 
 class _Prefix(logging.Formatter):
@@ -256,10 +275,12 @@ def _dispatch(parser, args) -> int:
     if args.command == "run":
         return run_main(args.scenario, args)
     if args.command in ("sweep", "uncertainty"):
+        _positive(args, ("--samples", "--trajectories", "--workers"))
         _refuse_structure(args.scenario, args.command)
     if args.command == "sweep":
         from .sweep import parse_rpm, run_sweep
         rpm = parse_rpm(args.rpm)
+        _positive(args, ("--revolutions", "--workers"))
         from .report import sweep_table
         viewer, save = _viewer(args)
         folder, summary = run_sweep(args.scenario, rpm, _engines(args.engines), args.revolutions, args.workers,
@@ -346,6 +367,7 @@ def run_main(scenario: str, args=None) -> int:
         print(f"\nwritten to {folder}")
         return 0
     engines = _engines(args.engines) if args.engines is not None else sc.output.engines
+    _positive(args, ("--revolutions", "--linkage-fps", "--viewer-timeout"))
     from .run_guards import MAX_HOURS
     max_hours = MAX_HOURS if getattr(args, "max_hours", None) is None else args.max_hours
     options = RunOptions(engines=engines, mode=args.drive, revolutions=args.revolutions, out=args.out,

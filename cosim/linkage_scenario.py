@@ -320,7 +320,8 @@ def build_mechanism(r, top: dict, materials: dict, sections: dict, viscos: dict,
                             if kind == "prp" else ""), names)
         for n in names:
             if n not in link_body:
-                raise r.fail(key, f"unknown link '{n}' (links and plates: {', '.join(sorted(link_body))})", n)
+                raise r.fail(f"{key}.{'link' if 'link' in m else 'links'}",
+                             f"unknown link '{n}' (links and plates: {', '.join(sorted(link_body))})", n)
         bnames = tuple(link_body[n] for n in names)
         if kind == "crank":
             if names[0] != crank_name:

@@ -12,7 +12,7 @@ import numpy as np
 
 from tmm_core import InputError
 
-from .scenario_reader import Reader
+from .scenario_reader import MAX_MAGNITUDE, Reader
 from .scenario_types import Assumption, DriveSpec
 
 
@@ -80,6 +80,10 @@ def motor(r: Reader, data, drive: DriveSpec, mech):
         w = r.quantity(d["rated_speed"], "motor.rated_speed", "rad/s", positive=True)
         V = r.quantity(d["rated_voltage"], "motor.rated_voltage", "V", positive=True)
         kw = {name: r.quantity(d[k], f"motor.{k}", unit, positive=True) for k, (name, unit) in knobs.items() if k in d}
+        for k in ("efficiency", "copper_loss_share", "coulomb_share"):       # fractions, named by their own key
+            if k in d and not (kw[knobs[k][0]] < 1 if k == "efficiency" else kw[knobs[k][0]] <= 1):
+                raise r.fail(f"motor.{k}", "must be a fraction " + ("below 1 (100 %)" if k == "efficiency"
+                                                                    else "of at most 1 (100 %)"), d[k])
         try:
             derived, why = derive_pm_dc_motor(P, w, V, **kw)
         except InputError as exc:
@@ -108,6 +112,8 @@ def motor(r: Reader, data, drive: DriveSpec, mech):
         mass = (r.quantity(f["density"], f"{fk}.density", "kg/m**3", positive=True) * math.pi * radius**2 *
                 r.quantity(f["thickness"], f"{fk}.thickness", "m", positive=True))
         J_fw += r.number(f.get("count", 1), f"{fk}.count", int, positive=True) * 0.5 * mass * radius**2   # solid disk
+        if not J_fw <= MAX_MAGNITUDE:
+            raise r.fail(fk, f"has an inertia of {J_fw:.3g} kg m^2: no rig is that size (check its numbers and units)")
     values["flywheel_inertia_kg_m2"] = J_fw
     if "shaft_stiffness" in d:
         values["shaft_stiffness_Nm_rad"] = r.quantity(d["shaft_stiffness"], "motor.shaft_stiffness", "N*m/rad",

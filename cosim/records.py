@@ -221,9 +221,14 @@ def load_record(path) -> Record:
         raise record_error(side, f"key 'record.format' = {fmt!r}: one of {', '.join(FORMATS)}")
     if kind not in KINDS:
         raise record_error(side, f"key 'record.kind' = {kind!r}: one of {', '.join(KINDS)}")
+    for key in ("name", "rig", "description", "sign_convention"):
+        if key in rec and not (isinstance(rec[key], str) and rec[key].strip()):
+            raise record_error(side, f"key 'record.{key}' = {rec[key]!r}: must be a non-empty string")
     prov = meta.get("provenance")
     if not isinstance(prov, dict) or "source" not in prov:
         raise record_error(side, "table [provenance] with a 'source' is required")
+    if not (isinstance(prov["source"], str) and prov["source"].strip()):
+        raise record_error(side, f"key 'provenance.source' = {prov['source']!r}: must be a non-empty string")
     speed = quantity_value(rec["speed"], side, "record.speed", "rpm") if "speed" in rec else None
     common = dict(name=rec["name"], format=fmt, kind=kind, path=data_path, meta=rec, provenance=prov,
                   rig=rec.get("rig"), speed_rpm=speed, sign_convention=rec.get("sign_convention", "not stated"))
@@ -238,6 +243,11 @@ def load_record(path) -> Record:
         d = {h: row[j].strip() for j, h in enumerate(header)}
         for c, arr in values.items():
             d[c] = float(arr[i])
+        for c in ("gauge", "unit") if fmt == "peaks" else ("link",):      # a values row may be unitless (a ratio)
+            if not d[c]:
+                raise record_error(data_path, "empty cell", line=line, column=c)
+        if fmt == "peaks" and not d["rpm"] > 0:
+            raise record_error(data_path, f"the speed must be positive, got {d['rpm']!r}", line=line, column="rpm")
         if fmt == "peaks":
             if d["peak"] not in ("+", "-"):
                 raise record_error(data_path, f"peak must be + or -, got {d['peak']!r}", line=line, column="peak")
@@ -255,6 +265,8 @@ def _load_history(side, data_path, meta, common) -> Record:
     idx = meta.get("index")
     if not isinstance(idx, dict) or "column" not in idx or "unit" not in idx:
         raise record_error(side, "table [index] with 'column' and 'unit' (s or deg) is required for a history record")
+    if not isinstance(idx["column"], str):
+        raise record_error(side, f"key 'index.column' = {idx['column']!r}: must be the name of a column")
     if idx["unit"] not in ("s", "deg"):
         raise record_error(side, f"key 'index.unit' = {idx['unit']!r}: s (time) or deg (crank angle)")
     chans = meta.get("channels")
@@ -263,6 +275,16 @@ def _load_history(side, data_path, meta, common) -> Record:
     channels = []
     for col, c in chans.items():
         key = f"channels.{col}"
+        if not isinstance(c, dict):
+            raise record_error(side, f"key '{key}' = {c!r}: must be a table (quantity, unit, gauge, face)")
+        for k in ("unit", "gauge", "calibration_unit"):
+            if k in c and not (isinstance(c[k], str) and c[k].strip()):
+                raise record_error(side, f"key '{key}.{k}' = {c[k]!r}: must be a non-empty string")
+        if c.get("quantity") != "trigger" and "unit" not in c:
+            raise record_error(side, f"key '{key}.unit' is required")
+        if "calibration" in c and (isinstance(c["calibration"], bool) or not isinstance(c["calibration"], (int, float))
+                                   or not math.isfinite(c["calibration"]) or c["calibration"] == 0):
+            raise record_error(side, f"key '{key}.calibration' = {c['calibration']!r}: must be a finite non-zero number")
         q = c.get("quantity")
         if q not in QUANTITIES:
             raise record_error(side, f"key '{key}.quantity' = {q!r}: one of {', '.join(QUANTITIES)}")
@@ -280,8 +302,11 @@ def _load_history(side, data_path, meta, common) -> Record:
         i = int(bad[0]) + 1
         raise record_error(data_path, f"the index is not increasing ({t[i - 1]!r} then {t[i]!r})", line=rows[i][0],
                     column=idx["column"])
-    acq = dict(meta.get("acquisition", {}))
-    if "trigger_channel" in acq and acq["trigger_channel"] not in data:
+    acq = meta.get("acquisition", {})
+    if not isinstance(acq, dict):
+        raise record_error(side, f"key 'acquisition' = {acq!r}: must be a table")
+    acq = dict(acq)
+    if "trigger_channel" in acq and (not isinstance(acq["trigger_channel"], str) or acq["trigger_channel"] not in data):
         raise record_error(side, f"key 'acquisition.trigger_channel' = {acq['trigger_channel']!r}: no such channel")
     return Record(**common, index=(idx["column"], idx["unit"]), channels=tuple(channels), acquisition=acq, data=data)
 
@@ -292,7 +317,7 @@ def shipped_records(directory: Path = RECORD_DIR) -> list:
     must not look like a rig without records."""
     directory = Path(directory)
     if not directory.is_dir():
-        raise RecordError(f"records directory {directory}: not found (or not a directory)")
+        raise RecordError(f"records directory {directory} (--records): not found (or not a directory)")
     return [load_record(p) for p in sorted(directory.glob("*.toml"))]
 
 
@@ -302,7 +327,7 @@ def records_for(scenario, directory: Path | None = RECORD_DIR) -> list:
     user's own directory with ``cosim run --records DIR``)."""
     directory = Path(RECORD_DIR if directory is None else directory)
     if not directory.is_dir():           # checked even for a scenario without rig: a typo is never silent
-        raise RecordError(f"records directory {directory}: not found (or not a directory)")
+        raise RecordError(f"records directory {directory} (--records): not found (or not a directory)")
     rig = getattr(scenario, "rig", None)
     if not rig:
         return []

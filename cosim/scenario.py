@@ -60,6 +60,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
+import copy
 import math
 import re
 import tomllib
@@ -121,7 +122,7 @@ def _read_with_bases(path: Path, chain: list, root: Path | None = None) -> dict:
     other absolute path, or one that climbs higher, is refused; a file that is not a scenario is
     never echoed in a message."""
     if path.resolve() in chain:
-        raise ScenarioError(f"scenario '{path}': 'extends' loops back ({' -> '.join(str(p) for p in chain)})")
+        raise ScenarioError(f"scenario '{path}': key 'extends' loops back ({' -> '.join(str(p) for p in chain)})")
     if root is None:
         root = path.resolve().parent.parent
     try:
@@ -197,8 +198,11 @@ def from_dict(data: dict, path: str = "<dict>", default_name: str = "scenario") 
     secs_raw = r.names(top.get("sections", {}), "sections")
     sections = {k: rd.section(r, k, v) for k, v in secs_raw.items()}
 
-    kind = r.number(r.table(top["linkage"], "linkage", set(top["linkage"]))["type"] if isinstance(top["linkage"], dict)
-                    and "type" in top["linkage"] else None, "linkage.type", choices=LINKAGE_TYPES)
+    if not isinstance(top["linkage"], dict):
+        raise r.fail("linkage", "must be a table (type = \"four-bar\", ...)", top["linkage"])
+    if "type" not in top["linkage"]:
+        raise r.fail("linkage.type", f"is required (one of {', '.join(LINKAGE_TYPES)})")
+    kind = r.number(top["linkage"]["type"], "linkage.type", choices=LINKAGE_TYPES)
     if kind == "structure":
         from .structure_scenario import build
         return build(r, top, path, default_name, materials, sections, meta)
@@ -211,6 +215,10 @@ def from_dict(data: dict, path: str = "<dict>", default_name: str = "scenario") 
         mech, gauge_link = _main_loop(r, top, kind, materials, sections, viscos, tmm.segments)
 
     drive = rd.drive(r, top.get("drive", {}))
+    if not drive.speed_rad_s:
+        raise r.fail("drive.speed", "is required and must be positive: a linkage in motion needs a crank speed "
+                                    "(a structure held at one position is linkage.type = \"structure\")",
+                     rd.peek(top.get("drive", {}).get("speed")) if isinstance(top.get("drive"), dict) else None)
     r.speed = drive.speed_rad_s
     if "step" in solver.get("tmm", {}) and tmm.step_rad is not None and not drive.speed_rad_s:
         raise r.fail("solver.tmm.step", "a crank-angle step needs a non-zero drive.speed", solver["tmm"]["step"])
@@ -243,6 +251,8 @@ def from_dict(data: dict, path: str = "<dict>", default_name: str = "scenario") 
     if not 0 <= exudyn.spectral_radius <= 1:
         raise r.fail("solver.exudyn.spectral_radius", "must lie in [0, 1]", exudyn.spectral_radius)
     mj = r.table(solver.get("mujoco", {}), "solver.mujoco", {"step", "servo_frequency", "solref_factor", "solimp"})
+    if "solimp" in mj and not 0 < r.number(mj["solimp"], "solver.mujoco.solimp") < 1:
+        raise r.fail("solver.mujoco.solimp", "must lie between 0 and 1 (MuJoCo's constraint impedance)", mj["solimp"])
     mujoco = MujocoSettings(
         rd.step(r, mj.get("step", "1e-4 s"), "solver.mujoco.step"),
         r.quantity(mj["servo_frequency"], "solver.mujoco.servo_frequency", "Hz", positive=True)
@@ -253,6 +263,8 @@ def from_dict(data: dict, path: str = "<dict>", default_name: str = "scenario") 
     engines = r.unwrap(out.get("engines", ["tmm", "exudyn", "mujoco"]), "output.engines")
     if not isinstance(engines, list) or not engines or any(e not in ("tmm", "exudyn", "mujoco") for e in engines):
         raise r.fail("output.engines", "must be a non-empty list of 'tmm', 'exudyn', 'mujoco'", engines)
+    if len(set(engines)) != len(engines):
+        raise r.fail("output.engines", "names an engine twice", engines)
     output = OutputSettings(r.number(out["revolutions"], "output.revolutions", positive=True)
                             if "revolutions" in out else None, tuple(engines),
                             r.number(out.get("max_revolutions", 30.0), "output.max_revolutions", positive=True),
@@ -265,12 +277,26 @@ def from_dict(data: dict, path: str = "<dict>", default_name: str = "scenario") 
     if drive.mode == "motor" and motor is None:
         raise r.fail("drive.mode", "needs a [motor] table", "motor")
     coupling = rd.coupling(r, top.get("coupling", {}))
+    _check_steps(r, drive, tmm, exudyn, mujoco, coupling)
     _check_stiffness(r, top, mech, drive)
     if "uncertainty" in top:
-        _check_uncertainty(r, top["uncertainty"], path)
+        _check_uncertainty(r, top["uncertainty"], path, top)
     return Scenario(sc_name, description, Path(path) if path != "<dict>" else None, sources, mech, drive,
                     tuple(gauges), gravity, tmm, exudyn, mujoco, output, tuple(r.assumptions), data, motor, coupling,
                     rig)
+
+
+def _check_steps(r: Reader, drive, tmm, exudyn, mujoco, coupling) -> None:
+    """Refuse a time step (an engine's or the macro step) longer than one crank revolution: no
+    revolution would be resolved (a step written in seconds where degrees were meant)."""
+    period = 2 * math.pi / abs(drive.speed_rad_s)
+    steps = {"solver.tmm.step": tmm.step_s if tmm.step_s is not None else tmm.step_rad / abs(drive.speed_rad_s),
+             "solver.exudyn.step": exudyn.step_s, "solver.mujoco.step": mujoco.step_s,
+             "coupling.macro_step": coupling.macro_step_s}
+    for key, value in steps.items():
+        if value is not None and value > period * (1 + 1e-9):
+            raise r.fail(key, f"is {value:.4g} s, longer than one crank revolution ({period:.4g} s at the drive "
+                              "speed): write it in seconds or as a crank angle below 360 deg")
 
 
 def _at_most(r: Reader, value, key: str, limit):
@@ -326,6 +352,15 @@ def _check_stiffness(r: Reader, top: dict, mech, drive) -> None:
                          f"{omega1 / (2 * math.pi):.3g} Hz lies below the crank's {speed / (2 * math.pi):.3g} Hz "
                          "(check the modulus, the section and their units)",
                          rd.peek(top.get("materials", {}).get(link.material.name, {}).get("E", link.material.E_Pa)))
+        # Rayleigh coefficients: the modal ratio they give at the link's first mode, below critical
+        # like a written ratio (a coefficient in the wrong unit damps every mode away).
+        d = link.damping
+        zeta = d.mass_per_s / (2 * omega1) + d.stiffness_s * omega1 / 2
+        if zeta >= rd.MAX_DAMPING_RATIO:
+            part = "stiffness" if d.stiffness_s * omega1 / 2 >= d.mass_per_s / (2 * omega1) else "mass"
+            raise r.fail(f"links.{link.name}.damping.{part}",
+                         f"gives a damping ratio of {100 * zeta:.3g} % at the {link.name}'s first bending mode "
+                         f"({omega1 / (2 * math.pi):.3g} Hz): must be below 100 % (check the coefficient and its unit)")
 
 
 _UNCERTAINTY_KEYS = {"samples", "seed", "parameters", "identify", "morris_trajectories"}
@@ -333,7 +368,7 @@ _UNKNOWN_KEYS = {"keys", "distribution", "unit", "low", "high", "mean", "std", "
                  "source"}
 
 
-def _check_uncertainty(r: Reader, data, path: str) -> None:
+def _check_uncertainty(r: Reader, data, path: str, top: dict) -> None:
     """The ``[uncertainty]`` table's keys at load (every command, ``run`` too); its values are
     read by :func:`cosim.unknowns.declared`, which names the key."""
     u = r.table(data, "uncertainty", _UNCERTAINTY_KEYS)
@@ -341,13 +376,27 @@ def _check_uncertainty(r: Reader, data, path: str) -> None:
         if k in u and (isinstance(u[k], bool) or not isinstance(u[k], int) or (k != "seed" and u[k] <= 0)):
             raise r.fail(f"uncertainty.{k}", "must be a plain " + ("integer" if k == "seed" else "positive integer"),
                          u[k])
+        if k in u and k != "seed" and u[k] > (10_000 if k == "samples" else 1_000):      # each one is a model run
+            raise r.fail(f"uncertainty.{k}", f"must be at most {10_000 if k == 'samples' else 1_000}", u[k])
     if "identify" in u and not (isinstance(u["identify"], list) and all(isinstance(x, str) for x in u["identify"])):
         raise r.fail("uncertainty.identify", "must be a list of the names of declared unknowns", u["identify"])
+    params = r.names(u.get("parameters", {}), "uncertainty.parameters")
+    unknown = [x for x in u.get("identify", []) if x not in params]
+    if unknown:
+        raise r.fail("uncertainty.identify", f"names no declared unknown (declared: {', '.join(sorted(params)) or 'none'})",
+                     unknown[0])
     if "parameters" not in u:
         return
-    params = r.names(u["parameters"], "uncertainty.parameters")
+    from .overrides import OverrideError, set_key
     for name, d in params.items():
         r.table(d, f"uncertainty.parameters.{name}", _UNKNOWN_KEYS, {"keys", "distribution"})
+        for k in d["keys"] if isinstance(d["keys"], list) else []:
+            if not isinstance(k, str) or k.startswith(("model.", "measurement.")):
+                continue
+            try:               # a scenario key must lead somewhere in the file (a typo would vary nothing)
+                set_key(copy.deepcopy(top), k, 0)
+            except OverrideError as exc:
+                raise r.fail(f"uncertainty.parameters.{name}.keys", str(exc), k) from None
     if params:
         from .unknowns import declared
         declared({"uncertainty": u}, path)

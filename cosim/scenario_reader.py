@@ -79,12 +79,17 @@ class Reader:
         raw = self.unwrap(value, key)
         if isinstance(raw, bool):
             raise self.fail(key, f"must be a quantity in {unit}", raw)
+        # An angle is dimensionless to pint, but a bare number is no angle: "90" is refused, not 90 rad.
+        needs_unit = unit == "rad" or not UREG.Quantity(1, unit).dimensionless
         if isinstance(raw, (int, float)):
-            if UREG.Quantity(1, unit).dimensionless:
+            if not needs_unit:
                 q = float(raw)
             else:
                 raise self.fail(key, f"has no unit; write it with one, e.g. '{raw} {example_unit(unit)}'", raw)
         elif isinstance(raw, str):
+            if "," in raw:
+                # "3,73 rpm" is read as 373 rpm by pint: a decimal comma is refused, not guessed.
+                raise self.fail(key, "has a comma: write decimals with '.' and no thousands separators", raw)
             if not has_number(raw):
                 # pint reads a bare unit ("rpm", "psi") as one of it: a number is required.
                 raise self.fail(key, f"has no number; write a number and a unit, e.g. '1 {example_unit(unit)}'", raw)
@@ -93,7 +98,7 @@ class Reader:
             except ValueError:
                 raise self.fail(key, "is not a quantity with a unit", raw) from None
             target = UREG.Quantity(1, unit)
-            if parsed.dimensionless and not target.dimensionless:
+            if (parsed.dimensionless and not target.dimensionless) or (needs_unit and parsed.unitless):
                 raise self.fail(key, f"has no unit; write it with one, e.g. '{raw} {example_unit(unit)}'", raw)
             try:
                 q = float(parsed.to(unit).magnitude)
@@ -173,6 +178,8 @@ def material(r: Reader, name, data) -> Material:
         opt["endurance_limit_Pa"] = r.quantity(d["endurance_limit"], f"{key}.endurance_limit", "Pa", positive=True)
     if "poisson" in d:
         opt["poisson"] = r.number(d["poisson"], f"{key}.poisson")
+        if not -1 < opt["poisson"] < 0.5:
+            raise r.fail(f"{key}.poisson", "must lie in (-1, 0.5)", d["poisson"])
     E = r.quantity(d["E"], f"{key}.E", "Pa", positive=True)
     density = r.quantity(d["density"], f"{key}.density", "kg/m**3", positive=True)
     try:

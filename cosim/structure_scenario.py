@@ -65,6 +65,10 @@ class StaticScenario(Variants):
 def build(r, top: dict, path: str, default_name: str, materials: dict, sections: dict, meta: dict):
     """Build a :class:`StaticScenario` from the TOML tree (``r`` is the scenario reader)."""
     lk = r.table(top["linkage"], "linkage", {"type", "analysis"}, {"type"})
+    for unused in ("drive", "gauges", "gravity", "solver", "output", "motor", "coupling", "uncertainty", "modules"):
+        if unused in top:      # a structure at one position has no motion: the table would be ignored
+            raise r.fail(unused, "a structure held at one position (linkage.type = \"structure\") has no "
+                                 f"[{unused}]: remove it")
     analysis = r.number(lk.get("analysis", "beam_column"), "linkage.analysis", choices=ANALYSES)
 
     joints_raw = r.names(top.get("joints", {}), "joints")

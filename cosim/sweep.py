@@ -34,6 +34,10 @@ log = logging.getLogger(__name__)
 RANGE = re.compile(r"^\s*([0-9.eE+-]+)\s*:\s*([0-9.eE+-]+)\s*:\s*([0-9.eE+-]+)\s*$")
 
 
+#: The most speeds one sweep takes (a range like 1:1e9:1 would allocate gigabytes).
+MAX_POINTS = 1000
+
+
 def parse_rpm(text: str) -> np.ndarray:
     """``"100:400:25"`` (start:stop:step, stop included when on the grid) or ``"95,241,373"`` [rpm]."""
     text = str(text).strip()
@@ -41,17 +45,23 @@ def parse_rpm(text: str) -> np.ndarray:
     try:
         if m:
             a, b, h = (float(x) for x in m.groups())
-            if not (h > 0 and b >= a > 0):
+            if not (h > 0 and b >= a > 0 and math.isfinite(b)):
                 raise ValueError
-            n = int(math.floor((b - a) / h + 1e-9))
+            n = math.floor((b - a) / h + 1e-9)
+            if n >= MAX_POINTS:         # refused before anything is allocated
+                raise OverflowError
             values = a + h * np.arange(n + 1)
         else:
             values = np.array([float(x) for x in text.split(",") if x.strip()])
-            if not len(values) or np.any(values <= 0):
+            if not len(values) or not np.all(np.isfinite(values)) or np.any(values <= 0):
                 raise ValueError
+            if len(values) > MAX_POINTS:
+                raise OverflowError
+    except OverflowError:
+        raise ValueError(f"--rpm {text!r}: more than {MAX_POINTS} speeds; choose a coarser step") from None
     except ValueError:
-        raise ValueError(f"malformed rpm range {text!r}: write start:stop:step with 0 < start <= stop and step > 0 "
-                         "(e.g. 100:400:25), or a list 95,241,373") from None
+        raise ValueError(f"--rpm: malformed rpm range {text!r}: write start:stop:step with 0 < start <= stop and "
+                         "step > 0 (e.g. 100:400:25), or a list 95,241,373 of finite speeds") from None
     return values
 
 

@@ -261,7 +261,7 @@ def test_a_grashof_double_rocker_scenario_is_refused():
 @pytest.mark.parametrize("edit, key", [
     (lambda d: d["modules"].pop(3), "modules"),                                   # joint 10 never placed
     (lambda d: d["modules"].insert(1, d["modules"].pop(3)), "modules"),           # the plate before joint 3
-    (lambda d: d["modules"][1].update(links=["coupler", "nope"]), "modules[1]"),
+    (lambda d: d["modules"][1].update(links=["coupler", "nope"]), "modules[1].links"),
     (lambda d: d["links"]["coupler"].update(rigid=True), "links.coupler.rigid"),
     (lambda d: d["modules"][2].update(branch=2), "modules[2].branch"),
 ])

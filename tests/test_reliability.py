@@ -349,3 +349,33 @@ def test_fuzzed_scenario_loads_end_in_a_scenario_error_or_a_scenario():
 @pytest.mark.slow
 def test_fuzzed_scenario_loads_large_budget():
     assert _fuzz(seed=1017, n=10_000) == []
+
+
+@pytest.mark.skipif(not hasattr(signal, "SIGINT"), reason="POSIX signals")
+@pytest.mark.parametrize("engine", ["tmm", "exudyn", "mujoco"])
+def test_ctrl_c_with_each_engine_alone_exits_130_within_two_seconds(engine, tmp_path):
+    """Ctrl-C as soon as the first rows reach traces.csv: exit 130 within 2 s of the signal, the
+    summary 'interrupted', traces.csv kept."""
+    pytest.importorskip(engine if engine != "tmm" else "numpy")
+    out = tmp_path / "int"
+    proc = subprocess.Popen([sys.executable, "-m", "cosim", "run", "crank_rocker_373rpm", "--engines", engine,
+                             "--revolutions", "20", "--no-record", "--out", str(out), "--quiet"], cwd=ROOT,
+                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    traces = out / "traces.csv"
+    try:
+        deadline = time.time() + 240
+        while time.time() < deadline and not (traces.exists() and traces.read_text().count("\n") >= 3):
+            assert proc.poll() is None, proc.stderr.read()[-2000:]
+            time.sleep(0.05)
+        tic = time.monotonic()
+        proc.send_signal(signal.SIGINT)
+        proc.wait(timeout=30)
+        stopped_in = time.monotonic() - tic
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 130 and stopped_in < 2.0, (engine, proc.returncode, stopped_in, proc.stderr.read())
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["status"] == "interrupted" and summary["engines"][engine]["status"] == "interrupted"
+    assert traces.read_text().count("\n") >= 3
+    print(f"{engine}: exit 130 {stopped_in:.2f} s after SIGINT")
