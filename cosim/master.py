@@ -52,12 +52,13 @@ import time
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.interpolate import CubicHermiteSpline
 
 from tmm_core import InputError, TMMError
 
 from .engines import make_engine
 from .engines.base import DriveInput, EngineError, EngineRun, concatenate, constant_speed_profile
+from .interface_signals import (ReflectedInertia, crank_extrapolation, crank_interpolation, extrapolate,
+                                linear_interpolation)
 from .metrics import SteadyWatch, energy_balance, speed_fluctuation
 from .motor import Motor, MotorState, MotorTrace
 from .scenario import CouplingSettings, Scenario
@@ -84,11 +85,20 @@ class ChannelResult:
     t0: float = 0.0
     angle0: float = 0.0
     motor_parameters: object = None     # cosim.motor.MotorParameters in motor mode
+    #: The motor's current [A] and voltage [V] extremes over the whole run ({name: (min, max)}),
+    #: kept even when the run holds only its last revolutions (``keep_revolutions``).
+    motor_extrema: dict | None = None
 
     def speed_fluctuation(self) -> dict:
-        """Per-revolution crank speed statistics of the engine's crank (:func:`cosim.metrics.speed_fluctuation`)."""
+        """Per-revolution crank speed statistics of the engine's crank (:func:`cosim.metrics.speed_fluctuation`),
+        over the complete revolutions the run holds."""
         r = self.run
-        return speed_fluctuation(r.t, r.crank_angle, r.crank_speed, self.angle0, self.t0)
+        f = speed_fluctuation(r.t, r.crank_angle, r.crank_speed, self.angle0, self.t0)
+        if len(r.t) > 1 and len(f["t_start"]):
+            # A run that keeps only its last revolutions starts inside one: drop that revolution.
+            complete = f["t_start"] >= r.t[0] - (r.t[1] - r.t[0]) * (1 + 1e-9)
+            f = {k: v[complete] for k, v in f.items()}
+        return f
 
     def energy_balance(self, t_start: float | None = None, t_end: float | None = None) -> dict:
         """Energy flows over a time window (:func:`cosim.metrics.energy_balance`)."""
@@ -121,71 +131,17 @@ class MacroStep:
     failed: dict = field(default_factory=dict)   # {engine: error message}, newly failed this step
 
 
-# -- interface signals ---------------------------------------------------------------------------
-def _extrapolate(history, t, order: int):
-    """Value at times ``t`` from ``history`` = [(t_i, x_i), ...] at the last macro-step ends:
-    the last value (order 0) or the line through the last two (order 1)."""
-    t_a, x_a = history[-1]
-    if order == 0 or len(history) < 2:
-        return np.full(np.shape(t), x_a, dtype=float) if np.ndim(t) else float(x_a)
-    t_p, x_p = history[-2]
-    return x_a + (x_a - x_p) / (t_a - t_p) * (np.asarray(t, dtype=float) - t_a)
-
-
-def _crank_extrapolation(t_a, angle, speed, accel):
-    """Crank motion from the state at ``t_a`` with constant acceleration: (angle, speed, accel)(t)."""
-    def motion(t):
-        tau = np.asarray(t, dtype=float) - t_a
-        return angle + speed * tau + 0.5 * accel * tau**2, speed + accel * tau, np.full(np.shape(tau), float(accel))
-    return motion
-
-
-def _crank_interpolation(t, angle, speed, accel=None):
-    """Crank motion through samples: angle cubic Hermite (consistent with the speeds), speed and
-    acceleration piecewise linear (the acceleration from the Hermite spline if not given)."""
-    spline = CubicHermiteSpline(t, angle, speed)
-
-    def motion(tq):
-        tq = np.asarray(tq, dtype=float)
-        a = np.interp(tq, t, accel) if accel is not None else spline(tq, 2)
-        return spline(tq), np.interp(tq, t, speed), a
-    return motion
-
-
-def _linear(t, x):
-    return lambda tq: np.interp(tq, t, x)
-
-
-class _ReflectedInertia:
-    """The rigid linkage's reflected inertia J_r(q) [kg m^2] (interface Jacobian), tabulated over
-    a revolution and interpolated linearly (scalar calls stay in pure Python: the motor's
-    integrator calls it at every stage)."""
-
-    def __init__(self, inertia, n: int = 1440):
-        self.n, self.dq = n, 2 * math.pi / n
-        J = inertia(np.arange(n) * self.dq)
-        self.table = np.r_[J, J[0]]
-        self.values = self.table.tolist()
-        self.max = float(J.max())
-
-    def __call__(self, angle):
-        if np.ndim(angle):
-            x = np.mod(np.asarray(angle, dtype=float), 2 * math.pi) / self.dq
-            return np.interp(x, np.arange(self.n + 1), self.table)
-        x = (float(angle) % (2 * math.pi)) / self.dq
-        k = min(int(x), self.n - 1)
-        f = x - k
-        return self.values[k] * (1.0 - f) + self.values[k + 1] * f
-
-
 # -- channels ------------------------------------------------------------------------------------
 class _Channel:
     """One engine and (in motor mode) its motor, advanced macro step by macro step."""
 
-    def __init__(self, name, engine, scenario: Scenario, mode: str, coupling: CouplingSettings):
+    def __init__(self, name, engine, scenario: Scenario, mode: str, coupling: CouplingSettings,
+                 keep_rad: float | None = None):
         self.name, self.engine, self.scenario, self.mode, self.c = name, engine, scenario, mode, coupling
         self.order = 1 if coupling.extrapolation == "linear" else 0
         self.outputs, self.traces, self.passes = [], [], []
+        self.keep_rad = keep_rad            # crank angle of the outputs held (None: all of them)
+        self.motor_extrema = {}
         self.motor = Motor(scenario.motor, integrates_crank=engine.kinematic) if mode == "motor" else None
         self.J_r = None     # interface Jacobian, set at start
         self.t0, self.angle0 = 0.0, 0.0
@@ -201,7 +157,7 @@ class _Channel:
             # The engine's own rigid mass model if it has one, else the exact rigid linkage.
             source = getattr(self.engine, "reflected_inertia", None) or \
                 (lambda q: self.scenario.mechanism.crank_inertia(q)[0])
-            self.J_r = _ReflectedInertia(source)
+            self.J_r = ReflectedInertia(source)
         if self.motor is None:
             self.profile = constant_speed_profile(self.scenario.drive.speed_rad_s, angle, t0)
             return
@@ -227,6 +183,7 @@ class _Channel:
             out = self.engine.advance(t_b, DriveInput(prescribed=self.profile))
             self.outputs.append(out)
             self.passes.append(1)
+            self._release()
             return out, None
         h = self.engine.internal_step_s
         n = int(round((t_b - t_a) / h))
@@ -238,9 +195,28 @@ class _Channel:
         self.outputs.append(out)
         self.traces.append(trace)
         self.passes.append(passes)
+        for name in ("current_A", "voltage_V"):
+            x = getattr(trace, name)
+            lo, hi = self.motor_extrema.get(name, (math.inf, -math.inf))
+            self.motor_extrema[name] = (min(lo, float(np.min(x))), max(hi, float(np.max(x))))
         for hist in (self.crank_hist, self.drive_hist, self.load_hist):
             del hist[:-2]
+        self._release()
         return out, trace
+
+    def _release(self) -> None:
+        """Drop the macro steps older than ``keep_rad`` of crank angle (they are in traces.csv
+        already): the memory of a run stays bounded in its length."""
+        if self.keep_rad is None:
+            return
+        newest = float(self.outputs[-1].crank_angle[-1])
+        drop = 0
+        while drop < len(self.outputs) - 1 and abs(newest - float(self.outputs[drop].crank_angle[-1])) > self.keep_rad:
+            drop += 1
+        if drop:
+            del self.outputs[:drop]
+            if self.traces:
+                del self.traces[:drop]
 
     def _check(self, passes, t_b, new, old, hint):
         """True when the iterated interface signal has converged; raises after max_iterations.
@@ -259,12 +235,12 @@ class _Channel:
     # torque-driven engine: the engine takes the motor torque, the motor takes the engine's crank.
     def _torque_step(self, t_a, t_b, samples):
         c = self.c
-        torque_guess = lambda t: _extrapolate(self.drive_hist, t, self.order)       # noqa: E731
+        torque_guess = lambda t: extrapolate(self.drive_hist, t, self.order)       # noqa: E731
         t_h, q_h, w_h, _ = self.crank_hist[-1]
         slope = 0.0
         if len(self.crank_hist) > 1 and self.order:
             slope = (w_h - self.crank_hist[-2][2]) / (t_h - self.crank_hist[-2][0])
-        extrapolated = _crank_extrapolation(t_h, q_h, w_h, slope)
+        extrapolated = crank_extrapolation(t_h, q_h, w_h, slope)
         saved = self.engine.save() if c.scheme == "iterated" else None
         passes = 0
         while True:
@@ -275,7 +251,7 @@ class _Channel:
                 out = self.engine.advance(t_b, DriveInput(torque=torque_guess))
                 break
             out = self.engine.advance(t_b, DriveInput(torque=torque_guess))
-            crank = _crank_interpolation(np.r_[t_a, out.t], np.r_[q_h, out.crank_angle], np.r_[w_h, out.crank_speed])
+            crank = crank_interpolation(np.r_[t_a, out.t], np.r_[q_h, out.crank_angle], np.r_[w_h, out.crank_speed])
             new_state, trace = self.motor.advance(self.state, t_b, crank=lambda t: crank(t)[:2], samples=samples)
             if c.scheme == "gauss_seidel":
                 break
@@ -283,7 +259,7 @@ class _Channel:
             T_new = np.r_[self.drive_hist[-1][1], trace.drive_torque_Nm]
             if self._check(passes, t_b, T_new, torque_guess(tt), "reduce coupling.macro_step"):
                 break
-            torque_guess = _linear(tt, T_new)
+            torque_guess = linear_interpolation(tt, T_new)
             self.engine.restore(saved)
         self.state = new_state
         self.crank_hist.append((t_b, float(out.crank_angle[-1]), float(out.crank_speed[-1]), 0.0))
@@ -294,9 +270,9 @@ class _Channel:
     def _kinematic_step(self, t_a, t_b, samples):
         c = self.c
         t_h, q_h, w_h, a_h = self.crank_hist[-1]
-        T_guess = lambda t: _extrapolate(self.load_hist, t, self.order)     # noqa: E731
+        T_guess = lambda t: extrapolate(self.load_hist, t, self.order)     # noqa: E731
         accel_hist = [(t, a) for t, _, _, a in self.crank_hist]
-        a_guess = lambda t: _extrapolate(accel_hist, t, self.order)         # noqa: E731
+        a_guess = lambda t: extrapolate(accel_hist, t, self.order)         # noqa: E731
         saved = self.engine.save() if c.scheme == "iterated" else None
         passes = 0
         while True:
@@ -305,9 +281,9 @@ class _Channel:
             new_state, trace = self.motor.advance(self.state, t_b, load_torque=load, load_inertia=inertia,
                                                   samples=samples, load_inertia_max=self.J_r.max if self.J_r else 0.0)
             if c.scheme == "jacobi":
-                profile = _crank_extrapolation(t_a, q_h, w_h, a_h if self.order else 0.0)
+                profile = crank_extrapolation(t_a, q_h, w_h, a_h if self.order else 0.0)
             else:
-                profile = _crank_interpolation(np.r_[t_a, samples], np.r_[q_h, trace.crank_angle_rad],
+                profile = crank_interpolation(np.r_[t_a, samples], np.r_[q_h, trace.crank_angle_rad],
                                                np.r_[w_h, trace.crank_speed_rad_s],
                                                np.r_[a_h, trace.crank_acceleration_rad_s2])
             out = self.engine.advance(t_b, DriveInput(prescribed=profile))
@@ -318,8 +294,8 @@ class _Channel:
             if self._check(passes, t_b, T_new, T_guess(tt),
                            "reduce coupling.macro_step or set coupling.interface_jacobian = true"):
                 break
-            T_guess = _linear(tt, T_new)
-            a_guess = _linear(np.r_[t_a, samples], np.r_[a_h, trace.crank_acceleration_rad_s2])
+            T_guess = linear_interpolation(tt, T_new)
+            a_guess = linear_interpolation(np.r_[t_a, samples], np.r_[a_h, trace.crank_acceleration_rad_s2])
             self.engine.restore(saved)
         self.state = new_state
         self.crank_hist.append((t_b, new_state.crank_angle_rad, new_state.crank_speed_rad_s,
@@ -346,7 +322,8 @@ class _Channel:
         run = concatenate(self.name, self.outputs, wall_time_s)
         motor = MotorTrace.concatenate(self.traces) if self.motor is not None else None
         return ChannelResult(self.name, run, motor, np.array(self.passes, dtype=int), status, error,
-                             self.t0, self.angle0, None if self.motor is None else self.motor.p)
+                             self.t0, self.angle0, None if self.motor is None else self.motor.p,
+                             dict(self.motor_extrema) if self.motor is not None else None)
 
 
 # -- the master ----------------------------------------------------------------------------------
@@ -397,12 +374,15 @@ class CoSimulation:
         return revolutions * 2 * math.pi / abs(self.scenario.drive.speed_rad_s)
 
     def run(self, duration_s: float | None = None, *, revolutions: float | None = None, callback=None,
-            t0: float = 0.0, until_steady: bool | None = None) -> CoSimResult:
+            t0: float = 0.0, until_steady: bool | None = None, keep_revolutions: float | None = None) -> CoSimResult:
         """Advance every engine to ``duration_s`` (or ``revolutions`` at the set-point speed;
         default: the scenario's output revolutions), rounded up to whole macro steps.
         ``until_steady`` (default: when neither a length nor the scenario's output.revolutions is
         given): end as soon as every running engine is steady (:class:`cosim.metrics.SteadyWatch`,
-        the scenario's ``output.steady_tolerance``), at the latest after ``output.max_revolutions``."""
+        the scenario's ``output.steady_tolerance``), at the latest after ``output.max_revolutions``.
+        ``keep_revolutions``: hold only the last that many crank revolutions of each engine's
+        outputs (a caller that streams every macro step elsewhere, as ``cosim run`` does to
+        traces.csv, keeps its memory bounded in run length); default: the whole run."""
         sc, H = self.scenario, self.macro_step_s
         if until_steady is None:
             until_steady = duration_s is None and revolutions is None and sc.output.revolutions is None
@@ -420,7 +400,8 @@ class CoSimulation:
 
         channels, clocks, status, errors = {}, {}, {}, {}
         for name, engine in self.engines.items():
-            ch = channels[name] = _Channel(name, engine, sc, self.mode, self.coupling)
+            ch = channels[name] = _Channel(name, engine, sc, self.mode, self.coupling,
+                                           None if keep_revolutions is None else 2 * math.pi * keep_revolutions)
             tic = time.perf_counter()
             try:
                 ch.start(t0, angle0, start_speed)

@@ -49,6 +49,9 @@ from .run_guards import MAX_HOURS, check_cost, plausibility_notes
 from .traces import TraceWriter
 
 SUMMARY_EVERY_S = 2.0
+#: Revolutions of every engine's outputs a run holds in memory (the rest is in traces.csv): the
+#: steady-state check, the scores and the figures use the last two.
+KEEP_REVOLUTIONS = 4
 log = logging.getLogger(__name__)
 
 @dataclass
@@ -133,9 +136,10 @@ def _engine_summary(ch, scenario: Scenario, sim_t0: float) -> dict:
             d["energy_J"] = ch.energy_balance()
         except InputError as exc:
             d["energy_J"] = {"note": str(exc)}
-        tr = ch.motor
-        d["motor"] = {"current_max_A": float(np.max(tr.current_A)), "current_min_A": float(np.min(tr.current_A)),
-                      "voltage_max_V": float(np.max(tr.voltage_V)), "voltage_min_V": float(np.min(tr.voltage_V))}
+        ext = ch.motor_extrema or {}
+        if "current_A" in ext:           # over the whole run, not only the revolutions held
+            d["motor"] = {"current_max_A": ext["current_A"][1], "current_min_A": ext["current_A"][0],
+                          "voltage_max_V": ext["voltage_V"][1], "voltage_min_V": ext["voltage_V"][0]}
     return d
 
 
@@ -230,7 +234,8 @@ def run_scenario(scenario, options: RunOptions = RunOptions(), callback=None) ->
     status, result = None, None
     try:
         with interrupts:
-            result = cosim.run(duration, callback=on_step, until_steady=until_steady)
+            result = cosim.run(duration, callback=on_step, until_steady=until_steady,
+                               keep_revolutions=KEEP_REVOLUTIONS)
         status = result.status
         if interrupts.signal is not None:
             mark_interrupted(result, written_t[0], failures)

@@ -98,23 +98,29 @@ def _split_load(t7):
     return t7[..., _Z], t7[..., _F]
 
 
-def inertia_count(S) -> np.ndarray:
-    """Number of negative eigenvalues of symmetric matrices ``S (..., n, n)``, vectorised, from
-    the signs of the pivots of their LDL^T factorization (Sylvester's law of inertia: the pivots
-    are ratios of successive leading principal minors), without an eigenvalue problem. An
-    exactly zero pivot (a singular leading block, e.g. exactly at a buckling load) counts as
-    non-negative."""
+def ldl_pivots(S) -> np.ndarray:
+    """The pivots ``(..., n)`` of the LDL^T factorization (no pivoting) of symmetric matrices
+    ``S (..., n, n)``, vectorised. Sylvester's law of inertia: as many pivots are negative as
+    eigenvalues (the pivots are ratios of successive leading principal minors); after an exactly
+    zero pivot (a singular leading block) the rest are not defined and are returned as zero."""
     S = np.array(S, dtype=float, copy=True)
     n = S.shape[-1]
-    negative = np.zeros(S.shape[:-2], dtype=int)
+    pivots = np.zeros(S.shape[:-1])
     for k in range(n):
         d = S[..., k, k]
-        negative = negative + (d < 0)
+        pivots[..., k] = d
         if k + 1 < n:
             l = np.divide(S[..., k + 1:, k], d[..., None], out=np.zeros(S[..., k + 1:, k].shape),
                           where=(d != 0.0)[..., None])
             S[..., k + 1:, k + 1:] -= l[..., :, None] * S[..., None, k, k + 1:]
-    return negative
+    return pivots
+
+
+def inertia_count(S) -> np.ndarray:
+    """Number of negative eigenvalues of symmetric matrices ``S (..., n, n)`` from the signs of
+    their LDL^T pivots (:func:`ldl_pivots`), without an eigenvalue problem. An exactly zero pivot
+    (e.g. exactly at a buckling load) counts as non-negative."""
+    return np.sum(ldl_pivots(S) < 0, axis=-1)
 
 
 KINDS = ("field", "point", "load", "rigid")

@@ -31,7 +31,7 @@ import numpy as np
 
 from .errors import BucklingError, InputError, SingularStructureError, require_finite
 from .matrices import F_IDX, field_matrix, frame_rotation, point_matrix, rigid_element_matrix
-from .riccati import ChainFactor, chain_states, factor_chain, load_column, sweep_loads
+from .riccati import ChainFactor, chain_states, factor_chain, ldl_pivots, load_column, sweep_loads
 
 from .structure_types import (CONNECTIONS, SUPPORTS, Joint, LinearSolution, LoadCase, Member,  # noqa: F401
                               MemberResult, RigidBody, SliderJoint, Spring, Structure, constrained_joints)
@@ -284,12 +284,13 @@ def factorize(structure: Structure, case: LoadCase, axial_force: Mapping[str, np
         raise SingularStructureError(f"instantaneous structure is singular: no stiffness at DOF(s) {dead}")
     dsafe = np.where(d > 0, d, 1.0)
     Ks = Ksym / dsafe[..., :, None] / dsafe[..., None, :]
-    eig = np.linalg.eigvalsh(Ks)
-    emax = np.max(np.abs(eig), axis=-1)
-    emin = np.min(np.abs(eig), axis=-1)
+    # Inertia and conditioning from LDL^T pivots (Wittrick-Williams; as tmm_core.kernels_static).
+    piv = ldl_pivots(Ks)
+    pmax = np.max(np.abs(piv), axis=-1)
+    pmin = np.min(np.abs(piv), axis=-1)
     with np.errstate(divide="ignore"):
-        condition = np.where(emin > 0, emax / emin, np.inf)
-    negative = negative + np.sum(eig < 0, axis=-1)
+        condition = np.where(pmin > 0, pmax / pmin, np.inf)
+    negative = negative + np.sum(piv < 0, axis=-1)
     if check_singular and np.any(~(condition < cond_limit)):
         worst = np.unravel_index(np.argmax(condition), batch) if batch else ()
         raise SingularStructureError(

@@ -115,6 +115,8 @@ class TimeDomain(StepSolver):
             self.offsets[link.name] = off
             off += 3 * link.n_nodes
         self.n_dof = off
+        # (link, offset, node count) of every link: Link.n_nodes rebuilds the mesh at each call.
+        self._node_blocks = tuple((l.name, self.offsets[l.name], l.n_nodes) for l in self.links)
         masses = node_mass_arrays(mech)
         self.m_vec = np.concatenate([np.repeat(masses[l.name][0], 3) * np.tile([1.0, 1.0, 0.0], l.n_nodes)
                                      + np.repeat(masses[l.name][1], 3) * np.tile([0.0, 0.0, 1.0], l.n_nodes)
@@ -482,9 +484,8 @@ class TimeDomain(StepSolver):
     def unstack(self, vectors: np.ndarray):
         """Split node vectors ``(..., n_dof)`` into ``{link: (..., n_nodes, 3)}``."""
         out = {}
-        for l in self.links:
-            off = self.offsets[l.name]
-            out[l.name] = vectors[..., off:off + 3 * l.n_nodes].reshape(vectors.shape[:-1] + (l.n_nodes, 3))
+        for name, off, n1 in self._node_blocks:
+            out[name] = vectors[..., off:off + 3 * n1].reshape(vectors.shape[:-1] + (n1, 3))
         return out
 
     def step_loads(self, cfg, idx, h_a, h_v, *, rigid: bool = True, viscous=None):
