@@ -176,6 +176,10 @@ def write_run_figures(folder, scenario=None, records_dir=None) -> list:
     """The figures of a finished ``cosim run`` folder (what :func:`cosim.run.run_scenario` calls).
     History records are looked up for the scenario when it is given."""
     histories = record_histories(scenario, records_dir) if scenario is not None else None
+    if scenario is not None:
+        # Only the last revolutions are drawn: read only them (memory flat in the run's length).
+        from .results import load_run
+        folder = load_run(folder, tail_s=4 * scenario.revolution_period_s)
     return plot_strains(folder, histories)
 
 

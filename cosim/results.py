@@ -135,19 +135,68 @@ def read_wide(path) -> tuple:
     return list(df.columns), df.to_numpy(), note
 
 
+#: Rows of traces.csv converted at a time into the parquet file (memory flat in run length).
+PARQUET_CHUNK_ROWS = 2_000
+
+
 def write_parquet(folder) -> Path:
-    """``traces.parquet`` (the long table) beside ``traces.csv``; written through a temporary file
-    so that a crash never leaves half a file."""
+    """``traces.parquet`` (the long table) beside ``traces.csv``, converted chunk by chunk (one
+    row group per :data:`PARQUET_CHUNK_ROWS` rows of the CSV, so the memory does not grow with
+    the run's length); written through a temporary file so that a crash never leaves half a file.
+    A last line cut off by a kill is dropped with a warning."""
+    import pandas as pd
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
     folder = Path(folder)
-    columns, data, note = read_wide(folder / "traces.csv")
-    if note:
-        log.warning(note)
-    df = long_traces(columns, data)
+    src = folder / "traces.csv"
     path = folder / "traces.parquet"
     tmp = path.with_suffix(".parquet.tmp")
-    df.to_parquet(tmp, index=False)
+    with src.open("rb") as fh:
+        fh.seek(0, 2)
+        size = fh.tell()
+        if size:
+            fh.seek(size - 1)
+            complete = fh.read(1) == b"\n"
+    if not size:
+        raise ValueError(f"{src}: empty trace file")
+    writer = schema = None
+    try:
+        reader = pd.read_csv(src, dtype="float64", chunksize=PARQUET_CHUNK_ROWS,
+                             skipfooter=0 if complete else 1, engine="c" if complete else "python")
+        for chunk in reader:
+            df = long_traces(list(chunk.columns), chunk.to_numpy())
+            for c in ("engine", "gauge", "quantity", "unit"):
+                df[c] = df[c].astype(str)
+            table = pa.Table.from_pandas(df, schema=schema, preserve_index=False)
+            if writer is None:
+                schema = table.schema
+                writer = pq.ParquetWriter(tmp, schema)
+            writer.write_table(table)
+    except (ValueError, pd.errors.ParserError) as exc:
+        if writer is not None:
+            writer.close()
+        tmp.unlink(missing_ok=True)
+        raise ValueError(f"{src}: not a trace table ({' '.join(str(exc).split())})") from None
+    if writer is None:
+        _empty().to_parquet(tmp, index=False)
+    else:
+        writer.close()
+    if not complete:
+        log.warning("%s: the last line was cut off (interrupted run) and is ignored", src)
     tmp.replace(path)
     return path
+
+
+def _tail_filters(path: Path, tail_s: float):
+    """Parquet row filter keeping the last ``tail_s`` of the run, from the row groups' statistics
+    (nothing is read but the file's footer). An engine that failed earlier has no rows in it."""
+    import pyarrow.parquet as pq
+    md = pq.ParquetFile(path).metadata
+    col = md.schema.names.index("time_s")
+    ends = [md.row_group(i).column(col).statistics for i in range(md.num_row_groups)]
+    ends = [st.max for st in ends if st is not None and st.has_min_max]
+    return [("time_s", ">=", max(ends) - tail_s)] if ends else None
 
 
 @dataclass
@@ -200,12 +249,14 @@ class RunData:
         return pd.DataFrame(data, columns=columns)
 
 
-def load_run(folder) -> RunData:
+def load_run(folder, tail_s: float | None = None) -> RunData:
     """Load a run folder (``cosim run`` output): traces as a long DataFrame and the summary.
 
     Reads ``traces.parquet`` when it is there and not older than ``traces.csv``; otherwise (a
     killed or interrupted run, or a folder written before parquet files existed) builds the table
-    from ``traces.csv``. Raises FileNotFoundError / ValueError naming the file."""
+    from ``traces.csv``. ``tail_s`` [s]: from the parquet file, only the last ``tail_s``
+    of simulated time (what a figure of the last revolution needs; memory independent of the
+    run's length). Raises FileNotFoundError / ValueError naming the file."""
     import pandas as pd
     from .report import load_summary
 
@@ -222,7 +273,10 @@ def load_run(folder) -> RunData:
         raise FileNotFoundError(f"{folder}: no traces.csv or traces.parquet (is it a `cosim run` folder? sweeps write "
                                 "sweep.csv, uncertainty runs band.csv)")
     if pq.exists() and (not csv_path.exists() or pq.stat().st_mtime >= csv_path.stat().st_mtime):
-        traces = pd.read_parquet(pq)
+        traces = pd.read_parquet(pq, filters=_tail_filters(pq, tail_s)) if tail_s is not None else pd.read_parquet(pq)
+        for c in ("engine", "gauge", "quantity", "unit"):
+            if c in traces:
+                traces[c] = traces[c].astype("category")
     else:
         columns, data, note = read_wide(csv_path)
         if note:
