@@ -32,7 +32,8 @@ from .mechanism import FourBarMechanism, torque_from_terms
 from .post import Gauge, gauge_strains
 from .riccati import segment_stiffness
 from .second_order import Segments
-from .structure import LoadCase, MemberResult, factorize, solve_factored
+from . import compiled_maps as maps_module
+from .structure import LoadCase, factorize, solve_factored
 from .time_step import AXIAL_FORCE_MODELS, DYNAMIC_TERMS, StepSolver, select, terms_at
 
 # The dense load-to-response maps cost O(n_dof^2) per configuration to build (once per revolution
@@ -43,7 +44,6 @@ from .time_step import AXIAL_FORCE_MODELS, DYNAMIC_TERMS, StepSolver, select, te
 # further revolution costs the maps almost nothing. So the maps are used up to 32 segments per
 # link (and within max_map_bytes); beyond, the sweeps keep the cost linear in the segment count.
 MAP_MAX_DOF = 320
-MAP_CHUNK_BYTES = 64e6       # working memory of one chunk of the map solve
 
 
 class TimeDomain(StepSolver):
@@ -229,14 +229,14 @@ class TimeDomain(StepSolver):
             return factorize(self.structure, case, None if P is None else {k: v[:, None] for k, v in P.items()},
                              check_buckling=False, stiffness_factor=factors, count_inertia=True)
 
-        compiled_maps = with_maps and self.compiled_factorization
-        if compiled_maps:
+        use_compiled = with_maps and self.compiled_factorization
+        if use_compiled:
             # The maps come from the compiled factorization (tmm_core.kernels_static); the numpy
             # factor is built only if a step asks for it (factor_of).
             prep = kernels_static.prepare(self.structure, LoadCase(joints_flat, {}, {}, Kn, frame="local"),
                                           stiffness_factor=factors)
             P_stacked = kernels_static.stack_segments(prep, P or {})
-            maps, negative = self._compiled_maps(prep, P_stacked, motion)
+            maps, negative = maps_module.compiled_maps(self, prep, P_stacked, motion)
             factor = None
         else:
             factor = make_factor()
@@ -252,13 +252,13 @@ class TimeDomain(StepSolver):
         loads_local = rigid_body_loads(mech, motion, self.gravity, frame="local")
         drive = mech.drive_torque_terms(motion, self.gravity)
         P0 = None if P is None else np.concatenate([P[l.name] for l in self.links], axis=-1)
-        base = {"factor": factor, "make_factor": make_factor, "rigid": self._stack(loads_local), "motion": motion,
+        base = {"factor": factor, "make_factor": make_factor, "rigid": self.stack(loads_local), "motion": motion,
                 "maps": None, "drive": drive,
                 "P0": P0, "crank": (np.asarray(angle, float), np.asarray(speed, float), np.asarray(accel, float)),
                 # Configurations whose estimated axial forces leave the step indefinite: the
                 # dynamic step refactorizes them at its own axial forces.
                 "indefinite": indefinite}
-        if compiled_maps:
+        if use_compiled:
             return {**base, "maps": maps}
         if not with_maps:
             return base
@@ -273,7 +273,7 @@ class TimeDomain(StepSolver):
         unit = {k: np.concatenate([v, np.zeros((1,) + v.shape[1:])])[None] for k, v in unit.items()}
         # Solved in chunks of configurations: the station states of every unit load take about
         # 32 n_dof^2 bytes per configuration (0.5 GB for a revolution at 0.5 deg, 16 segments per link).
-        chunk = max(1, int(MAP_CHUNK_BYTES // (32.0 * self.n_dof ** 2)))
+        chunk = max(1, int(maps_module.MAP_CHUNK_BYTES // (32.0 * self.n_dof ** 2)))
         n_out = 1 + 2 * len(self.gauges)
         maps = {"Z": np.empty((B, self.n_dof, self.n_dof)), "z0": np.empty((B, self.n_dof)),
                 "O": np.empty((B, n_out, self.n_dof)), "o0": np.empty((B, n_out))}
@@ -310,72 +310,6 @@ class TimeDomain(StepSolver):
         return [m.name for m in self.structure.members] == [l.name for l in self.links] and \
             all(m.n_segments + 1 == l.n_nodes for m, l in zip(self.structure.members, self.links))
 
-    def _compiled_maps(self, prep, P, motion):
-        """The load-to-response maps (as the numpy path of :meth:`configurations`) from one
-        compiled factorization per configuration solved for every unit load; returns the maps
-        and the inertia count ``(B,)``."""
-        B = len(P)
-        n = self.n_dof
-        # Unit loads (stacked node vector order = the compiled node order) plus a zero column.
-        unit = np.zeros((1, n + 1, n // 3, 3))
-        unit[0, np.arange(n), np.arange(n) // 3, np.arange(n) % 3] = 1.0
-        lay = prep.layout
-        index = {lab: k for k, lab in enumerate(lay.labels)}
-        supports = [(j.name, j.support) for j in self.structure.joints if j.support != "free"]
-        n_out = 1 + 2 * len(self.gauges)
-        axial = self.axial_force == "dynamic"
-        maps = {"Z": np.empty((B, n, n)), "z0": np.empty((B, n)), "O": np.empty((B, n_out, n)), "o0": np.empty((B, n_out))}
-        if axial:
-            n_seg = len(self.segments.length)
-            maps["A"], maps["a0"] = np.empty((B, n_seg, n)), np.empty((B, n_seg))
-        negative = np.empty(B, dtype=int)
-        drive = self.mech.drive_torque_terms(motion, self.gravity)
-        members = {m.name: (i, m) for i, m in enumerate(self.structure.members)}
-        # The gauges read the right-side state of the node that starts their segment.
-        gauge_at = []
-        for g in self.gauges:
-            i, m = members[g.link]
-            j = int(np.clip(np.searchsorted(m.stations, g.position_m, side="right") - 1, 0, m.n_segments - 1))
-            gauge_at.append(int(lay.node_off[i]) + j)
-        chunk = max(1, int(MAP_CHUNK_BYTES // (8.0 * (n + 1) * (2 * n + 6 * len(self.gauges) + 8))))
-        for c0 in range(0, B, chunk):
-            sl = slice(c0, min(B, c0 + chunk))
-            part = kernels_static.Prepared(prep.structure, prep.case, lay, prep.angle[sl],
-                                           {k: v[sl] for k, v in prep.origin.items()}, prep.factor[sl],
-                                           prep.factor_given, prep.qloc[sl], prep.Kn[sl], prep.Fn[sl])
-            (z, N, gstates), _, reaction, neg = kernels_static.solve_prepared(
-                part, P[sl], check_buckling=False, count_inertia=True, node_loads=unit, compact_nodes=gauge_at)
-            negative[sl] = neg                                      # z: (b, n_dof, loads+1), N: (b, n_seg, loads+1)
-            reactions = {}
-            for name, support in supports:
-                r = np.zeros(reaction.shape[:-1] + (3,))
-                r[..., 0] = reaction[..., index[(name, "x")]]
-                r[..., 1] = reaction[..., index[(name, "y")]]
-                if support == "clamped":
-                    r[..., 2] = reaction[..., index[(name, "r")]]
-                reactions[name] = r
-            torque = torque_from_terms(reactions, *terms_at(drive, sl))          # (b, loads+1)
-            g_out = []
-            for k, g in enumerate(self.gauges):
-                i, m = members[g.link]
-                # Only the state gauge_strains reads (node j, right side) is real: a broadcast view.
-                gs = np.moveaxis(gstates[:, k], 1, -1)                                    # (b, loads+1, 6)
-                state = np.broadcast_to(gs[:, :, None, None, :], gs.shape[:2] + (m.n_segments + 1, 2, 6))
-                res = MemberResult(m, part.angle[:, i, None], part.origin[m.name][:, None], state,
-                                   P[sl, None, lay.seg_off[i]:lay.seg_off[i + 1]], np.zeros((1, 1, m.n_segments)),
-                                   part.factor[:, None, lay.seg_off[i]:lay.seg_off[i + 1]])
-                g_out.append(np.stack(gauge_strains(res, g), -1))
-            outs = np.concatenate([torque[..., None]] + g_out, axis=-1) if g_out else torque[..., None]
-            np.subtract(z[:, :, :-1], z[:, :, -1:], out=maps["Z"][sl])
-            maps["z0"][sl] = z[:, :, -1]
-            maps["O"][sl] = np.swapaxes(outs[:, :-1] - outs[:, -1:], 1, 2)
-            maps["o0"][sl] = outs[:, -1]
-            if axial:
-                np.subtract(N[:, :, :-1], N[:, :, -1:], out=maps["A"][sl])
-                maps["a0"][sl] = N[:, :, -1]
-            del z, N, gstates
-        return maps, negative
-
     def factor_of(self, cfg):
         """The numpy factorization of a configuration batch (built on first use when the maps
         came from the compiled factorization)."""
@@ -385,9 +319,6 @@ class TimeDomain(StepSolver):
 
     def stack(self, per_link):
         """Stack per-link arrays ``{link: (..., n+1, 3)}`` into the node vector ``(..., n_dof)``."""
-        return self._stack(per_link)
-
-    def _stack(self, per_link):
         return np.concatenate([per_link[l.name].reshape(per_link[l.name].shape[:-2] + (-1,)) for l in self.links], -1)
 
     # -- marching -----------------------------------------------------------------------------
