@@ -265,27 +265,34 @@ def test_an_interrupted_macro_step_is_dropped_and_a_swallowed_interrupt_is_not_a
     assert genuine.status == "failed" and genuine.channels["exudyn"].error == "diverged"
 
 
+def _interrupt_run(engines: str, out, ready) -> tuple:
+    """Start ``cosim run crank_rocker_373rpm --engines ENGINES`` (20 revolutions, no recording),
+    send SIGINT once ``ready(traces_path)`` holds; returns (process, seconds from the signal to
+    its exit)."""
+    proc = subprocess.Popen([sys.executable, "-m", "cosim", "run", "crank_rocker_373rpm", "--engines", engines,
+                             "--revolutions", "20", "--no-record", "--out", str(out), "--quiet"], cwd=ROOT,
+                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    traces = out / "traces.csv"
+    try:
+        deadline = time.time() + 240
+        while time.time() < deadline and not (traces.exists() and ready(traces)):
+            assert proc.poll() is None, proc.stderr.read()[-2000:]
+            time.sleep(0.05)
+        tic = time.monotonic()
+        proc.send_signal(signal.SIGINT)
+        proc.wait(timeout=60)
+        return proc, time.monotonic() - tic
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+
+
 @pytest.mark.skipif(not hasattr(signal, "SIGINT"), reason="POSIX signals")
 def test_ctrl_c_with_exudyn_stops_at_once_and_keeps_every_engines_steps(tmp_path):
     """Ctrl-C used to be caught in exudyn's Newton loop (a 'failed' exudyn, the run going on)."""
     pytest.importorskip("exudyn")
     out = tmp_path / "int"
-    proc = subprocess.Popen([sys.executable, "-m", "cosim", "run", "crank_rocker_373rpm", "--engines", "tmm,exudyn",
-                             "--revolutions", "20", "--out", str(out), "--quiet", "--no-record"], cwd=ROOT,
-                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
-    try:
-        deadline = time.time() + 240
-        while time.time() < deadline and not ((out / "traces.csv").exists()
-                                              and (out / "traces.csv").stat().st_size > 20_000):
-            assert proc.poll() is None, proc.stderr.read()[-2000:]
-            time.sleep(0.2)
-        tic = time.monotonic()
-        proc.send_signal(signal.SIGINT)
-        proc.wait(timeout=60)
-        stopped_in = time.monotonic() - tic
-    finally:
-        if proc.poll() is None:
-            proc.kill()
+    proc, stopped_in = _interrupt_run("tmm,exudyn", out, lambda traces: traces.stat().st_size > 20_000)
     assert proc.returncode == 130 and stopped_in < 5, (proc.returncode, stopped_in)
     summary = json.loads((out / "summary.json").read_text())
     assert summary["status"] == "interrupted"
@@ -358,22 +365,8 @@ def test_ctrl_c_with_each_engine_alone_exits_130_within_two_seconds(engine, tmp_
     summary 'interrupted', traces.csv kept."""
     pytest.importorskip(engine if engine != "tmm" else "numpy")
     out = tmp_path / "int"
-    proc = subprocess.Popen([sys.executable, "-m", "cosim", "run", "crank_rocker_373rpm", "--engines", engine,
-                             "--revolutions", "20", "--no-record", "--out", str(out), "--quiet"], cwd=ROOT,
-                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
     traces = out / "traces.csv"
-    try:
-        deadline = time.time() + 240
-        while time.time() < deadline and not (traces.exists() and traces.read_text().count("\n") >= 3):
-            assert proc.poll() is None, proc.stderr.read()[-2000:]
-            time.sleep(0.05)
-        tic = time.monotonic()
-        proc.send_signal(signal.SIGINT)
-        proc.wait(timeout=30)
-        stopped_in = time.monotonic() - tic
-    finally:
-        if proc.poll() is None:
-            proc.kill()
+    proc, stopped_in = _interrupt_run(engine, out, lambda traces: traces.read_text().count("\n") >= 3)
     assert proc.returncode == 130 and stopped_in < 2.0, (engine, proc.returncode, stopped_in, proc.stderr.read())
     summary = json.loads((out / "summary.json").read_text())
     assert summary["status"] == "interrupted" and summary["engines"][engine]["status"] == "interrupted"
