@@ -23,6 +23,24 @@ MOTOR_CONSTANTS = {"resistance": ("resistance_ohm", "ohm"), "inductance": ("indu
                    "coulomb_friction": ("coulomb_friction_Nm", "N*m")}
 
 
+#: Ranges of a drive for a linkage bench, beyond which a value is a unit slip, not a motor:
+#: rated power 1 W-1 MW, voltages 1 V-10 kV, a speed loop's bandwidth up to 1 kHz (PI speed
+#: loops of brushed DC drives run at 1-100 Hz) and a current loop's up to 20 kHz (the PWM rate).
+RATED_POWER_W = (1.0, 1e6)
+VOLTAGE_V = (1.0, 1e4)
+SPEED_BANDWIDTH_HZ = (1e-3, 1e3)
+CURRENT_BANDWIDTH_HZ = (1e-3, 2e4)
+
+
+def in_range(r, d: dict, key: str, unit: str, bounds: tuple, table: str = "motor") -> float:
+    """``d[key]`` in ``unit``, refused naming ``table.key`` outside ``bounds`` (SI)."""
+    x = r.quantity(d[key], f"{table}.{key}", unit, positive=True)
+    if not bounds[0] <= x <= bounds[1]:
+        raise r.fail(f"{table}.{key}", f"is {x:.3g} {unit}, outside the {bounds[0]:g}-{bounds[1]:g} {unit} of a "
+                                       f"linkage bench's drive (check the number and its unit)", d[key])
+    return x
+
+
 def derive_pm_dc_motor(rated_power_W: float, rated_speed_rad_s: float, rated_voltage_V: float,
                        efficiency: float = 0.8, copper_loss_share: float = 0.5, coulomb_share: float = 0.4,
                        electrical_time_constant_s: float = 0.01, rotor_inertia_per_W: float = 2.5e-6):
@@ -76,9 +94,9 @@ def motor(r: Reader, data, drive: DriveSpec, mech):
             need = sorted({"rated_power", "rated_speed", "rated_voltage"} - set(rating))
             raise r.fail(f"motor.{need[0]}", f"is required to derive the motor constants not given "
                                              f"({', '.join(missing)})")
-        P = r.quantity(d["rated_power"], "motor.rated_power", "W", positive=True)
+        P = in_range(r, d, "rated_power", "W", RATED_POWER_W)
         w = r.quantity(d["rated_speed"], "motor.rated_speed", "rad/s", positive=True)
-        V = r.quantity(d["rated_voltage"], "motor.rated_voltage", "V", positive=True)
+        V = in_range(r, d, "rated_voltage", "V", VOLTAGE_V)
         kw = {name: r.quantity(d[k], f"motor.{k}", unit, positive=True) for k, (name, unit) in knobs.items() if k in d}
         for k in ("efficiency", "copper_loss_share", "coulomb_share"):       # fractions, named by their own key
             if k in d and not (kw[knobs[k][0]] < 1 if k == "efficiency" else kw[knobs[k][0]] <= 1):
@@ -93,9 +111,9 @@ def motor(r: Reader, data, drive: DriveSpec, mech):
             values[name] = derived[name]
             r.assumptions.append(Assumption(f"motor.{key}", f"{derived[name]:.6g} {unit.replace('**', '^')}", why))
     if "supply_voltage" in d:
-        values["supply_voltage_V"] = r.quantity(d["supply_voltage"], "motor.supply_voltage", "V", positive=True)
+        values["supply_voltage_V"] = in_range(r, d, "supply_voltage", "V", VOLTAGE_V)
     elif "rated_voltage" in d:
-        values["supply_voltage_V"] = r.quantity(d["rated_voltage"], "motor.rated_voltage", "V", positive=True)
+        values["supply_voltage_V"] = in_range(r, d, "rated_voltage", "V", VOLTAGE_V)
     else:
         raise r.fail("motor.supply_voltage", "is required (or give rated_voltage)")
     values["gear_ratio"] = r.number(d.get("gear_ratio", 1.0), "motor.gear_ratio", positive=True)
@@ -145,8 +163,9 @@ def motor(r: Reader, data, drive: DriveSpec, mech):
     try:
         params = MotorParameters(**values)
         if "kp" not in ctrl and "ki" not in ctrl:
-            bw = r.quantity(ctrl.get("bandwidth", "2 Hz"), "motor.controller.bandwidth", "Hz", positive=True)
-            bwi = (r.quantity(ctrl["current_bandwidth"], "motor.controller.current_bandwidth", "Hz", positive=True)
+            bw = in_range(r, {"bandwidth": ctrl.get("bandwidth", "2 Hz")}, "bandwidth", "Hz", SPEED_BANDWIDTH_HZ,
+                          "motor.controller")
+            bwi = (in_range(r, ctrl, "current_bandwidth", "Hz", CURRENT_BANDWIDTH_HZ, "motor.controller")
                    if "current_bandwidth" in ctrl else None)
             params = params.with_gains_for(bw, float(np.mean(mech.crank_inertia(np.linspace(0, 2 * math.pi, 72,
                                                                                             endpoint=False))[0])), bwi)

@@ -415,6 +415,9 @@ MOTOR = [
     (CR, {"motor": "0.5 hp"}, "motor"),
     (CR, {"motor.electrical_time_constant": "0 s"}, "motor.electrical_time_constant"),
     (CR, {"motor.rotor_inertia_per_power": "1 kg"}, "motor.rotor_inertia_per_power"),
+    (CR, {"motor.controller.bandwidth": "1e9 Hz"}, "motor.controller.bandwidth"),          # was accepted
+    (CR, {"motor.rated_voltage": "0.001 V"}, "motor.rated_voltage"),                      # was accepted
+    (CR, {"motor.rated_power": "1e-25 W"}, "motor.rated_power"),                          # was accepted
 ]
 
 
