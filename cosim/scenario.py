@@ -346,6 +346,11 @@ def _check_stiffness(r: Reader, top: dict, mech, drive) -> None:
         if not m > 0:
             continue
         omega1 = (math.pi / link.length_m) ** 2 * math.sqrt(EI / m)      # first bending mode [rad/s]
+        if omega1 < speed and 1e8 <= link.material.E_Pa <= 1e12:
+            # A structural modulus (0.1-1000 GPa): the speed is what is out of range.
+            raise r.fail("drive.speed", f"turns the crank at {speed / (2 * math.pi):.3g} Hz, above the {link.name}'s "
+                                        f"first bending frequency {omega1 / (2 * math.pi):.3g} Hz: no linkage runs "
+                                        "there (check the number and its unit)", rd.peek(top.get("drive", {}).get("speed")))
         if omega1 < speed:
             raise r.fail(f"materials.{link.material.name}.E",
                          f"the {link.name} is far too soft for a linkage: its first bending frequency "

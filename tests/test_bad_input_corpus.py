@@ -304,6 +304,7 @@ def test_gauges(name, overrides, key):
 
 # -- drive ----------------------------------------------------------------------------------------------
 DRIVE = [
+    (CR, {"drive.speed": "1e7 rpm"}, "drive.speed"),                    # was named materials.aluminium.E
     (CR, {"drive.mode": "free"}, "drive.mode"),
     (CR, {"drive.mode": "motor", "motor": None}, "drive.mode"),
     (CR, {"drive.rotation": "clockwise"}, "drive.rotation"),
