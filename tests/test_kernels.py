@@ -5,7 +5,6 @@ round-off: 1e-12 relative, with the second-order step's iteration converged to 1
 stopping point does not differ between the two (at 1e-13 a start state that moved by round-off,
 the compiled quasi-static start, shifted one toggle step's stopping point: 3e-12 for ten steps).
 """
-import dataclasses
 
 import numpy as np
 import pytest
@@ -87,14 +86,14 @@ def test_compiled_factorization_equals_numpy_for_a_beam_column_solve():
     """One linear solve of the FE rig at 72 crank positions, with compressive and tensile segment
     forces in the field matrices and the rotating-frame node stiffness: every station state, the
     support reactions and the inertia count agree with tmm_core.structure to 1e-12."""
-    from tmm_core import kernels_static
+    from tmm_core import structure_compiled
     from tmm_core.structure import solve_linear
     _, mech, case = _fe_quasi_static_case()
     structure = mech.structure()
     rng = np.random.default_rng(1)
     P = {m.name: rng.uniform(-200.0, 300.0, (72, m.n_segments)) for m in structure.members}
     ref = solve_linear(structure, case, P, count_inertia=True)
-    new = kernels_static.solve_linear(structure, case, P, count_inertia=True)
+    new = structure_compiled.solve_linear(structure, case, P, count_inertia=True)
     for name, r in ref.members.items():
         for k in range(6):
             assert _rel(r.state[..., k], new.members[name].state[..., k]) < 1e-12, (name, k)
@@ -124,7 +123,7 @@ def test_inertia_count_of_a_pinned_pinned_column_changes_exactly_at_the_euler_lo
     pinned-pinned column carries no negative pivot just below pi^2 EI / L^2 and exactly one just
     above it (and two above the second Euler load, 4 pi^2 EI / L^2), in the compiled
     factorization and in the numpy path; beyond the Euler load the solve is refused."""
-    from tmm_core import kernels_static
+    from tmm_core import structure_compiled
     from tmm_core.errors import BucklingError
     from tmm_core.sections import Material, Section
     from tmm_core.structure import Joint, LoadCase, Member, Structure, solve_linear
@@ -135,12 +134,12 @@ def test_inertia_count_of_a_pinned_pinned_column_changes_exactly_at_the_euler_lo
     euler = np.pi**2 * E * section.inertia_m4 / L**2
     for factor, expected in ((0.999999, 0), (1.000001, 1), (3.99999, 1), (4.00001, 2)):
         P = {"col": np.full((1, segments), -factor * euler)}
-        for solve in (solve_linear, kernels_static.solve_linear):
+        for solve in (solve_linear, structure_compiled.solve_linear):
             sol = solve(column, case, P, check_buckling=False, count_inertia=True)
             assert int(sol.negative_eigenvalues[0]) == expected, (solve.__module__, factor)
     with pytest.raises(BucklingError, match="at or beyond its buckling load"):
-        kernels_static.solve_linear(column, case, {"col": np.full((1, segments), -1.001 * euler)})
-    kernels_static.solve_linear(column, case, {"col": np.full((1, segments), -0.999 * euler)})
+        structure_compiled.solve_linear(column, case, {"col": np.full((1, segments), -1.001 * euler)})
+    structure_compiled.solve_linear(column, case, {"col": np.full((1, segments), -0.999 * euler)})
 
 
 @pytest.mark.parametrize("scenario", ["crank_rocker_373rpm", "alexander_lawrence_400rpm"])

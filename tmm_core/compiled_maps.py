@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import kernels_static
+from . import structure_compiled
 from .mechanism import torque_from_terms
 from .post import gauge_strains
 from .structure import MemberResult
@@ -49,10 +49,10 @@ def compiled_maps(td, prep, P, motion):
     chunk = max(1, int(MAP_CHUNK_BYTES // (8.0 * (n + 1) * (2 * n + 6 * len(td.gauges) + 8))))
     for c0 in range(0, B, chunk):
         sl = slice(c0, min(B, c0 + chunk))
-        part = kernels_static.Prepared(prep.structure, prep.case, lay, prep.angle[sl],
+        part = structure_compiled.Prepared(prep.structure, prep.case, lay, prep.angle[sl],
                                        {k: v[sl] for k, v in prep.origin.items()}, prep.factor[sl],
                                        prep.factor_given, prep.qloc[sl], prep.Kn[sl], prep.Fn[sl])
-        (z, N, gstates), _, reaction, neg = kernels_static.solve_prepared(
+        (z, N, gstates), _, reaction, neg = structure_compiled.solve_prepared(
             part, P[sl], check_buckling=False, count_inertia=True, node_loads=unit, compact_nodes=gauge_at)
         negative[sl] = neg                                      # z: (b, n_dof, loads+1), N: (b, n_seg, loads+1)
         reactions = {}

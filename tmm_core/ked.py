@@ -41,7 +41,7 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from . import kernels_static
+from . import structure_compiled
 from .errors import InputError, SingularStructureError, require_finite, require_positive
 from .kinematics import FourBarMotion
 from .mechanism import FourBarMechanism
@@ -224,8 +224,9 @@ def quasi_static(mech: FourBarMechanism, crank_angle, crank_speed, crank_acceler
     try:
         structure = mech.structure()
         solver = solve_static
-        if compiled and kernels_static.AVAILABLE and np.ndim(crank_angle) == 1 and kernels_static.supported(structure):
-            solver = kernels_static.solve_static
+        if compiled and structure_compiled.AVAILABLE and np.ndim(crank_angle) == 1 \
+                and structure_compiled.supported(structure):
+            solver = structure_compiled.solve_static
         sol = solver(structure, case, beam_column=beam_column, tol=tol,
                      count_inertia=True if coupling.centrifugal else None)
     except SingularStructureError as exc:

@@ -35,6 +35,9 @@ axial force, ``sum_s P_s T^T E_s^T G_s E_s T``. Because ``T`` turns with the cra
 Units: SI; ``eta`` has units of sqrt(kg) m (the basis is M-orthonormal at the first grid
 position). Angles in radians, crank angle from the ground line, CCW positive.
 The propagator and the periodic solve are in :mod:`tmm_core.reduced_periodic`.
+
+Owns: the reduced model's basis over a revolution. Boundaries: no time integration
+(tmm_core.reduced_periodic).
 """
 from __future__ import annotations
 

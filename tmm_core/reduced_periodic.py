@@ -30,6 +30,9 @@ Outputs per step: gauge bending and axial strain [-] (the axial strain with the 
 bending, as the full model reports it) and the drive torque [N m, CCW +] from the loads on the
 instantaneous structure (D'Alembert, elastic inertia, rotating-frame and mass-proportional
 damping terms; the second-order terms' share of the reactions is left out).
+
+Owns: the reduced model's equations, Radau IIA propagation and periodic shooting. Boundaries:
+the basis is tmm_core.reduced; the full model's step is not used.
 """
 from __future__ import annotations
 

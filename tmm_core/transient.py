@@ -22,7 +22,7 @@ from typing import Callable, Mapping, Sequence
 
 import numpy as np
 
-from . import kernels, kernels_static
+from . import kernels, structure_compiled
 from .errors import ConvergenceError, DynamicStabilityError, InputError, require_positive
 from .integrators import get_integrator
 from .ked import (Coupling, CrankMotion, KEDResult, coupling_stiffness, node_mass_arrays, quasi_static,
@@ -233,9 +233,9 @@ class TimeDomain(StepSolver):
         if use_compiled:
             # The maps come from the compiled factorization (tmm_core.kernels_static); the numpy
             # factor is built only if a step asks for it (factor_of).
-            prep = kernels_static.prepare(self.structure, LoadCase(joints_flat, {}, {}, Kn, frame="local"),
+            prep = structure_compiled.prepare(self.structure, LoadCase(joints_flat, {}, {}, Kn, frame="local"),
                                           stiffness_factor=factors)
-            P_stacked = kernels_static.stack_segments(prep, P or {})
+            P_stacked = structure_compiled.stack_segments(prep, P or {})
             maps, negative = maps_module.compiled_maps(self, prep, P_stacked, motion)
             factor = None
         else:
@@ -305,7 +305,7 @@ class TimeDomain(StepSolver):
         """Build the configurations' load-to-response maps in the compiled factorization
         (:mod:`tmm_core.kernels_static`): with ``compiled``, for a structure of joints and members
         whose members are the elastic links in order."""
-        if not self.compiled or not kernels_static.AVAILABLE or not kernels_static.supported(self.structure):
+        if not self.compiled or not structure_compiled.AVAILABLE or not structure_compiled.supported(self.structure):
             return False
         return [m.name for m in self.structure.members] == [l.name for l in self.links] and \
             all(m.n_segments + 1 == l.n_nodes for m, l in zip(self.structure.members, self.links))

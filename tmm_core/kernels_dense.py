@@ -1,0 +1,254 @@
+"""Small dense helpers of the compiled factorization (:mod:`tmm_core.kernels_static`): Stumpff
+functions, 3x3 inverse and product, LDL^T inertia, LU with partial pivoting, the sparse blocks of a
+segment's field matrix and the iteration change. Plain Python here;
+:func:`tmm_core.kernels_static.compiled_solve` compiles them (numba, cached on disk) and binds the
+compiled objects where the kernels look them up.
+
+Owns: the small dense numba helpers of the compiled factorization (Stumpff functions, 3x3
+algebra, LDL^T inertia, LU). Boundaries: no structure knowledge; compiled by
+tmm_core.kernels_static.compiled_solve.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+
+def stumpff(s, inv_fact, out):
+    """``out[k] = c_k(s)``, k = 0..4 (see :func:`tmm_core.matrices.stumpff`)."""
+    a_ = abs(s)
+    if a_ < 4.0:
+        # Horner over the terms that matter: the first term left out is below 1e-17 of the sum
+        # (the numpy reference sums 24; the difference is round-off).
+        top = 11 if a_ >= 1.0 else (8 if a_ >= 0.1 else (5 if a_ >= 1e-3 else 3))
+        c3 = 0.0
+        c4 = 0.0
+        for n in range(top, -1, -1):
+            c3 = c3 * s + inv_fact[2 * n + 3]
+            c4 = c4 * s + inv_fact[2 * n + 4]
+        c1 = 1.0 + s * c3
+        c2 = 0.5 + s * c4
+        c0 = 1.0 + s * c2
+    else:
+        r = math.sqrt(abs(s))
+        if s > 0:
+            c0 = math.cosh(r)
+            c1 = math.sinh(r) / r
+        else:
+            c0 = math.cos(r)
+            c1 = math.sin(r) / r
+        c2 = (c0 - 1.0) / s
+        c3 = (c1 - 1.0) / s
+        c4 = (c2 - 0.5) / s
+    out[0] = c0
+    out[1] = c1
+    out[2] = c2
+    out[3] = c3
+    out[4] = c4
+
+
+def inv3(A, out):
+    """Adjugate inverse of a 3x3 matrix (as :func:`tmm_core.riccati.inv3`); returns the determinant."""
+    a, b, c = A[0, 0], A[0, 1], A[0, 2]
+    d, e, f = A[1, 0], A[1, 1], A[1, 2]
+    g, h, i = A[2, 0], A[2, 1], A[2, 2]
+    out[0, 0] = e * i - f * h
+    out[0, 1] = c * h - b * i
+    out[0, 2] = b * f - c * e
+    out[1, 0] = f * g - d * i
+    out[1, 1] = a * i - c * g
+    out[1, 2] = c * d - a * f
+    out[2, 0] = d * h - e * g
+    out[2, 1] = b * g - a * h
+    out[2, 2] = a * e - b * d
+    det = a * out[0, 0] + b * out[1, 0] + c * out[2, 0]
+    if det != 0.0 and math.isfinite(det):
+        rdet = 1.0 / det
+        for r in range(3):
+            for k in range(3):
+                out[r, k] *= rdet
+    return det
+
+
+def mm3(A, B, out):
+    for i in range(3):
+        for j in range(3):
+            out[i, j] = A[i, 0] * B[0, j] + A[i, 1] * B[1, j] + A[i, 2] * B[2, j]
+
+
+def ldl_inertia(S, n, work):
+    """Negative pivots of the LDL^T factorization (no pivoting) of the leading ``n x n`` block of
+    the symmetric matrix ``S`` (overwritten in ``work``), and the smallest and largest pivot
+    magnitudes. Sylvester's law of inertia: the number of negative pivots is the number of
+    negative eigenvalues (an exactly zero pivot is counted as non-negative and reported by the
+    smallest magnitude)."""
+    for i in range(n):
+        for j in range(n):
+            work[i, j] = S[i, j]
+    negative = 0
+    pmin = np.inf
+    pmax = 0.0
+    for k in range(n):
+        d = work[k, k]
+        if d < 0.0:
+            negative += 1
+        ad = abs(d)
+        if ad < pmin:
+            pmin = ad
+        if ad > pmax:
+            pmax = ad
+        if d == 0.0:
+            continue
+        for i in range(k + 1, n):
+            lik = work[i, k] / d
+            for j in range(k + 1, i + 1):
+                work[i, j] -= lik * work[j, k]
+        for i in range(k + 1, n):
+            for j in range(k + 1, i + 1):
+                work[j, i] = work[i, j]
+    return negative, pmin, pmax
+
+
+def iteration_change(new, old, w):
+    """``(largest |displacement change|, largest |displacement|, largest |force change|, largest
+    |force|)`` of two station-state arrays ``(B, Nn, 2, 6)`` weighted by ``w (6,)``."""
+    dd = 0.0
+    ds = 0.0
+    df = 0.0
+    fs = 0.0
+    B, Nn = new.shape[0], new.shape[1]
+    for b in range(B):
+        for i in range(Nn):
+            for side in range(2):
+                for k in range(6):
+                    a = new[b, i, side, k] * w[k]
+                    d = abs(a - old[b, i, side, k] * w[k])
+                    a = abs(a)
+                    if k < 3:
+                        if a > ds:
+                            ds = a
+                        if d > dd:
+                            dd = d
+                    else:
+                        if a > fs:
+                            fs = a
+                        if d > df:
+                            df = d
+    return dd, ds, df, fs
+
+
+def lu_factor(A, n, lu, piv):
+    """LU factorization with partial pivoting of ``A[:n, :n]`` into ``lu``, ``piv``; False if singular."""
+    for i in range(n):
+        piv[i] = i
+        for j in range(n):
+            lu[i, j] = A[i, j]
+    for k in range(n):
+        p = k
+        big = abs(lu[k, k])
+        for i in range(k + 1, n):
+            if abs(lu[i, k]) > big:
+                big = abs(lu[i, k])
+                p = i
+        if big == 0.0:
+            return False
+        if p != k:
+            for j in range(n):
+                t = lu[k, j]
+                lu[k, j] = lu[p, j]
+                lu[p, j] = t
+            t2 = piv[k]
+            piv[k] = piv[p]
+            piv[p] = t2
+        for i in range(k + 1, n):
+            l = lu[i, k] / lu[k, k]
+            lu[i, k] = l
+            if l != 0.0:
+                for j in range(k + 1, n):
+                    lu[i, j] -= l * lu[k, j]
+    return True
+
+
+def lu_solve(lu, piv, n, rhs, x):
+    """Solve with the factors of :func:`lu_factor`."""
+    for i in range(n):
+        x[i] = rhs[piv[i]]
+    for i in range(n):
+        s = x[i]
+        for j in range(i):
+            s -= lu[i, j] * x[j]
+        x[i] = s
+    for k in range(n - 1, -1, -1):
+        s = x[k]
+        for j in range(k + 1, n):
+            s -= lu[k, j] * x[j]
+        x[k] = s / lu[k, k]
+
+
+def segment_blocks(l, ea, ei, p_, qt, qa, is_rigid, inv_fact, c5, sp, t1, t2):
+    """Non-zero entries of a segment's field matrix in z/f blocks (straight chord, beta = 0):
+    ``sp = (T12[0,0], T11[1,2], T11[2,2], T12[1,1], T12[1,2], T12[2,1], T12[2,2], T21[2,2],
+    T22[2,1], T22[2,2])``, the other entries of T11, T22 being the identity's and of T12, T21
+    zero; ``t1, t2`` the load column (see :func:`tmm_core.matrices.field_matrix` and
+    :func:`tmm_core.matrices.rigid_element_matrix`)."""
+    if is_rigid:
+        sp[0] = 0.0
+        sp[1] = l * 1.0
+        sp[2] = 1.0
+        sp[3] = 0.0
+        sp[4] = 0.0
+        sp[5] = 0.0
+        sp[6] = 0.0
+        sp[7] = 0.0
+        sp[8] = -l
+        sp[9] = 1.0
+        for r in range(3):
+            t1[r] = 0.0
+            t2[r] = 0.0
+        return
+    rei = 1.0 / ei
+    l2 = l * l
+    stumpff(p_ * l2 * rei, inv_fact, c5)
+    c0, c1, c2, c3, c4 = c5[0], c5[1], c5[2], c5[3], c5[4]
+    sp[0] = l / ea
+    sp[1] = l * c1
+    sp[2] = c0
+    sp[3] = -(l2 * l) * c3 * rei
+    sp[4] = l2 * c2 * rei
+    sp[5] = -l2 * c2 * rei
+    sp[6] = l * c1 * rei
+    sp[7] = p_ * l * c1
+    sp[8] = -l * c1
+    sp[9] = c0
+    t1[0] = -qa * l2 / (2.0 * ea)
+    t1[1] = qt * (l2 * l2) * c4 * rei
+    t1[2] = qt * (l2 * l) * c3 * rei
+    t2[0] = -qa * l
+    t2[1] = -qt * l
+    t2[2] = qt * l**2 * c2
+
+
+def full6(sp, t1, t2, T, t):
+    """The 6x6 homogeneous part (state order u, w, theta, M, V, N) and load column of a segment
+    from :func:`segment_blocks`."""
+    for r in range(6):
+        for q in range(6):
+            T[r, q] = 1.0 if r == q else 0.0
+    # z = (0, 1, 2), f = (5, 4, 3)
+    T[0, 5] = sp[0]
+    T[1, 2] = sp[1]
+    T[2, 2] = sp[2]
+    T[1, 4] = sp[3]
+    T[1, 3] = sp[4]
+    T[2, 4] = sp[5]
+    T[2, 3] = sp[6]
+    T[3, 2] = sp[7]
+    T[3, 4] = sp[8]
+    T[3, 3] = sp[9]
+    t[0] = t1[0]
+    t[1] = t1[1]
+    t[2] = t1[2]
+    t[5] = t2[0]
+    t[4] = t2[1]
+    t[3] = t2[2]

@@ -1,0 +1,350 @@
+"""Python side of the compiled factorization (:mod:`tmm_core.kernels_static`): which structures it
+handles (:func:`supported`), their layout, the stacked arrays of a batch of configurations
+(:func:`prepare`), the solve with its singularity and buckling checks (:func:`solve_prepared`) and
+the compiled equivalents of :func:`tmm_core.structure.solve_linear` and
+:func:`tmm_core.statics.solve_static` (see :mod:`tmm_core.kernels_static` for the method and scope).
+
+Owns: the Python side of the compiled factorization: layout, preparation, solves, the quasi-
+static iteration. Boundaries: no numba code (tmm_core.kernels_static); the numpy path
+(tmm_core.structure) stays the reference.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Mapping
+
+import numpy as np
+
+from . import kernels_static
+from .errors import BucklingError, ConvergenceError, InputError, SingularStructureError, require_finite
+from .matrices import frame_rotation
+
+AVAILABLE = kernels_static.AVAILABLE
+
+
+def supported(structure) -> bool:
+    """Does the compiled path handle this structure (joints and members only, see
+    :mod:`tmm_core.kernels_static`)?"""
+    if structure.springs or structure.rigid_bodies or structure.sliders:
+        return False
+    if any(j.support not in ("free", "pinned", "clamped") for j in structure.joints):
+        return False
+    return all(not m.is_rigid.all() for m in structure.members)
+
+
+@dataclass(frozen=True)
+class Layout:
+    """Per-structure data of the compiled solve: segment and node offsets, segment properties,
+    the joint DOFs (from :func:`tmm_core.structure.factorize` on one configuration)."""
+
+    seg_off: np.ndarray
+    node_off: np.ndarray
+    L: np.ndarray
+    EA: np.ndarray
+    EI: np.ndarray
+    rigid: np.ndarray
+    ends: np.ndarray
+    fixed: np.ndarray
+    free: np.ndarray
+    labels: tuple
+
+
+_LAYOUTS: dict = {}
+
+
+def layout(structure, joint_positions: Mapping[str, np.ndarray]) -> Layout:
+    """The :class:`Layout` of a structure (cached per structure)."""
+    try:
+        return _LAYOUTS[structure]
+    except (KeyError, TypeError):
+        pass
+    from .structure import LoadCase, factorize
+    one = {k: np.asarray(v, dtype=float).reshape(-1, 2)[0] for k, v in joint_positions.items()}
+    f = factorize(structure, LoadCase(one), check_buckling=False, check_singular=False, count_inertia=False)
+    members = structure.members
+    seg_off = np.cumsum([0] + [m.n_segments for m in members]).astype(np.int64)
+    out = Layout(seg_off, seg_off + np.arange(len(members) + 1), np.concatenate([m.segment_lengths for m in members]),
+                 np.concatenate([m.EA for m in members]), np.concatenate([m.EI for m in members]),
+                 np.concatenate([m.is_rigid for m in members]),
+                 np.array([f.ends[m.name] for m in members], dtype=np.int64), np.asarray(f.fixed),
+                 np.flatnonzero(~np.asarray(f.fixed)).astype(np.int64), tuple(f.labels))
+    try:
+        if len(_LAYOUTS) > 32:
+            _LAYOUTS.clear()
+        _LAYOUTS[structure] = out
+    except TypeError:
+        pass
+    return out
+
+
+def _local_rotation(angle):
+    """(..., 3, 3) global (X, Y, theta) -> member local (u, w, theta)."""
+    return frame_rotation(-np.asarray(angle, dtype=float))[..., :3, :3]
+
+
+@dataclass
+class Prepared:
+    """A structure and load case laid out for :func:`solve_batch` (everything but the axial
+    forces, which change from one beam-column iteration to the next)."""
+
+    structure: object
+    case: object
+    layout: Layout
+    angle: np.ndarray          # (B, M)
+    origin: dict               # {member: (B, 2)}
+    factor: np.ndarray         # (B, S)
+    factor_given: dict         # {member: bool}
+    qloc: np.ndarray           # (B, S, 2)
+    Kn: np.ndarray             # (B, Nn, 3, 3)
+    Fn: np.ndarray             # (B, Nn, 3)
+
+
+def prepare(structure, case, stiffness_factor: Mapping[str, np.ndarray] | None = None) -> Prepared:
+    """Lay out a :func:`supported` structure and a one-dimensional batch of configurations
+    (``case``, any frame) for the compiled solve: member angles, local node stiffness and loads."""
+    stiffness_factor = stiffness_factor or {}
+    members = structure.members
+    jp = {k: np.asarray(v, dtype=float) for k, v in case.joint_positions.items()}
+    shapes = [v.shape[:-1] for v in jp.values()]
+    for mapping, trail in ((case.node_loads, 2), (case.distributed_loads, 2), (case.node_stiffness, 3)):
+        shapes += [np.shape(v)[:-trail] for v in mapping.values()]
+    full = np.broadcast_shapes(*shapes)
+    if len(full) > 1:
+        raise InputError(f"the compiled solve takes a one-dimensional batch of configurations, got {full}")
+    batch = full if full else (1,)
+    B = batch[0]
+    lay = layout(structure, jp)
+    S = int(lay.seg_off[-1])
+    Nn = S + len(members)
+    angle = np.empty((B, len(members)))
+    origin = {}
+    factor = np.empty((B, S))
+    qloc = np.zeros((B, S, 2))
+    Kn = np.zeros((B, Nn, 3, 3))
+    Fn = np.zeros((B, Nn, 3))
+    for i, m in enumerate(members):
+        try:
+            a0 = np.broadcast_to(require_finite(f"joint '{m.start}' position", jp[m.start]), batch + (2,))
+            b0 = np.broadcast_to(require_finite(f"joint '{m.end}' position", jp[m.end]), batch + (2,))
+        except KeyError as exc:
+            raise InputError(f"load case: no position for joint {exc.args[0]!r}") from None
+        d = b0 - a0
+        dist = np.hypot(d[..., 0], d[..., 1])
+        if np.any(np.abs(dist - m.length) > 1e-9 * max(m.length, 1.0) + 1e-12):
+            raise InputError(f"member '{m.name}': length {m.length:.9g} m does not match the distance between "
+                             f"joints '{m.start}' and '{m.end}' (off by up to {np.max(np.abs(dist - m.length)):.3g} m)")
+        angle[:, i] = np.arctan2(d[..., 1], d[..., 0])
+        origin[m.name] = a0
+        sl = slice(lay.seg_off[i], lay.seg_off[i + 1])
+        nl = slice(lay.node_off[i], lay.node_off[i + 1])
+        factor[:, sl] = np.broadcast_to(np.asarray(stiffness_factor.get(m.name, 1.0), dtype=float),
+                                        batch + (m.n_segments,))
+        R3 = _local_rotation(angle[:, i])[:, None]          # (B, 1, 3, 3)
+        K = case.node_stiffness.get(m.name)
+        if K is not None:
+            K = require_finite(f"member '{m.name}': node_stiffness", K)
+            if case.frame == "global":
+                K = R3 @ K @ np.swapaxes(R3, -1, -2)
+            Kn[:, nl] = np.broadcast_to(K, batch + (m.n_segments + 1, 3, 3))
+        F = case.node_loads.get(m.name)
+        if F is not None:
+            F = require_finite(f"member '{m.name}': node_loads", F)
+            if case.frame == "global":
+                F = (R3 @ F[..., None])[..., 0]
+            Fn[:, nl] = np.broadcast_to(F, batch + (m.n_segments + 1, 3))
+        q = case.distributed_loads.get(m.name)
+        if q is not None:
+            q = require_finite(f"member '{m.name}': distributed_loads", q)
+            qloc[:, sl] = np.broadcast_to((R3[..., :2, :2] @ q[..., None])[..., 0], batch + (m.n_segments, 2))
+    return Prepared(structure, case, lay, angle, origin, factor,
+                    {m.name: stiffness_factor.get(m.name) is not None for m in members}, qloc, Kn, Fn)
+
+
+def solve_prepared(prep: Prepared, P: np.ndarray, *, check_buckling: bool = True, cond_limit: float = 1e12,
+                   count_inertia: bool | None = None, node_loads: np.ndarray | None = None,
+                   compact_nodes: np.ndarray | None = None):
+    """One compiled solve of a :class:`Prepared` batch at the stacked segment axial forces
+    ``P (B, S)``: ``(states (B, Nn, 2, 6), joint displacements (B, nd), joint forces (B, nd),
+    inertia count (B,))``. ``node_loads (B or 1, R, Nn, 3)`` (local frame) instead of the case's
+    loads: one factorization per configuration solved for R load sets; the outputs then carry
+    the load-set axis after the batch axis. ``compact_nodes``: return, instead of every station
+    state, ``(node displacements (B, 3 Nn, R), segment axial forces (B, S, R), right-side states
+    at these nodes (B, G, 6, R))`` in the place of the states (much less memory; the load set
+    last, as the columns of a map). Raises :class:`SingularStructureError` and, with ``check_buckling``,
+    :class:`BucklingError` (:mod:`tmm_core.kernels_static`)."""
+    from .structure import clamped_clamped_buckling_count
+    lay = prep.layout
+    B, S = prep.factor.shape
+    P = np.ascontiguousarray(np.broadcast_to(np.asarray(P, dtype=float), (B, S)))
+    if count_inertia is None:
+        count = np.array([check_buckling and bool(np.any(P[:, lay.seg_off[i]:lay.seg_off[i + 1]] < 0))
+                          for i in range(len(lay.seg_off) - 1)], dtype=np.bool_)
+    else:
+        count = np.full(len(lay.seg_off) - 1, bool(count_inertia))
+    s = P * lay.L**2 / (lay.EI * prep.factor)
+    if np.any(s > 700.0**2):
+        raise InputError(f"segment tension parameter P*L^2/EI = {float(np.max(s)):.4g} overflows cosh; "
+                         "split the link into more segments")
+    nd = len(lay.labels)
+    Fn = prep.Fn[:, None] if node_loads is None else node_loads
+    R = Fn.shape[1]
+    Nn = prep.Kn.shape[1]
+    if compact_nodes is None:
+        states = np.empty((B, R, Nn, 2, 6))
+        zout, nout, gnode, gstate = np.empty((B, 0, 0)), np.empty((B, 0, 0)), np.zeros(0, np.int64), np.empty((B, 0, 0, 6))
+    else:
+        states = np.empty((B, 0, Nn, 2, 6))
+        gnode = np.asarray(compact_nodes, dtype=np.int64)
+        zout, nout, gstate = np.empty((B, 3 * Nn, R)), np.empty((B, S, R)), np.empty((B, len(gnode), 6, R))
+    q = np.empty((B, R, nd))
+    reaction = np.empty((B, R, nd))
+    negative = np.zeros((B, 2), dtype=np.int64)
+    pivots = np.empty((B, 2))
+    status = np.zeros(B, dtype=np.int64)
+    solve = kernels_static.compiled_solve()
+    import numba
+    threads = kernels_static.THREADS
+    threads = numba.get_num_threads() if threads is None else max(1, min(int(threads), numba.config.NUMBA_NUM_THREADS))
+    chunks = max(1, min(B, threads if B * Fn.shape[1] >= 64 else 1))
+    args = (kernels_static.INV_FACT, lay.seg_off, lay.L, lay.EA, lay.EI, lay.rigid, prep.factor, P, prep.qloc, prep.Kn,
+            Fn, prep.angle, lay.ends, lay.free, count, states, q, reaction, negative, pivots, status, zout, nout,
+            gnode, gstate)
+    if chunks == 1:
+        kernels_static.solve_range(0, B, *args)      # no parallel region: its start costs ~0.4 ms
+    else:
+        solve(*args, chunks)
+    if compact_nodes is not None:
+        states = (zout, nout, gstate)
+    elif node_loads is None:
+        states, q, reaction = states[:, 0], q[:, 0], reaction[:, 0]
+    if np.any(status == 1):
+        raise SingularStructureError("instantaneous structure is singular: no stiffness at a joint DOF "
+                                     f"(batch entries {np.flatnonzero(status == 1)[:5].tolist()})")
+    with np.errstate(divide="ignore", invalid="ignore"):
+        condition = np.where(pivots[:, 0] > 0, pivots[:, 1] / pivots[:, 0], np.inf)
+    if np.any(status == 2) or np.any(~(condition < cond_limit)):
+        worst = int(np.argmax(np.where(status == 2, np.inf, np.nan_to_num(condition, nan=np.inf))))
+        raise SingularStructureError(
+            f"instantaneous structure is singular (pivot ratio of the scaled joint stiffness "
+            f"{float(condition[worst]):.3g} at batch index ({worst},)): a toggle position (collinear links at a "
+            "revolute), an unconstrained joint, a member at its buckling load, or a speed at a natural frequency")
+    total = negative[:, 0] + negative[:, 1]
+    total = total + np.sum(np.where(lay.rigid, 0, clamped_clamped_buckling_count(s)), -1)
+    if check_buckling and np.any(total > 0):
+        raise BucklingError(buckling_message(prep.structure, {m.name: P[:, lay.seg_off[i]:lay.seg_off[i + 1]]
+                                                              for i, m in enumerate(prep.structure.members)}, total))
+    return states, q, reaction, total
+
+
+def linear_solution(prep: Prepared, P, states, q, reaction, negative):
+    """The :class:`tmm_core.structure.LinearSolution` of a :func:`solve_prepared` result."""
+    from .structure import LinearSolution, MemberResult
+    lay = prep.layout
+    B = prep.factor.shape[0]
+    out = {}
+    for i, m in enumerate(prep.structure.members):
+        sl = slice(lay.seg_off[i], lay.seg_off[i + 1])
+        out[m.name] = MemberResult(m, prep.angle[:, i], prep.origin[m.name], states[:, lay.node_off[i]:lay.node_off[i + 1]],
+                                   P[:, sl], np.zeros((B, m.n_segments)),
+                                   prep.factor[:, sl] if prep.factor_given[m.name] else 1.0)
+    index = {lab: k for k, lab in enumerate(lay.labels)}
+    reactions = {}
+    for j in prep.structure.joints:
+        if j.support == "free":
+            continue
+        r = np.zeros((B, 3))
+        r[:, 0] = reaction[:, index[(j.name, "x")]]
+        r[:, 1] = reaction[:, index[(j.name, "y")]]
+        if j.support == "clamped":
+            r[:, 2] = reaction[:, index[(j.name, "r")]]
+        reactions[j.name] = r
+    joint_disp = {j.name: np.stack([q[:, index[(j.name, "x")]], q[:, index[(j.name, "y")]]], -1)
+                  for j in prep.structure.joints}
+    return LinearSolution(prep.structure, prep.case, out, reactions, negative, joint_disp, {})
+
+
+def solve_linear(structure, case, axial_force: Mapping[str, np.ndarray] | None = None, *,
+                 check_buckling: bool = True, cond_limit: float = 1e12,
+                 stiffness_factor: Mapping[str, np.ndarray] | None = None, count_inertia: bool | None = None):
+    """Compiled equivalent of :func:`tmm_core.structure.solve_linear` (small deflection, no chord
+    rotation) for a :func:`supported` structure and a one-dimensional batch of configurations.
+    Returns a :class:`tmm_core.structure.LinearSolution`; raises the same errors (singular
+    structure, buckling), decided from the pivots of the factorization (:mod:`tmm_core.kernels_static`)."""
+    prep = prepare(structure, case, stiffness_factor)
+    P = stack_segments(prep, axial_force or {})
+    res = solve_prepared(prep, P, check_buckling=check_buckling, cond_limit=cond_limit, count_inertia=count_inertia)
+    return linear_solution(prep, P, *res)
+
+
+def stack_segments(prep: Prepared, per_member: Mapping[str, np.ndarray]) -> np.ndarray:
+    """``{member: (B, n) or scalar}`` (missing: 0) as the stacked ``(B, S)`` array."""
+    lay = prep.layout
+    B, S = prep.factor.shape
+    P = np.zeros((B, S))
+    for i, m in enumerate(prep.structure.members):
+        if m.name in per_member:
+            P[:, lay.seg_off[i]:lay.seg_off[i + 1]] = np.broadcast_to(np.asarray(per_member[m.name], dtype=float),
+                                                                      (B, m.n_segments))
+    return P
+
+
+def buckling_message(structure, axial_force: Mapping[str, np.ndarray], negative) -> str:
+    """The refusal of a member at or beyond its buckling load (as :func:`tmm_core.structure.factorize`)."""
+    worst_name, worst_ratio, worst_P, worst_Pcr = None, -np.inf, 0.0, 0.0
+    for m in structure.members:
+        P = axial_force[m.name]
+        Pmin = float(np.min(P)) if P.size else 0.0
+        Pcr = float(np.pi**2 * np.min(m.EI) / m.length**2)
+        if -Pmin / Pcr > worst_ratio:
+            worst_name, worst_ratio, worst_P, worst_Pcr = m.name, -Pmin / Pcr, Pmin, Pcr
+    return (f"a member is at or beyond its buckling load: the stiffness has {int(np.max(negative))} negative "
+            f"eigenvalue(s) (batch entries affected: {int(np.sum(negative > 0))} of {np.size(negative)}); most "
+            f"compressed member '{worst_name}' carries P = {worst_P:.4g} N against its pinned-pinned Euler load "
+            f"{worst_Pcr:.4g} N")
+
+
+def solve_static(structure, case, *, beam_column: bool = False, tol: float = 1e-10, max_iter: int = 200,
+                 count_inertia: bool | None = None):
+    """Compiled equivalent of :func:`tmm_core.statics.solve_static` (linear or beam-column, not
+    large deflection): the same successive linear solutions, relaxation and stopping rule, on
+    the stacked arrays of one :class:`Prepared` batch."""
+    from .statics import StaticSolution
+    mode = "beam_column" if beam_column else "linear"
+    prep = prepare(structure, case)
+    lay = prep.layout
+    P = np.zeros(prep.factor.shape)
+    res = solve_prepared(prep, P, count_inertia=count_inertia)
+    if not beam_column:
+        return StaticSolution(linear_solution(prep, P, *res), mode, 1, 0.0)
+    # Stacked forms of the iteration of tmm_core.statics: segment s of member i lies between
+    # nodes s + i and s + i + 1; the change is weighted by the longest member.
+    left = np.arange(int(lay.seg_off[-1])) + np.repeat(np.arange(len(lay.seg_off) - 1), np.diff(lay.seg_off))
+    Lc = max(m.length for m in structure.members)
+    w = np.array([1.0, 1.0, Lc, 1.0 / Lc, 1.0, 1.0])
+
+    def axial(states):
+        return np.where(lay.rigid, 0.0, 0.5 * (states[:, left, 1, 5] + states[:, left + 1, 0, 5]))
+
+    def change(new, old):
+        # NaN anywhere: non-finite (the compiled maxima skip NaN, so check it here).
+        if not (np.isfinite(new[:, 0, 0, 0]).all() and np.isfinite(new).all()):
+            return float("nan")
+        dd, dscale, df, fscale = kernels_static.compiled_change()(new, old, w)
+        return max(dd / dscale if dscale > 0 else 0.0, df / fscale if fscale > 0 else 0.0)
+
+    relax, prev_change = 1.0, np.inf
+    P = axial(res[0])
+    for it in range(2, max_iter + 1):
+        new = solve_prepared(prep, P, count_inertia=count_inertia)
+        ch = change(new[0], res[0])
+        if not np.isfinite(ch):
+            raise ConvergenceError(f"{mode} iteration produced non-finite values at iteration {it}")
+        res, P_used = new, P
+        if ch < tol:
+            return StaticSolution(linear_solution(prep, P_used, *res), mode, it, ch)
+        if ch > prev_change and relax > 0.15:
+            relax *= 0.5
+        prev_change = ch
+        P = P + relax * (axial(res[0]) - P)
+    raise ConvergenceError(f"{mode} iteration did not converge in {max_iter} iterations "
+                           f"(last relative change {ch:.3g}, tolerance {tol:.3g})")
