@@ -143,3 +143,13 @@ class Scenario(Variants):
     @property
     def revolution_period_s(self) -> float:
         return 2 * math.pi / abs(self.drive.speed_rad_s)
+
+    def time_domain(self, mechanism=None):
+        """The transfer-matrix time domain (:class:`tmm_core.TimeDomain`) of this scenario with its
+        ``solver.tmm`` settings, gravity and gauges; ``mechanism`` replaces the scenario's (e.g.
+        the same four-bar with applied joint moments)."""
+        from tmm_core import TimeDomain
+        s = self.tmm
+        return TimeDomain(self.mechanism if mechanism is None else mechanism, integrator=s.integrator,
+                          coupling=s.coupling, beam_column=s.beam_column, gravity=self.gravity, gauges=self.gauges,
+                          axial_force=s.axial_force)

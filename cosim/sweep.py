@@ -91,11 +91,9 @@ def sweep_point(raw: dict, path: str, rpm: float, engines: tuple, revolutions: f
 def periodic_solution(sc):
     """The scenario's periodic steady state (``tmm_core.periodic.periodic_steady_state``) with its
     TMM settings at its drive speed."""
-    from tmm_core import TimeDomain
     from tmm_core.periodic import periodic_steady_state
     s = sc.tmm
-    td = TimeDomain(sc.mechanism, integrator=s.integrator, coupling=s.coupling, beam_column=s.beam_column,
-                    gravity=sc.gravity, gauges=sc.gauges, axial_force=s.axial_force)
+    td = sc.time_domain()
     if s.model == "reduced":
         # solver.tmm.model = "reduced": link modes plus a static correction (tmm_core.reduced).
         from tmm_core.reduced import ReducedOptions

@@ -308,7 +308,7 @@ def solve(sc, model: dict | None = None, settings: Settings = Settings()) -> dic
     ``{"status", "error", "angle_deg" (uniform grid), "gauges": {g: {"bending_ue", "axial_ue"}},
     "peaks": {g: {bending/axial max/min [ue]}}, "revolutions", "change", "speed_fluctuation",
     "wall_time_s"}`` (lists: picklable)."""
-    from tmm_core import CrankMotion, TimeDomain, TMMError
+    from tmm_core import CrankMotion, TMMError
 
     from .drive_profile import free_wheel
     from .joint_loads import JointLoadedFourBar
@@ -324,8 +324,7 @@ def solve(sc, model: dict | None = None, settings: Settings = Settings()) -> dic
     s = sc.tmm
     out = {"status": "failed", "error": None, "speed_fluctuation": 0.0}
     try:
-        td = TimeDomain(mech, integrator=s.integrator, coupling=s.coupling, beam_column=s.beam_column,
-                        gravity=sc.gravity, gauges=sc.gauges, axial_force=s.axial_force)
+        td = sc.time_domain(mech)
         kind = settings.model or s.model
         if kind not in ("full", "reduced"):
             raise ScenarioError(f"fast model: model must be 'full' or 'reduced', got {kind!r}")

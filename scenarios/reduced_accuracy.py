@@ -16,14 +16,9 @@ import csv
 import json
 import time
 
-import numpy as np
-
 
 def model_of(sc):
-    from tmm_core import TimeDomain
-    s = sc.tmm
-    return TimeDomain(sc.mechanism, integrator=s.integrator, coupling=s.coupling, beam_column=s.beam_column,
-                      gravity=sc.gravity, gauges=sc.gauges, axial_force=s.axial_force)
+    return sc.time_domain()
 
 
 def peaks(result) -> dict:

@@ -15,7 +15,6 @@ import math
 
 import numpy as np
 
-from tmm_core import TimeDomain
 
 from ..scenario import Scenario
 from .base import DriveInput, EngineError, EngineOutput, steps_in
@@ -44,9 +43,7 @@ class TMMEngine:
             raise EngineError("tmm: solver.tmm.model = \"reduced\" is for periodic solves (cosim sweep, uncertainty, "
                               "identify); a time-marching run needs model = \"full\" (or drop the key)")
         self.scenario = scenario
-        self.td = TimeDomain(scenario.mechanism, integrator=s.integrator, coupling=s.coupling,
-                             beam_column=s.beam_column, gravity=scenario.gravity, gauges=scenario.gauges,
-                             axial_force=s.axial_force)
+        self.td = scenario.time_domain()
         ref_speed = scenario.drive.speed_rad_s or speed
         if s.step_s is not None:
             self._dt = s.step_s
