@@ -36,10 +36,9 @@ import threading
 import time
 from pathlib import Path
 
-from .batch import StepBatcher, check_linkage_rate
-from .recorder import Recorder, check_exaggeration, viewer_options
+from .batch import StepBatcher
+from .recorder import Recorder, checked_arguments
 from .sinks import ViewerOptions
-from .spec import RecordingSpec, spec_from_scenario
 
 log = logging.getLogger("cosim.recording")
 _DONE = object()
@@ -56,11 +55,8 @@ class RecorderProcess(Recorder):
                  spawn: bool = False, connect: str | None = None, viewer: ViewerOptions | None = None,
                  exaggeration: float | None = None, linkage_every: int = 1, linkage_fps: float | None = None,
                  application_id: str = "flexlink-bench"):
-        viewer = viewer_options(save_path, spawn, connect, viewer)
-        check_exaggeration(exaggeration)
-        check_linkage_rate(linkage_every, linkage_fps)
-        self.spec = scenario if isinstance(scenario, RecordingSpec) else spec_from_scenario(scenario, mode,
-                                                                                           engines or ())
+        self.spec, viewer = checked_arguments(scenario, engines, mode, save_path, spawn, connect, viewer,
+                                              exaggeration, linkage_every, linkage_fps)
         self.save_path, self.viewer = save_path, viewer
         self.batcher = StepBatcher(linkage_every, linkage_fps)
         self._record_colors, self._last_take, self._closed = {}, time.monotonic(), False

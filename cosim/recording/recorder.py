@@ -42,6 +42,17 @@ def viewer_options(save_path, spawn: bool, connect: str | None, viewer: ViewerOp
     return viewer
 
 
+def checked_arguments(scenario, engines, mode, save_path, spawn, connect, viewer, exaggeration, linkage_every,
+                      linkage_fps) -> tuple:
+    """``(spec, viewer)`` of a recorder's arguments, checked (the same for :class:`Recorder` and
+    its child-process twin :class:`cosim.recording.process.RecorderProcess`)."""
+    viewer = viewer_options(save_path, spawn, connect, viewer)
+    check_exaggeration(exaggeration)
+    check_linkage_rate(linkage_every, linkage_fps)
+    spec = scenario if isinstance(scenario, RecordingSpec) else spec_from_scenario(scenario, mode, engines or ())
+    return spec, viewer
+
+
 def text_path(entity: str) -> str:
     """A relative text entity goes under /scenario (``"records/scores"`` -> ``/scenario/records/scores``)."""
     return entity if entity.startswith("/") else "/scenario/" + "/".join(part(p) for p in entity.split("/"))
@@ -68,10 +79,8 @@ class Recorder:
                  spawn: bool = False, connect: str | None = None, viewer: ViewerOptions | None = None,
                  exaggeration: float | None = None, linkage_every: int = 1, linkage_fps: float | None = None,
                  application_id: str = "flexlink-bench"):
-        viewer = viewer_options(save_path, spawn, connect, viewer)
-        check_exaggeration(exaggeration)
-        check_linkage_rate(linkage_every, linkage_fps)
-        spec = scenario if isinstance(scenario, RecordingSpec) else spec_from_scenario(scenario, mode, engines or ())
+        spec, viewer = checked_arguments(scenario, engines, mode, save_path, spawn, connect, viewer, exaggeration,
+                                         linkage_every, linkage_fps)
         from .writer import StreamWriter             # rerun is imported here, not by the package
         self.spec = spec
         self.save_path = save_path
