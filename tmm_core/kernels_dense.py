@@ -14,11 +14,13 @@ import math
 
 import numpy as np
 
+from .matrices import SERIES_LIMIT
+
 
 def stumpff(s, inv_fact, out):
     """``out[k] = c_k(s)``, k = 0..4 (see :func:`tmm_core.matrices.stumpff`)."""
     a_ = abs(s)
-    if a_ < 4.0:
+    if a_ < SERIES_LIMIT:
         # Horner over the terms that matter: the first term left out is below 1e-17 of the sum
         # (the numpy reference sums 24; the difference is round-off).
         top = 11 if a_ >= 1.0 else (8 if a_ >= 0.1 else (5 if a_ >= 1e-3 else 3))

@@ -40,7 +40,7 @@ import math
 
 import numpy as np
 
-from . import kernels, kernels_dense, kernels_factor
+from . import kernels, kernels_dense, kernels_factor, matrices
 from .kernels_dense import lu_solve
 from .kernels_factor import factor_configuration
 
@@ -53,12 +53,7 @@ _COMPILED = {}
 THREADS: int | None = 1
 numba_prange = range      # numba.prange once compiled
 
-_SERIES_LIMIT = 4.0
-_SERIES_TERMS = 24
-INV_FACT = np.array([1.0 / math.factorial(k) for k in range(2 * _SERIES_TERMS + 6)])
-# State order (u, w, theta, M, V, N): displacement indices z and conjugate force indices f.
-_ZI = (0, 1, 2)
-_FI = (5, 4, 3)
+INV_FACT = np.array(matrices.INV_FACT)        # the Stumpff series' 1/k! (the numpy path's table)
 
 # The helpers compiled and bound into the modules of the kernels (numba resolves global names
 # when it compiles a function, so the compiled objects must be where the kernels look them up).

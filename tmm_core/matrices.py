@@ -67,9 +67,11 @@ Z_IDX = np.array([U, W, TH])
 #: force part in *conjugate* order f = (N, V, M), so that f[k] does work on z[k]
 F_IDX = np.array([N, V, M])
 
-_SERIES_LIMIT = 4.0
-_SERIES_TERMS = 24
-_INV_FACT = [1.0 / math.factorial(k) for k in range(2 * _SERIES_TERMS + 6)]
+#: Below this |s| the Stumpff functions are summed as series (the compiled twin,
+#: tmm_core.kernels_dense.stumpff, uses the same limit and table).
+SERIES_LIMIT = 4.0
+SERIES_TERMS = 24
+INV_FACT = [1.0 / math.factorial(k) for k in range(2 * SERIES_TERMS + 6)]
 
 
 def stumpff(s):
@@ -84,14 +86,14 @@ def stumpff(s):
         raise InputError(
             f"segment tension parameter P*L^2/EI = {float(np.max(s)):.4g} overflows cosh; "
             "split the link into more segments")
-    small = np.abs(s) < _SERIES_LIMIT
+    small = np.abs(s) < SERIES_LIMIT
     ss = np.where(small, s, 0.0)
     # Horner evaluation of c3 and c4 (series), exact to round-off for |s| < 4.
     c3s = np.zeros_like(ss)
     c4s = np.zeros_like(ss)
-    for n in range(_SERIES_TERMS, -1, -1):
-        c3s = c3s * ss + _INV_FACT[2 * n + 3]
-        c4s = c4s * ss + _INV_FACT[2 * n + 4]
+    for n in range(SERIES_TERMS, -1, -1):
+        c3s = c3s * ss + INV_FACT[2 * n + 3]
+        c4s = c4s * ss + INV_FACT[2 * n + 4]
     c1s = 1.0 + ss * c3s
     c2s = 0.5 + ss * c4s
     c0s = 1.0 + ss * c2s
