@@ -76,6 +76,7 @@ from .scenario_reader import G0, Reader
 # The data types live in scenario_types; they stay importable from here, with the unit registry.
 from .scenario_types import (Assumption, CouplingSettings, DriveSpec, ExudynSettings, MujocoSettings,  # noqa: F401
                              OutputSettings, Scenario, ScenarioError, TMMSettings)
+from .overrides import Variants
 from .units import UREG  # noqa: F401
 
 if TYPE_CHECKING:
@@ -92,8 +93,8 @@ LINKAGE_TYPES = ("four-bar", "slider-crank", "linkage", "structure")
 
 def load(path_or_name) -> "Scenario | StaticScenario":
     """Load a scenario from a path or from the name of a file in ``scenarios/``; a loaded
-    :class:`Scenario` (a variant made with ``with_overrides``) is returned as it is."""
-    if isinstance(path_or_name, Scenario):
+    scenario of any kind (a variant made with ``with_overrides``) is returned as it is."""
+    if isinstance(path_or_name, Variants):
         return path_or_name
     path = Path(path_or_name)
     if not path.suffix:

@@ -43,3 +43,9 @@ def test_none_removes_a_key_and_a_solver_table_can_be_added():
     assert bare.motor is None
     v = base.with_overrides({"solver.exudyn.elements": 6})
     assert v.raw["solver"]["exudyn"]["elements"] == 6
+
+
+def test_load_returns_a_loaded_scenario_of_any_kind_as_it_is():
+    for name in ("crank_rocker_373rpm", "shin_multiloop_small"):
+        variant = load(name).with_overrides({"scenario.description": "variant"})
+        assert load(variant) is variant
