@@ -11,6 +11,7 @@ from .kinematics import (FourBarGeometry, FourBarMotion, LinkMotion, SliderCrank
                          fourbar_motion, slider_crank_motion)
 from .matrices import field_matrix, frame_rotation, point_matrix, rigid_element_matrix, spring_matrix
 from . import kernels
+from .configuration_batch import ConfigurationBatch, CrankStates, OutputLayout, StepMaps
 from .ked import Coupling, CrankMotion, KEDResult, quasi_static, rigid_body_loads
 from .transient import TimeDomain
 from .march import March, time_domain

@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import structure_compiled
+from .configuration_batch import StepMaps
 from .mechanism import torque_from_terms
 from .post import gauge_strains
 from .structure import MemberResult
@@ -20,8 +21,7 @@ MAP_CHUNK_BYTES = 64e6       # working memory of one chunk of the map solve
 
 def compiled_maps(td, prep, P, motion):
     """The load-to-response maps of a :class:`tmm_core.TimeDomain` ``td`` (as the numpy path of
-    :meth:`tmm_core.TimeDomain.configurations`: ``Z``, ``z0``, ``O``, ``o0`` and with the dynamic
-    axial force ``A``, ``a0``) from one compiled factorization per configuration solved for every
+    :meth:`tmm_core.TimeDomain.configurations`: a :class:`StepMaps`) from one compiled factorization per configuration solved for every
     unit load; returns the maps and the inertia count ``(B,)``."""
     B = len(P)
     n = td.n_dof
@@ -31,12 +31,8 @@ def compiled_maps(td, prep, P, motion):
     lay = prep.layout
     index = {lab: k for k, lab in enumerate(lay.labels)}
     supports = [(j.name, j.support) for j in td.structure.joints if j.support != "free"]
-    n_out = 1 + 2 * len(td.gauges)
     axial = td.axial_force == "dynamic"
-    maps = {"Z": np.empty((B, n, n)), "z0": np.empty((B, n)), "O": np.empty((B, n_out, n)), "o0": np.empty((B, n_out))}
-    if axial:
-        n_seg = len(td.segments.length)
-        maps["A"], maps["a0"] = np.empty((B, n_seg, n)), np.empty((B, n_seg))
+    maps = StepMaps.empty(B, n, td.outputs.size, len(td.segments.length) if axial else None)
     negative = np.empty(B, dtype=int)
     drive = td.mech.drive_torque_terms(motion, td.gravity)
     members = {m.name: (i, m) for i, m in enumerate(td.structure.members)}
@@ -75,12 +71,12 @@ def compiled_maps(td, prep, P, motion):
                                part.factor[:, None, lay.seg_off[i]:lay.seg_off[i + 1]])
             g_out.append(np.stack(gauge_strains(res, g), -1))
         outs = np.concatenate([torque[..., None]] + g_out, axis=-1) if g_out else torque[..., None]
-        np.subtract(z[:, :, :-1], z[:, :, -1:], out=maps["Z"][sl])
-        maps["z0"][sl] = z[:, :, -1]
-        maps["O"][sl] = np.swapaxes(outs[:, :-1] - outs[:, -1:], 1, 2)
-        maps["o0"][sl] = outs[:, -1]
+        np.subtract(z[:, :, :-1], z[:, :, -1:], out=maps.Z[sl])
+        maps.z0[sl] = z[:, :, -1]
+        maps.O[sl] = np.swapaxes(outs[:, :-1] - outs[:, -1:], 1, 2)
+        maps.o0[sl] = outs[:, -1]
         if axial:
-            np.subtract(N[:, :, :-1], N[:, :, -1:], out=maps["A"][sl])
-            maps["a0"][sl] = N[:, :, -1]
+            np.subtract(N[:, :, :-1], N[:, :, -1:], out=maps.A[sl])
+            maps.a0[sl] = N[:, :, -1]
         del z, N, gstates
     return maps, negative

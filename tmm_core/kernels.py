@@ -40,10 +40,12 @@ def compiled_march():
     """The compiled :func:`march` (numba, cached on disk)."""
     if "march" not in _COMPILED:
         import numba
-        jit = numba.njit(cache=True)
+        # Reassociation lets LLVM vectorise the map products (dot-product reductions); no other
+        # fast-math flag: the march tests for non-finite values.
+        jit = numba.njit(cache=True, fastmath={"reassoc", "contract"})
         # The inner functions are compiled first and put in the module's namespace, where numba
         # looks up the names march calls.
-        for name in ("_history", "_advance", "_shape_products"):
+        for name in ("_history", "_advance", "_shape_products", "_anderson_coefficients"):
             globals()[name] = jit(globals()[name])
         _COMPILED["march"] = jit(march)
     return _COMPILED["march"]
@@ -103,6 +105,51 @@ def _shape_products(start, end, L, z, delta, G):
         delta[s] = 0.5 * (dw * g0 + t0 * g1 + t1 * g3)
 
 
+def _anderson_coefficients(dR, h, r, gamma, Q, R):
+    """Least-squares coefficients ``gamma[:h]`` of ``dR[:, :h] gamma = r`` by modified
+    Gram-Schmidt QR (h <= 4 columns). A column whose remaining norm is below 1e-12 of the
+    largest column's (a rank-deficient history) gets a zero coefficient. The numpy path uses the
+    same arithmetic (:func:`tmm_core.time_step.anderson_coefficients`): a LAPACK least-squares
+    call cost more than the rest of a step here."""
+    nx = dR.shape[0]
+    big = 0.0
+    for c in range(h):
+        norm = 0.0
+        for i in range(nx):
+            Q[i, c] = dR[i, c]
+            norm += dR[i, c] * dR[i, c]
+        big = max(big, np.sqrt(norm))
+    for c in range(h):
+        for p in range(c):
+            dot = 0.0
+            for i in range(nx):
+                dot += Q[i, p] * Q[i, c]
+            R[p, c] = dot
+            for i in range(nx):
+                Q[i, c] -= dot * Q[i, p]
+        norm = 0.0
+        for i in range(nx):
+            norm += Q[i, c] * Q[i, c]
+        norm = np.sqrt(norm)
+        R[c, c] = norm
+        if norm > 1e-12 * big:
+            for i in range(nx):
+                Q[i, c] /= norm
+        else:
+            for i in range(nx):
+                Q[i, c] = 0.0
+    for c in range(h - 1, -1, -1):
+        if R[c, c] <= 1e-12 * big:
+            gamma[c] = 0.0
+            continue
+        acc = 0.0
+        for i in range(nx):
+            acc += Q[i, c] * r[i]
+        for p in range(c + 1, h):
+            acc -= R[c, p] * gamma[p]
+        gamma[c] = acc / R[c, c]
+
+
 def march(code, params, dt, c_a, c_v, idx,
           Z, z0, O, o0, A, a0, P0, rigid, omega,
           m, aM, beta_node, seg_start, seg_end, seg_L, seg_EA, seg_beta, seg_K, gauge_seg,
@@ -138,6 +185,9 @@ def march(code, params, dt, c_a, c_v, idx,
     prev_g = np.empty(nx)
     dR = np.zeros((nx, depth))
     dG = np.zeros((nx, depth))
+    Q = np.empty((nx, depth))
+    R = np.empty((depth, depth))
+    gamma = np.empty(depth)
     to_len = seg_L / seg_EA
     EAL = seg_EA / seg_L
     scale_P = 1e-9 * np.max(seg_EA)
@@ -263,7 +313,7 @@ def march(code, params, dt, c_a, c_v, idx,
                     prev_g[i] = gx[i]
                     x[i] = gx[i]
                 if hist > 0:
-                    gamma = np.linalg.lstsq(dR[:, :hist], r)[0]
+                    _anderson_coefficients(dR, hist, r, gamma, Q, R)
                     for i in range(nx):
                         s_ = 0.0
                         for c in range(hist):

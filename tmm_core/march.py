@@ -44,7 +44,7 @@ class March:
             # Consistent initial acceleration from rest: M a0 = F(t0) (Newmark and generalized-alpha
             # are only first order otherwise; Houbolt does not use it).
             first = td.configurations(a1, np.array([speed]), np.array([accel]), dt, maps=False)
-            a0 = td.rest_acceleration(first["rigid"][0], first["motion"])
+            a0 = td.rest_acceleration(first.rigid[0], first.motion)
         self.state = integ.initial(d0, v0, a0, previous)
         # Outputs of step 0: the quasi-static state for a quasi-static start; from rest the links
         # are undeformed (zero strain) and the drive torque is the rigid-body one.
@@ -96,7 +96,7 @@ class March:
         ``record_axial`` also the segment axial forces ``(k, n_seg)`` of the 'dynamic' step."""
         indices = np.asarray(indices, dtype=np.int64)
         td = self.td
-        if td.compiled and cfg["maps"] is not None and not self.has_visco and td.integrator.name in kernels.INTEGRATOR_CODES:
+        if td.compiled and cfg.maps is not None and not self.has_visco and td.integrator.name in kernels.INTEGRATOR_CODES:
             return self._compiled(cfg, indices, record_z, record_axial)
         zs = np.empty((len(indices), td.n_dof)) if record_z else None
         outs = np.empty((len(indices), self.n_out))
@@ -121,7 +121,7 @@ class March:
         seg = td.segments
         dynamic = td.axial_force == "dynamic"
         P = np.array(self.axial if self.axial is not None else
-                     (cfg["P0"][indices[0]] if dynamic else np.zeros(len(seg.length))), dtype=float)
+                     (cfg.P0[indices[0]] if dynamic else np.zeros(len(seg.length))), dtype=float)
         outs = np.empty((len(indices), self.n_out))
         zs = np.empty((len(indices), n)) if record_z else np.empty((0, n))
         Ps = np.empty((len(indices), len(seg.length))) if record_axial else np.empty((0, len(seg.length)))
@@ -149,6 +149,8 @@ class March:
                 j += 1
         self.z = self.state["d"]
         self.out = outs[-1]
+        #: Iterations of each compiled second-order step of the last block (0: solved in numpy).
+        self.iterations = iterations
         zs = zs if record_z else None
         return (zs, outs, Ps) if record_axial else (zs, outs)
 

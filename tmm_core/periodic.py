@@ -61,9 +61,9 @@ def _batched_step(td: TimeDomain, cfg, idx, state, dt):
     """One linear time step for a batch of states: every array in ``state`` is (M, n_dof)."""
     h_a, h_v = td.integrator.history(state, dt)
     loads = td.step_loads(cfg, idx, h_a, h_v)
-    maps = cfg["maps"]
-    z = loads @ maps["Z"][idx].T + maps["z0"][idx]
-    out = loads @ maps["O"][idx].T + maps["o0"][idx]
+    maps = cfg.maps
+    z = loads @ maps.Z[idx].T + maps.z0[idx]
+    out = loads @ maps.O[idx].T + maps.o0[idx]
     return td.integrator.advance(state, z, dt), z, out
 
 
@@ -100,7 +100,7 @@ def periodic_steady_state(td: TimeDomain, speed_rad_s: float, *, step_s: float |
                              "revolution after the first, with the same speed and acceleration)")
     dt = crank.dt
     cfg = td.configurations(crank.angle[:N], crank.speed[:N], crank.acceleration[:N], dt, maps=True)
-    if cfg["maps"] is None:
+    if cfg.maps is None:
         raise InputError("periodic solver: the load-to-response maps exceed the memory budget (max_map_bytes)")
     n = td.n_dof
     ns = len(keys) * n
@@ -151,8 +151,8 @@ def periodic_steady_state(td: TimeDomain, speed_rad_s: float, *, step_s: float |
     multipliers = np.linalg.eigvals(Phi)
     multipliers = multipliers[np.argsort(-np.abs(multipliers))]
     outs = np.array(outs)
-    gauges = {g.name: (outs[:, 1 + 2 * i], outs[:, 2 + 2 * i]) for i, g in enumerate(td.gauges)}
-    return PeriodicResult(crank.t[1:N + 1], crank.angle[1:N + 1], outs[:, 0], gauges, multipliers, residual, info)
+    return PeriodicResult(crank.t[1:N + 1], crank.angle[1:N + 1], td.outputs.torque(outs), td.outputs.split(outs),
+                          multipliers, residual, info)
 
 
 def _state(td: TimeDomain, keys, X):
@@ -170,7 +170,7 @@ def _revolution(td: TimeDomain, cfg, keys, x0, N, dt):
     vector, the trajectory ``(idx, z, v, P)`` per step for the linearization, and the outputs."""
     state = _state(td, keys, x0)
     _, c_v = td.integrator.coefficients(dt)
-    march = td.begin(dt, float(cfg["crank"][0][0]), float(cfg["crank"][1][0]), float(cfg["crank"][2][0]),
+    march = td.begin(dt, *cfg.crank.at(0),
                      initial={"d": state["d"], "v": state["v"], "a": state["a"],
                               "previous": (state.get("d1", state["d"]), state.get("d2", state["d"]))})
     march.state = state
@@ -198,12 +198,12 @@ def _monodromy(td: TimeDomain, cfg, keys, trajectory, dt):
     damping[np.arange(n_seg), seg.end] += seg.beta * seg.stiffness
     damping[np.arange(n_seg), seg.start] -= seg.beta * seg.stiffness
     state = _state(td, keys, np.eye(len(keys) * n))
-    maps = cfg["maps"]
+    maps = cfg.maps
     for idx, z, v, P in trajectory:
         h_a, h_v = td.integrator.history(state, dt)
         dL = td.step_loads(cfg, idx, h_a, h_v, rigid=False)
-        f_z, f_P, f_h, F_z, F_h = linearization(seg, n, c_v, z, v, P, cfg["P0"][idx])
-        Z, A = maps["Z"][idx], maps["A"][idx]
+        f_z, f_P, f_h, F_z, F_h = linearization(seg, n, c_v, z, v, P, cfg.P0[idx])
+        Z, A = maps.Z[idx], maps.A[idx]
         J = np.block([[np.eye(n) - Z @ f_z, -Z @ f_P], [-(A @ f_z + F_z), np.eye(n_seg) - A @ f_P]])
         L = dL + h_v @ f_h.T
         rhs = np.concatenate([L @ Z.T, L @ A.T + h_v @ (damping + F_h).T], axis=1)

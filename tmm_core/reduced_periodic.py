@@ -331,5 +331,5 @@ def periodic_steady_state_reduced(td, speed_rad_s: float | None = None, *, crank
         residual = float(np.max(np.abs(xN - x0)) / max(np.max(np.abs(x0)), 1e-300))
     mult = np.linalg.eigvals(mono)
     mult = mult[np.argsort(-np.abs(mult))]
-    gauges = {g.name: (outs[:, 1 + 2 * i], outs[:, 2 + 2 * i]) for i, g in enumerate(td.gauges)}
-    return PeriodicResult(model.stage_time, model.stage_angle, outs[:, 0], gauges, mult, residual, info)
+    return PeriodicResult(model.stage_time, model.stage_angle, td.outputs.torque(outs), td.outputs.split(outs), mult,
+                          residual, info)

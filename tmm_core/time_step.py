@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from typing import NamedTuple
 
 import numpy as np
 
@@ -27,6 +28,16 @@ AXIAL_FORCE_MODELS = ("dynamic", "quasi_static", "none")
 ANDERSON_DEPTH = 4          # iterates mixed by the second-order step iteration
 AXIAL_RESTARTS = 3          # refactorizations of a second-order step that does not converge
 DYNAMIC_TERMS = ("shortening", "axial_force")
+
+
+class StepSolution(NamedTuple):
+    """The solution of one time step: node displacements ``z`` (n_dof, stacked local [m, rad]),
+    the output row ``out`` (:class:`tmm_core.configuration_batch.OutputLayout`) and the segment
+    axial forces ``axial`` (n_seg) [N, tension +] (None for a linear step without them)."""
+
+    z: np.ndarray
+    out: np.ndarray
+    axial: np.ndarray | None
 
 
 class StepSolver:
@@ -46,7 +57,7 @@ class StepSolver:
         guess = axial_guess
         diag = (0, float("nan"), float("nan"))
         for attempt in range(AXIAL_RESTARTS + 1):
-            if cfg["indefinite"][k]:
+            if cfg.indefinite[k]:
                 if guess is None:
                     break
                 result, guess_new = None, guess
@@ -60,9 +71,9 @@ class StepSolver:
             guess = guess if attempt == 0 and guess is not None else guess_new
             if guess is None or not np.all(np.isfinite(guess)):
                 break
-            angle, speed, accel = (x[k:k + 1] for x in cfg["crank"])
-            cfg, k = self.configurations(angle, speed, accel, dt, maps=False, axial_force=guess[None]), 0
-        crank = math.degrees(float(cfg["crank"][0][k]))
+            one = cfg.crank.take(k)
+            cfg, k = self.configurations(one.angle, one.speed, one.accel, dt, maps=False, axial_force=guess[None]), 0
+        crank = math.degrees(float(cfg.crank.angle[k]))
         raise ConvergenceError(
             f"the second-order (axial_force 'dynamic') step did not converge at crank angle {crank:.6g} deg "
             f"(after {AXIAL_RESTARTS} refactorizations; last relative changes: displacement {diag[1]:.3g}, axial "
@@ -79,7 +90,7 @@ class StepSolver:
         # Kelvin-Voigt: the physical axial force adds beta EA/L times the history part of the
         # relative axial velocity (the solver's own force carries EA (1 + beta c_v) (u1 - u0)/L).
         damping = seg.beta * seg.stiffness * (h_v[seg.end] - h_v[seg.start])
-        P0 = cfg["P0"][k]
+        P0 = cfg.P0[k]
         P = P0 if axial_guess is None else axial_guess
         z = state["d"] + dt * state["v"] + 0.5 * dt**2 * state["a"]
         # Anderson acceleration of the fixed point on x = (z, P L/EA): the axial force scaled to
@@ -107,8 +118,8 @@ class StepSolver:
                     # Gauge axial strain = the full axial strain, with the shortening from bending.
                     delta = shape_products(seg, z_new)[0]
                     out = out.copy()
-                    out[2::2] += delta[self.gauge_segment] / seg.length[self.gauge_segment]
-                return (z_new, out, P_new), None, (it + 1, dz, dP)
+                    out[self.outputs.axial_columns] += delta[self.gauge_segment] / seg.length[self.gauge_segment]
+                return StepSolution(z_new, out, P_new), None, (it + 1, dz, dP)
             if dz > 1e3 or dP > 1e3:       # diverging: refactorize rather than iterate on
                 break
             gx = np.concatenate([z_new, P_new * to_len])
@@ -121,32 +132,28 @@ class StepSolver:
             if history:
                 dR = np.stack([h[0] for h in history], axis=1)
                 dG = np.stack([h[1] for h in history], axis=1)
-                try:
-                    gamma = np.linalg.lstsq(dR, r, rcond=None)[0]
-                    x = gx - dG @ gamma
-                except np.linalg.LinAlgError:
-                    history = []
+                x = gx - dG @ anderson_coefficients(dR, r)
         return None, last_finite, (self.axial_iterations, dz, dP)
 
     def _solve_one(self, cfg, k, loads):
         """Response to the stacked local loads at configuration index k (map or sweep):
         ``(z, out, N)`` with ``N`` the solver's segment axial forces (None without them)."""
-        maps = cfg["maps"]
+        maps = cfg.maps
         if maps is not None:
-            N = maps["A"][k] @ loads + maps["a0"][k] if "A" in maps else None
-            return maps["Z"][k] @ loads + maps["z0"][k], maps["O"][k] @ loads + maps["o0"][k], N
+            N = maps.A[k] @ loads + maps.a0[k] if maps.A is not None else None
+            return StepSolution(maps.Z[k] @ loads + maps.z0[k], maps.O[k] @ loads + maps.o0[k], N)
         node_loads = self._node_loads(loads)
-        whole = self.factor_of(cfg)
+        whole = cfg.factor()
         if whole.batch[0] == 1:
             factor = whole
         else:
             # Selecting one configuration walks the whole factor (4 ms at 32 segments per link):
             # keep each selection (views, no copies) for the following revolutions.
-            chosen = cfg.setdefault("selected", {})
+            chosen = cfg.cache.setdefault("selected", {})
             factor = chosen.get(k)
             if factor is None:
                 factor = chosen[k] = select(whole, k)
-        return self._response(solve_factored(factor, node_loads, frame="local"), terms_at(cfg["drive"], k))
+        return self._response(solve_factored(factor, node_loads, frame="local"), terms_at(cfg.drive, k))
 
     def _response(self, sol, drive):
         """``(z, out, N)`` of a single-configuration solution: node displacements, outputs and the
@@ -158,7 +165,7 @@ class StepSolver:
             b, a = gauge_strains(sol.members[g.link], g)
             out += [b.reshape(()), a.reshape(())]
         N = np.concatenate([segment_forces(sol.members[l.name]).reshape(-1) for l in self.links])
-        return z, np.array(out), N
+        return StepSolution(z, np.array(out), N)
 
     def _node_loads(self, loads):
         return {l.name: loads[self.offsets[l.name]:self.offsets[l.name] + 3 * l.n_nodes]
@@ -166,20 +173,20 @@ class StepSolver:
 
     def kernel_data(self, cfg):
         """The arrays of a configuration batch the compiled march reads (cached in the batch)."""
-        data = cfg.get("kernel")
+        data = cfg.cache.get("kernel")
         if data is None:
-            maps = cfg["maps"]
-            B = len(cfg["rigid"])
+            maps = cfg.maps
+            B = len(cfg)
             ns = len(self.segments.length)
             dynamic = self.axial_force == "dynamic"
-            motion = cfg["motion"]
+            motion = cfg.motion
             omega = np.concatenate([np.repeat(np.asarray(motion.link(l.name).omega, float).reshape(B, 1), 3 * l.n_nodes,
                                               axis=1) for l in self.links], axis=1) if self.coupling.coriolis else \
                 np.zeros((1, self.n_dof))
-            data = cfg["kernel"] = tuple(np.ascontiguousarray(x, dtype=float) for x in (
-                maps["Z"], maps["z0"], maps["O"], maps["o0"],
-                maps["A"] if dynamic else np.zeros((1, ns, self.n_dof)), maps["a0"] if dynamic else np.zeros((1, ns)),
-                cfg["P0"] if dynamic else np.zeros((1, ns)), cfg["rigid"], omega))
+            data = cfg.cache["kernel"] = tuple(np.ascontiguousarray(x, dtype=float) for x in (
+                maps.Z, maps.z0, maps.O, maps.o0,
+                maps.A if dynamic else np.zeros((1, ns, self.n_dof)), maps.a0 if dynamic else np.zeros((1, ns)),
+                cfg.P0 if dynamic else np.zeros((1, ns)), cfg.rigid, omega))
         return data
 
 
@@ -212,3 +219,25 @@ def select(factor, k):
 
     out = take(factor)
     return dataclasses.replace(out, batch=(n, 1))
+
+
+def anderson_coefficients(dR, r):
+    """Least-squares coefficients ``gamma`` of ``dR gamma = r`` (dR: (n, h), h <= ANDERSON_DEPTH)
+    by modified Gram-Schmidt QR; a column whose remaining norm is below 1e-12 of the largest
+    column's (a rank-deficient history) gets a zero coefficient. The same arithmetic as the
+    compiled march's (:mod:`tmm_core.kernels`), which it is checked against."""
+    h = dR.shape[1]
+    Q = np.array(dR, dtype=float)
+    R = np.zeros((h, h))
+    big = float(np.max(np.sqrt(np.sum(Q * Q, axis=0))))
+    for c in range(h):
+        for p in range(c):
+            R[p, c] = Q[:, p] @ Q[:, c]
+            Q[:, c] -= R[p, c] * Q[:, p]
+        R[c, c] = math.sqrt(float(Q[:, c] @ Q[:, c]))
+        Q[:, c] = Q[:, c] / R[c, c] if R[c, c] > 1e-12 * big else 0.0
+    gamma = np.zeros(h)
+    for c in range(h - 1, -1, -1):
+        if R[c, c] > 1e-12 * big:
+            gamma[c] = (Q[:, c] @ r - R[c, c + 1:] @ gamma[c + 1:]) / R[c, c]
+    return gamma

@@ -12,7 +12,8 @@ constant-speed run re-uses the maps of one revolution and marches them in the co
 (:mod:`tmm_core.kernels`); other crank histories are processed in chunks.
 
 Public: :class:`TimeDomain` (``configurations``, ``step_loads``, ``solve_step``, ``begin``,
-``run``). Owns the configuration batches (dicts with the factor, the maps and the rigid-body
+``run``). Owns the building of the configuration batches
+(:class:`tmm_core.configuration_batch.ConfigurationBatch`: the factor, the maps and the rigid-body
 loads of each crank state).
 """
 from __future__ import annotations
@@ -23,6 +24,7 @@ from typing import Callable, Mapping, Sequence
 import numpy as np
 
 from . import kernels, structure_compiled
+from .configuration_batch import ConfigurationBatch, CrankStates, OutputLayout, StepMaps
 from .errors import ConvergenceError, DynamicStabilityError, InputError, require_positive
 from .integrators import get_integrator
 from .ked import (Coupling, CrankMotion, KEDResult, coupling_stiffness, node_mass_arrays, quasi_static,
@@ -103,6 +105,8 @@ class TimeDomain(StepSolver):
         self.axial_iterations = int(axial_iterations)
         self.gravity = None if gravity is None else np.asarray(gravity, dtype=float)
         self.gauges = tuple(gauges)
+        #: Columns of a step's output row (drive torque, gauge strains).
+        self.outputs = OutputLayout.of(self.gauges)
         for g in self.gauges:
             if g.link not in {l.name for l in mech.elastic_links()}:
                 raise InputError(f"gauge '{g.name}': unknown or rigid link '{g.link}' (a rigid link has no strain)")
@@ -218,7 +222,7 @@ class TimeDomain(StepSolver):
         # Batch (B, 1): the second axis carries the unit loads. Gravity acts through the lumped
         # node masses (rigid_body_loads), like every other inertial load.
         B = len(angle)
-        n_rows = self.n_dof + 1 + 2 * len(self.gauges) + (len(self.segments.length) if self.axial_force == "dynamic" else 0)
+        n_rows = self.n_dof + self.outputs.size + (len(self.segments.length) if self.axial_force == "dynamic" else 0)
         n_bytes = 8.0 * B * self.n_dof * n_rows
         with_maps = bool(maps) and n_bytes <= self.max_map_bytes and not (maps == "auto" and self.n_dof > MAP_MAX_DOF)
         joints_flat = mech.joint_positions(motion)
@@ -232,7 +236,7 @@ class TimeDomain(StepSolver):
         use_compiled = with_maps and self.compiled_factorization
         if use_compiled:
             # The maps come from the compiled factorization (tmm_core.kernels_static); the numpy
-            # factor is built only if a step asks for it (factor_of).
+            # factor is built only if a step asks for it (ConfigurationBatch.factor).
             prep = structure_compiled.prepare(self.structure, LoadCase(joints_flat, {}, {}, Kn, frame="local"),
                                           stiffness_factor=factors)
             P_stacked = structure_compiled.stack_segments(prep, P or {})
@@ -252,16 +256,17 @@ class TimeDomain(StepSolver):
         loads_local = rigid_body_loads(mech, motion, self.gravity, frame="local")
         drive = mech.drive_torque_terms(motion, self.gravity)
         P0 = None if P is None else np.concatenate([P[l.name] for l in self.links], axis=-1)
-        base = {"factor": factor, "make_factor": make_factor, "rigid": self.stack(loads_local), "motion": motion,
-                "maps": None, "drive": drive,
-                "P0": P0, "crank": (np.asarray(angle, float), np.asarray(speed, float), np.asarray(accel, float)),
-                # Configurations whose estimated axial forces leave the step indefinite: the
-                # dynamic step refactorizes them at its own axial forces.
-                "indefinite": indefinite}
+        crank = CrankStates(np.asarray(angle, float), np.asarray(speed, float), np.asarray(accel, float))
+
+        def batch(step_maps):
+            # Configurations whose estimated axial forces leave the step indefinite: the dynamic
+            # step refactorizes them at its own axial forces.
+            return ConfigurationBatch(crank, motion, self.stack(loads_local), drive, P0, indefinite, step_maps,
+                                      make_factor, {} if factor is None else {"factor": factor})
         if use_compiled:
-            return {**base, "maps": maps}
+            return batch(maps)
         if not with_maps:
-            return base
+            return batch(None)
         unit = {}
         for link in self.links:
             n1 = link.n_nodes
@@ -274,13 +279,9 @@ class TimeDomain(StepSolver):
         # Solved in chunks of configurations: the station states of every unit load take about
         # 32 n_dof^2 bytes per configuration (0.5 GB for a revolution at 0.5 deg, 16 segments per link).
         chunk = max(1, int(maps_module.MAP_CHUNK_BYTES // (32.0 * self.n_dof ** 2)))
-        n_out = 1 + 2 * len(self.gauges)
-        maps = {"Z": np.empty((B, self.n_dof, self.n_dof)), "z0": np.empty((B, self.n_dof)),
-                "O": np.empty((B, n_out, self.n_dof)), "o0": np.empty((B, n_out))}
+        n_out = self.outputs.size
         axial = self.axial_force == "dynamic"
-        if axial:
-            n_seg = len(self.segments.length)
-            maps["A"], maps["a0"] = np.empty((B, n_seg, self.n_dof)), np.empty((B, n_seg))
+        maps = StepMaps.empty(B, self.n_dof, n_out, len(self.segments.length) if axial else None)
         for c0 in range(0, B, chunk):
             sl = slice(c0, min(B, c0 + chunk))
             sol = solve_factored(factor if (sl.start, sl.stop) == (0, B) else select(factor, sl), unit, frame="local")
@@ -289,16 +290,16 @@ class TimeDomain(StepSolver):
             torque = torque_from_terms(sol.reactions, *terms_at(drive, sl))   # (b, loads+1)
             g_out = [np.stack(gauge_strains(sol.members[g.link], g), -1) for g in self.gauges]
             outs = np.concatenate([torque[..., None]] + g_out, axis=-1) if g_out else torque[..., None]
-            maps["Z"][sl] = np.swapaxes(z[:, :-1] - z[:, -1:], 1, 2)
-            maps["z0"][sl] = z[:, -1]
-            maps["O"][sl] = np.swapaxes(outs[:, :-1] - outs[:, -1:], 1, 2)
-            maps["o0"][sl] = outs[:, -1]
+            maps.Z[sl] = np.swapaxes(z[:, :-1] - z[:, -1:], 1, 2)
+            maps.z0[sl] = z[:, -1]
+            maps.O[sl] = np.swapaxes(outs[:, :-1] - outs[:, -1:], 1, 2)
+            maps.o0[sl] = outs[:, -1]
             if axial:
                 N = np.concatenate([segment_forces(sol.members[l.name]) for l in self.links], axis=-1)
-                maps["A"][sl] = np.swapaxes(N[:, :-1] - N[:, -1:], 1, 2)
-                maps["a0"][sl] = N[:, -1]
+                maps.A[sl] = np.swapaxes(N[:, :-1] - N[:, -1:], 1, 2)
+                maps.a0[sl] = N[:, -1]
             del sol
-        return {**base, "maps": maps}
+        return batch(maps)
 
     @property
     def compiled_factorization(self) -> bool:
@@ -309,13 +310,6 @@ class TimeDomain(StepSolver):
             return False
         return [m.name for m in self.structure.members] == [l.name for l in self.links] and \
             all(m.n_segments + 1 == l.n_nodes for m, l in zip(self.structure.members, self.links))
-
-    def factor_of(self, cfg):
-        """The numpy factorization of a configuration batch (built on first use when the maps
-        came from the compiled factorization)."""
-        if cfg["factor"] is None:
-            cfg["factor"] = cfg["make_factor"]()
-        return cfg["factor"]
 
     def stack(self, per_link):
         """Stack per-link arrays ``{link: (..., n+1, 3)}`` into the node vector ``(..., n_dof)``."""
@@ -402,15 +396,16 @@ class TimeDomain(StepSolver):
                 break
 
         sl = slice(0, done)
-        gauges = {g.name: (outputs[sl, 1 + 2 * i], outputs[sl, 2 + 2 * i]) for i, g in enumerate(self.gauges)}
+        gauges = self.outputs.split(outputs[sl])
         displacements = {}
         if disp is not None:
             displacements = self.unstack(disp[sl])
         revs = (crank.angle[done - 1] - crank.angle[0]) / (2 * math.pi)
-        return KEDResult(crank.t[sl], crank.angle[sl], crank.speed[sl], crank.acceleration[sl], outputs[sl, 0],
+        return KEDResult(crank.t[sl], crank.angle[sl], crank.speed[sl], crank.acceleration[sl],
+                         self.outputs.torque(outputs[sl]),
                          gauges, displacements, steady, change, abs(float(revs)), self.integrator.name,
                          {"dt_s": dt, "steps": done, "steps_per_revolution": N, "start": start,
-                          "maps": cfg["maps"] is not None if cfg else None})
+                          "maps": cfg.maps is not None if cfg else None})
 
     def unstack(self, vectors: np.ndarray):
         """Split node vectors ``(..., n_dof)`` into ``{link: (..., n_nodes, 3)}``."""
@@ -429,7 +424,7 @@ class TimeDomain(StepSolver):
         m = self.m_vec
         loads = -m * (h_a + self.aM_vec * h_v)
         if rigid:
-            loads = loads + cfg["rigid"][idx]
+            loads = loads + cfg.rigid[idx]
         if self.coupling.coriolis:
             w = self._node_omega(cfg, idx)
             # At u rows the w-velocity history of the same node, at w rows the u-velocity one.
@@ -475,7 +470,7 @@ class TimeDomain(StepSolver):
         return a
 
     def _node_omega(self, cfg, idx):
-        motion = cfg["motion"]
+        motion = cfg.motion
         return np.concatenate([np.full(3 * l.n_nodes, float(motion.link(l.name).omega[idx]))
                                for l in self.links])
 

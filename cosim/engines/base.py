@@ -46,15 +46,20 @@ class EngineUnavailable(EngineError):
 class DriveInput:
     """Drive of one macro step: exactly one of ``prescribed`` and ``torque``.
 
-    ``torque`` [N m] is a constant over the step or a function of time.
+    ``torque`` [N m] is a constant over the step or a function of time. ``ahead``: the
+    prescribed profile is the crank's whole history, valid beyond this macro step too (a
+    prescribed-speed run; not a motor's extrapolation), so an engine may compute ahead.
     """
 
     prescribed: CrankProfile | None = None
     torque: float | Callable | None = None
+    ahead: bool = False
 
     def __post_init__(self):
         if (self.prescribed is None) == (self.torque is None):
             raise ValueError("DriveInput needs exactly one of 'prescribed' and 'torque'")
+        if self.ahead and self.prescribed is None:
+            raise ValueError("DriveInput: 'ahead' needs a prescribed crank history")
 
     def torque_at(self, t):
         return self.torque(t) if callable(self.torque) else np.full(np.shape(t), float(self.torque))

@@ -20,6 +20,12 @@ from ..scenario import Scenario
 from .base import DriveInput, EngineError, EngineOutput, steps_in
 
 
+# Steps marched ahead in one call under a prescribed crank history (see TMMEngine._serve): a
+# revolution of the FE rig at its 0.5 deg default is 720 steps; 256 keeps the work wasted at the
+# end of a run (a steady stop) to a fraction of a revolution.
+LOOKAHEAD_STEPS = 256
+
+
 class TMMEngine:
     name = "tmm"
     kinematic = True      # takes a crank motion, returns the drive torque
@@ -54,7 +60,7 @@ class TMMEngine:
         self.t0, self.k = t0, 0
         self._angle0, self._speed0 = angle, speed
         self.march = self.td.begin(self._dt, angle, speed, 0.0, start=s.start)
-        self.cache = None
+        self.cache = None        # one revolution at the scenario's speed: (steps, speed, angles, batch)
         N = 2 * math.pi / (abs(ref_speed) * self._dt) if ref_speed else 0.0
         if ref_speed and abs(N - round(N)) < 1e-6 and round(N) >= 4:
             N = int(round(N))
@@ -65,6 +71,7 @@ class TMMEngine:
         self.links = self.td.links                          # elastic links (their DOFs)
         self.drawn = scenario.mechanism.links()             # every link, rigid ones too
         self._frames = {}     # id(configuration batch) -> per link (rigid node positions, cos, sin)
+        self._ahead = None    # steps marched ahead of self.k (see _serve)
 
     def _frame(self, cfg):
         """Rigid node positions and link orientation of every configuration of a batch."""
@@ -74,19 +81,19 @@ class TMMEngine:
                 self._frames.clear()
             out = {}
             for link in self.drawn:
-                lm = cfg["motion"].link(link.name)
+                lm = cfg.motion.link(link.name)
                 out[link.name] = (lm.point(link.stations)[0], np.cos(lm.angle), np.sin(lm.angle))
             self._frames[key] = (cfg, out)
         return self._frames[key][1]
 
-    def _cached(self, k, angle, speed, accel):
-        """Index into the cached revolution for step ``k`` if the crank state matches it, else None."""
+    def _cache_indices(self, ks, angle, speed, accel):
+        """Index into the cached revolution of each step ``ks`` whose crank state matches it, else -1."""
         if self.cache is None:
-            return None
+            return np.full(len(ks), -1, dtype=np.int64)
         N, w, angles, _ = self.cache
-        idx = k % N
+        idx = np.asarray(ks, dtype=np.int64) % N
         d = (angle - angles[idx] + math.pi) % (2 * math.pi) - math.pi
-        return idx if abs(d) < 1e-9 and speed == w and accel == 0.0 else None
+        return np.where((np.abs(d) < 1e-9) & (speed == w) & (accel == 0.0), idx, -1)
 
     def node_stations(self) -> dict:
         """Local x [m] of the nodes this engine reports, per link."""
@@ -99,19 +106,57 @@ class TMMEngine:
 
     def initial_output(self) -> EngineOutput:
         """The state at reset: drive torque and gauge strains of the start (quasi-static or rest)."""
-        out = self.march.out
-        gauges = {g.name: (out[1 + 2 * i:2 + 2 * i], out[2 + 2 * i:3 + 2 * i]) for i, g in enumerate(self.td.gauges)}
-        return EngineOutput(np.array([self.t0]), np.array([self._angle0]), np.array([self._speed0]), out[:1].copy(),
-                            gauges)
+        out = self.march.out[None, :]
+        layout = self.td.outputs
+        return EngineOutput(np.array([self.t0]), np.array([self._angle0]), np.array([self._speed0]),
+                            layout.torque(out).copy(), layout.split(out))
 
     def save(self):
         """Snapshot for a coupling iteration (the march state is replaced, never mutated, per step)."""
+        self._rewind()
+        return self._state()
+
+    def _state(self):
         m = self.march
         return (self.k, m.state, m.z, m.out, m.q_sls, m.axial)
 
     def restore(self, token) -> None:
+        self._ahead = None
         m = self.march
         self.k, m.state, m.z, m.out, m.q_sls, m.axial = token
+
+    def _rewind(self) -> None:
+        """Bring the march back from its look-ahead to step ``self.k`` (re-marching the served
+        steps of the block from its start: the march is deterministic)."""
+        if self._ahead is None:
+            return
+        first, idx, _, _, start = self._ahead
+        k = self.k
+        self.restore(start)
+        if k >= first:
+            self.march.step_many(self.cache[3], idx[:k - first + 1], record_z=False)
+        self.k = k
+
+    def _serve(self, ks, drive):
+        """Steps ``ks`` of a prescribed crank history on the cached revolution, marched ahead in
+        blocks of at least LOOKAHEAD_STEPS: the compiled march's call (numba's dispatch of its
+        ~40 arrays, ~50-90 us) and this engine's bookkeeping then cost per block, not per macro
+        step. Returns ``(zs, outs, cache indices)`` of ``ks``."""
+        a = self._ahead
+        if a is None or not (a[0] <= ks[0] and ks[-1] < a[0] + len(a[1])):
+            self._rewind()
+            kk = self.k + 1 + np.arange(max(len(ks), LOOKAHEAD_STEPS))
+            idx = self._cache_indices(kk, *(np.asarray(x, dtype=float) * np.ones(len(kk))
+                                            for x in drive.prescribed(self.t0 + kk * self._dt)))
+            # Stop the block where the history leaves the cached revolution (ks itself is on it).
+            miss = np.flatnonzero(idx < 0)
+            idx = idx[:miss[0]] if len(miss) and miss[0] >= len(ks) else idx
+            start = self._state()
+            zs, outs = self.march.step_many(self.cache[3], idx)
+            a = self._ahead = (int(kk[0]), idx, zs, outs, start)
+        rows = np.asarray(ks, dtype=np.int64) - a[0]
+        self.k = int(ks[-1])
+        return a[2][rows], a[3][rows], a[1][rows]
 
     def advance(self, t_next: float, drive: DriveInput) -> EngineOutput:
         if drive.prescribed is None:
@@ -121,46 +166,57 @@ class TMMEngine:
         n = steps_in(t_start, t_next, self._dt, "tmm")
         ks = self.k + 1 + np.arange(n)
         t = self.t0 + ks * self._dt          # integer step count, never accumulated
-        angle, speed, accel = (np.asarray(x, dtype=float) for x in drive.prescribed(t))
-        outs, zs, frames = [], [], {l.name: ([], [], []) for l in self.drawn}
-        cached = [self._cached(int(k), float(a), float(w), float(x)) for k, a, w, x in zip(ks, angle, speed, accel)]
-        batch = None
-        if any(c is None for c in cached):
-            # Every step the cache does not cover, factorized in one vectorised batch.
-            rest = [i for i, c in enumerate(cached) if c is None]
-            batch = (self.td.configurations(angle[rest], speed[rest], accel[rest], self._dt, maps=False),
-                     {i: j for j, i in enumerate(rest)})
-        # Runs of consecutive steps on the same configuration batch are marched together (compiled
-        # for the cached revolution, tmm_core.kernels).
-        runs, i = [], 0
-        while i < n:
-            use_cache = cached[i] is not None
-            j = i
-            while j < n and (cached[j] is not None) == use_cache:
-                j += 1
-            cfg = self.cache[3] if use_cache else batch[0]
-            runs.append((cfg, np.array([cached[q] if use_cache else batch[1][q] for q in range(i, j)], dtype=np.int64)))
-            i = j
-        for cfg, idx in runs:
-            z_run, out_run = self.march.step_many(cfg, idx)
-            self.k += len(idx)
-            outs.extend(out_run)
-            zs.extend(z_run)
-            for name, (rigid, c, s) in self._frame(cfg).items():
-                frames[name][0].extend(rigid[idx])
-                frames[name][1].extend(c[idx])
-                frames[name][2].extend(s[idx])
-        outs = np.array(outs)
-        local = self.td.unstack(np.array(zs))
-        nodes = {}
-        for name, (rigid, c, s) in frames.items():
-            if name not in local:           # a rigid link: its rigid-body positions
-                nodes[name] = np.array(rigid)
-                continue
-            c, s = np.array(c)[:, None], np.array(s)[:, None]
-            u, w = local[name][..., 0], local[name][..., 1]
-            nodes[name] = np.array(rigid) + np.stack([c * u - s * w, s * u + c * w], -1)
+        angle, speed, accel = (np.asarray(x, dtype=float) * np.ones(n) for x in drive.prescribed(t))
+        hit = self._cache_indices(ks, angle, speed, accel)
+        if drive.ahead and np.all(hit >= 0):
+            zs, outs, idx = self._serve(ks, drive)
+            runs = [(self.cache[3], idx, zs)]
+        else:
+            self._rewind()
+            self._ahead = None
+            runs = self._march(hit, angle, speed, accel)
+            outs = np.concatenate([r[3] for r in runs])
+            runs = [r[:3] for r in runs]
         if not np.all(np.isfinite(outs)):
             raise EngineError(f"tmm: non-finite response before t = {t_next:.6g} s")
-        gauges = {g.name: (outs[:, 1 + 2 * i], outs[:, 2 + 2 * i]) for i, g in enumerate(self.td.gauges)}
-        return EngineOutput(t, angle, speed, outs[:, 0], gauges, nodes)
+        layout = self.td.outputs
+        return EngineOutput(t, angle, speed, layout.torque(outs), layout.split(outs), self._nodes(runs))
+
+    def _march(self, hit, angle, speed, accel):
+        """Steps one by one in blocks: runs of consecutive steps on the same configuration batch
+        (the cached revolution where ``hit`` >= 0, else the steps factorized in one vectorised
+        batch). Returns ``[(batch, indices, zs, outs)]``."""
+        n = len(hit)
+        batch = None
+        rest = np.flatnonzero(hit < 0)
+        if len(rest):
+            batch = self.td.configurations(angle[rest], speed[rest], accel[rest], self._dt, maps=False)
+            position = np.full(n, -1, dtype=np.int64)
+            position[rest] = np.arange(len(rest))
+        runs, i = [], 0
+        while i < n:
+            use_cache = hit[i] >= 0
+            j = i
+            while j < n and (hit[j] >= 0) == use_cache:
+                j += 1
+            cfg, idx = (self.cache[3], hit[i:j]) if use_cache else (batch, position[i:j])
+            zs, outs = self.march.step_many(cfg, idx)
+            self.k += len(idx)
+            runs.append((cfg, idx, zs, outs))
+            i = j
+        return runs
+
+    def _nodes(self, runs):
+        """Deformed node positions [m], global, per drawn link, of the steps of ``runs``
+        (``[(batch, indices, zs)]``): rigid-body positions plus the elastic displacements."""
+        per_link = {link.name: [] for link in self.drawn}
+        for cfg, idx, zs in runs:
+            local = self.td.unstack(zs)
+            for name, (rigid, c, s) in self._frame(cfg).items():
+                if name not in local:           # a rigid link: its rigid-body positions
+                    per_link[name].append(rigid[idx])
+                    continue
+                c, s = c[idx][:, None], s[idx][:, None]
+                u, w = local[name][..., 0], local[name][..., 1]
+                per_link[name].append(rigid[idx] + np.stack([c * u - s * w, s * u + c * w], -1))
+        return {name: np.concatenate(parts) for name, parts in per_link.items()}

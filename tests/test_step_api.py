@@ -1,0 +1,112 @@
+"""The transfer-matrix step's public data and the engine's look-ahead (issue 15): typed
+configuration batches, named outputs, the Anderson least squares, and a prescribed run marched
+ahead in blocks giving the same answer as step by step."""
+import math
+
+import numpy as np
+import pytest
+
+from cosim.engines import make_engine
+from cosim.engines.base import DriveInput, constant_speed_profile
+from cosim.master import PRESCRIBED_MACRO_DEG, CoSimulation, macro_step_for
+from cosim.scenario import load
+from tmm_core import ConfigurationBatch, OutputLayout, StepMaps
+from tmm_core.time_step import anderson_coefficients
+
+FE = "crank_rocker_241rpm"
+
+
+def test_anderson_coefficients_solve_the_least_squares_problem():
+    rng = np.random.default_rng(3)
+    for h in (1, 2, 3, 4):
+        dR, r = rng.normal(size=(40, h)), rng.normal(size=40)
+        np.testing.assert_allclose(anderson_coefficients(dR, r), np.linalg.lstsq(dR, r, rcond=None)[0], rtol=1e-10)
+    # A repeated column (rank-deficient history): the residual is still the least-squares one.
+    dR = rng.normal(size=(40, 3))
+    dR[:, 2] = dR[:, 0]
+    r = rng.normal(size=40)
+    gamma = anderson_coefficients(dR, r)
+    best = np.linalg.lstsq(dR, r, rcond=None)[0]
+    assert gamma[2] == 0.0
+    assert np.linalg.norm(dR @ gamma - r) == pytest.approx(np.linalg.norm(dR @ best - r), rel=1e-10)
+
+
+def test_a_configuration_batch_is_typed_and_its_outputs_are_named():
+    sc = load(FE)
+    td = sc.time_domain()
+    w = sc.drive.speed_rad_s
+    th = np.radians([0.0, 90.0, 180.0])
+    cfg = td.configurations(th, np.full(3, w), np.zeros(3), 1e-4)
+    assert isinstance(cfg, ConfigurationBatch) and len(cfg) == 3 and isinstance(cfg.maps, StepMaps)
+    assert cfg.maps.Z.shape == (3, td.n_dof, td.n_dof) and cfg.maps.O.shape[1] == td.outputs.size
+    assert cfg.maps.A.shape == (3, len(td.segments.length), td.n_dof)      # the second-order step's axial maps
+    np.testing.assert_array_equal(cfg.crank.angle, th)
+    layout = td.outputs
+    assert layout == OutputLayout(tuple(g.name for g in sc.gauges))
+    rows = np.arange(2 * layout.size, dtype=float).reshape(2, layout.size)
+    parts = layout.split(rows)
+    np.testing.assert_array_equal(layout.torque(rows), rows[:, 0])
+    for i, g in enumerate(sc.gauges):
+        np.testing.assert_array_equal(parts[g.name][0], rows[:, 1 + 2 * i])
+        np.testing.assert_array_equal(parts[g.name][1], rows[:, 2 + 2 * i])
+    # The numpy factorization is built on first use and kept.
+    assert cfg.factor() is cfg.factor()
+
+
+def _engine_run(sc, macro_steps, ahead):
+    """The TMM engine advanced over ``macro_steps`` (engine steps per call) at constant speed."""
+    engine = make_engine("tmm")
+    w = sc.drive.speed_rad_s
+    engine.reset(sc, 0.0, 0.0, w)
+    h = engine.internal_step_s
+    profile = constant_speed_profile(w, 0.0, 0.0)
+    outs, k = [], 0
+    for n in macro_steps:
+        k += n
+        outs.append(engine.advance(k * h, DriveInput(prescribed=profile, ahead=ahead)))
+    return engine, outs
+
+
+def _stack(outs, gauge):
+    return np.concatenate([o.gauges[gauge][0] for o in outs]), np.concatenate([o.drive_torque for o in outs])
+
+
+def test_marching_ahead_gives_the_step_by_step_answer_and_rewinds_for_a_coupling_iteration():
+    sc = load(FE)
+    g = sc.gauges[0].name
+    plan = [1, 3, 300, 7, 1, 400, 2]           # crosses the look-ahead blocks and a revolution (720 steps)
+    _, step_by_step = _engine_run(sc, plan, ahead=False)
+    engine, ahead = _engine_run(sc, plan, ahead=True)
+    for a, b in zip(_stack(ahead, g), _stack(step_by_step, g)):
+        np.testing.assert_array_equal(a, b)
+    np.testing.assert_array_equal(np.concatenate([o.nodes["coupler"] for o in ahead]),
+                                  np.concatenate([o.nodes["coupler"] for o in step_by_step]))
+    # A save in the middle of a look-ahead block rewinds the march to the steps served so far:
+    # the steps after it are those of an engine that never marched ahead.
+    token = engine.save()
+    h, k = engine.internal_step_s, sum(plan)
+    profile = constant_speed_profile(sc.drive.speed_rad_s, 0.0, 0.0)
+    first = engine.advance((k + 5) * h, DriveInput(prescribed=profile, ahead=True))
+    engine.restore(token)
+    again = engine.advance((k + 5) * h, DriveInput(prescribed=profile))
+    np.testing.assert_array_equal(first.gauges[g][0], again.gauges[g][0])
+    _, reference = _engine_run(sc, plan + [5], ahead=False)
+    np.testing.assert_array_equal(again.gauges[g][0], reference[-1].gauges[g][0])
+
+
+def test_a_prescribed_run_advances_about_ten_degrees_per_macro_step_and_a_motor_run_its_coupling_step():
+    sc = load(FE)
+    H = macro_step_for(sc, ["tmm", "exudyn", "mujoco"])
+    H_prescribed = macro_step_for(sc, ["tmm", "exudyn", "mujoco"], mode="prescribed")
+    per_rev = 2 * math.pi / abs(sc.drive.speed_rad_s)
+    ratio = H_prescribed / H
+    assert abs(ratio - round(ratio)) < 1e-9 and ratio > 1
+    assert H_prescribed <= per_rev * PRESCRIBED_MACRO_DEG / 360 * (1 + 1e-9)
+    assert abs(per_rev / H_prescribed - round(per_rev / H_prescribed)) < 1e-6      # a whole fraction of a revolution
+    assert CoSimulation(sc, ("tmm",), mode="motor").macro_step_s == pytest.approx(H)
+    # The grouping changes no sample: the prescribed run equals the engine stepped one step at a time.
+    res = CoSimulation(sc, ("tmm",), mode="prescribed").run(revolutions=0.5)
+    n = len(res["tmm"].run.t)
+    _, single = _engine_run(sc, [1] * n, ahead=False)
+    g = sc.gauges[0].name
+    np.testing.assert_array_equal(res["tmm"].run.gauges[g][0], _stack(single, g)[0])

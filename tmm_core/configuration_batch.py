@@ -1,0 +1,126 @@
+"""Typed data of the time step: a batch of instantaneous configurations, its load-to-response
+maps, and the layout of a step's outputs.
+
+A time step of :class:`tmm_core.TimeDomain` reads one configuration of a
+:class:`ConfigurationBatch` (built by :meth:`tmm_core.TimeDomain.configurations` for B crank
+states) and returns an output row laid out by :class:`OutputLayout`: drive torque, then bending
+and axial strain per gauge. Naming the parts here keeps the index arithmetic in one place.
+
+Owns: the batch, its maps and the output layout. Boundaries: no solving; the factorization is
+built by the callable the batch is given.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, Callable, Sequence
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class StepMaps:
+    """Affine maps of B configurations from the stacked local node loads (n_dof: force [N] and
+    moment [N m] per node, link frames) to the step's responses, ``response = M @ loads + m0``:
+
+    ``Z`` (B, n_dof, n_dof), ``z0`` (B, n_dof): node displacements [m] and rotations [rad];
+    ``O`` (B, n_out, n_dof), ``o0`` (B, n_out): the outputs (:class:`OutputLayout`);
+    ``A`` (B, n_seg, n_dof), ``a0`` (B, n_seg): segment axial forces [N, tension +] (second-order
+    step only, else None). The arrays are filled in chunks after construction."""
+
+    Z: np.ndarray
+    z0: np.ndarray
+    O: np.ndarray
+    o0: np.ndarray
+    A: np.ndarray | None = None
+    a0: np.ndarray | None = None
+
+    @classmethod
+    def empty(cls, batch: int, n_dof: int, n_out: int, n_seg: int | None = None) -> "StepMaps":
+        """Uninitialised maps (``n_seg`` given: with the axial-force maps)."""
+        axial = n_seg is not None
+        return cls(np.empty((batch, n_dof, n_dof)), np.empty((batch, n_dof)), np.empty((batch, n_out, n_dof)),
+                   np.empty((batch, n_out)), np.empty((batch, n_seg, n_dof)) if axial else None,
+                   np.empty((batch, n_seg)) if axial else None)
+
+
+@dataclass(frozen=True)
+class CrankStates:
+    """Crank states of a batch: angle [rad], speed [rad/s], acceleration [rad/s^2], each (B,)."""
+
+    angle: np.ndarray
+    speed: np.ndarray
+    accel: np.ndarray
+
+    def at(self, k: int) -> tuple[float, float, float]:
+        return float(self.angle[k]), float(self.speed[k]), float(self.accel[k])
+
+    def take(self, k: int) -> "CrankStates":
+        """Configuration ``k`` alone, as a batch of one."""
+        return CrankStates(self.angle[k:k + 1], self.speed[k:k + 1], self.accel[k:k + 1])
+
+
+@dataclass(frozen=True)
+class ConfigurationBatch:
+    """B instantaneous configurations of a :class:`tmm_core.TimeDomain` at a time step ``dt``.
+
+    ``crank``: the crank states; ``motion``: the mechanism's rigid-body motion at them;
+    ``rigid`` (B, n_dof): the rigid-body (D'Alembert and gravity) node loads, stacked local [N,
+    N m]; ``drive``: the drive-torque terms (:meth:`FourBarMechanism.drive_torque_terms`);
+    ``P0`` (B, n_seg) or None: the segment axial forces [N] in the field matrices;
+    ``indefinite`` (B,): configurations whose step system is not positive definite at ``P0``;
+    ``maps``: :class:`StepMaps` or None (the step then runs Riccati load sweeps on the numpy
+    factorization, built on first use by ``make_factor``). ``cache`` holds what is derived from
+    the batch once (the factorization, selections of it, the compiled march's packed arrays)."""
+
+    crank: CrankStates
+    motion: Any
+    rigid: np.ndarray
+    drive: tuple
+    P0: np.ndarray | None
+    indefinite: np.ndarray
+    maps: StepMaps | None
+    make_factor: Callable[[], Any]
+    cache: dict = field(default_factory=dict, repr=False, compare=False)
+
+    def __len__(self) -> int:
+        return len(self.crank.angle)
+
+    def factor(self):
+        """The numpy factorization of the batch (built once, on first use)."""
+        f = self.cache.get("factor")
+        if f is None:
+            f = self.cache["factor"] = self.make_factor()
+        return f
+
+
+@dataclass(frozen=True)
+class OutputLayout:
+    """Columns of a step's output row: drive torque [N m, CCW +], then per gauge (in order)
+    bending and axial surface strain [-]."""
+
+    gauges: tuple[str, ...]
+
+    @property
+    def size(self) -> int:
+        return 1 + 2 * len(self.gauges)
+
+    @staticmethod
+    def torque(outs: np.ndarray) -> np.ndarray:
+        return outs[..., 0]
+
+    def bending(self, outs: np.ndarray, i: int) -> np.ndarray:
+        return outs[..., 1 + 2 * i]
+
+    def axial(self, outs: np.ndarray, i: int) -> np.ndarray:
+        return outs[..., 2 + 2 * i]
+
+    #: The axial-strain columns of every gauge (an index for a row).
+    axial_columns = slice(2, None, 2)
+
+    def split(self, outs: np.ndarray) -> dict:
+        """``{gauge: (bending, axial)}`` of output rows ``(..., size)``."""
+        return {name: (self.bending(outs, i), self.axial(outs, i)) for i, name in enumerate(self.gauges)}
+
+    @classmethod
+    def of(cls, gauges: Sequence) -> "OutputLayout":
+        return cls(tuple(g.name for g in gauges))
