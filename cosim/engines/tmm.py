@@ -132,6 +132,9 @@ class TMMEngine:
             return
         first, idx, _, _, start = self._ahead
         k = self.k
+        if k == first + len(idx) - 1:       # the block is used up: the march is at step k
+            self._ahead = None
+            return
         self.restore(start)
         if k >= first:
             self.march.step_many(self.cache[3], idx[:k - first + 1], record_z=False)
