@@ -142,13 +142,14 @@ class TMMEngine:
 
     def _serve(self, ks, drive):
         """Steps ``ks`` of a prescribed crank history on the cached revolution, marched ahead in
-        blocks of at least LOOKAHEAD_STEPS: the compiled march's call (numba's dispatch of its
+        blocks of at least LOOKAHEAD_STEPS (a whole number of macro steps): the compiled march's call (numba's dispatch of its
         ~40 arrays, ~50-90 us) and this engine's bookkeeping then cost per block, not per macro
         step. Returns ``(zs, outs, cache indices)`` of ``ks``."""
         a = self._ahead
         if a is None or not (a[0] <= ks[0] and ks[-1] < a[0] + len(a[1])):
             self._rewind()
-            kk = self.k + 1 + np.arange(max(len(ks), LOOKAHEAD_STEPS))
+            # A whole number of macro steps of this length: the next ones then never straddle two blocks.
+            kk = self.k + 1 + np.arange(len(ks) * -(-LOOKAHEAD_STEPS // len(ks)))
             idx = self._cache_indices(kk, *(np.asarray(x, dtype=float) * np.ones(len(kk))
                                             for x in drive.prescribed(self.t0 + kk * self._dt)))
             # Stop the block where the history leaves the cached revolution (ks itself is on it).
