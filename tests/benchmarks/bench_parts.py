@@ -1,0 +1,203 @@
+"""The side-by-side benchmark's parts other than the engines (``tests.benchmarks.bench``).
+
+* ``quasi_static``: one quasi-static revolution (360 positions, 8 segments per link,
+  beam-column), compiled against numpy side by side, the factorization of a revolution of
+  configurations (the time domain's set-up) and the kernels' first call in a fresh process
+  (factorization_benchmark.side_by_side, FE rig 241 rpm); and the same revolution on the
+  Alexander-Lawrence four-bar (ked_benchmark).
+* ``floor``: the compiled march per step on the cached maps of a revolution against the 3-5 us
+  per step the issue estimates as the floor (factorization_benchmark.per_step).
+* ``sweep``: the 81-point periodic sweep, 100-500 rpm (sweep_benchmark), stopped at a time cap.
+* ``overhead``: the co-simulation bench's own cost (master, traces, rerun streaming).
+* ``scaling``: the TMM's cost over 4-512 segments per link and over revolutions.
+"""
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+# -- quasi-static revolution and the per-step floor -------------------------------------------------
+def quasi_static(segments: int, repeats: int) -> dict:
+    """FE rig: numpy and compiled side by side (min/median [s], ratios, first compiled calls [s]);
+    Alexander-Lawrence: the compiled beam-column revolution, median [s]."""
+    from .factorization_benchmark import side_by_side
+    from .ked_benchmark import median_time, quasi_static_revolution
+    out = {"fe_crank_rocker_241rpm": side_by_side(segments, repeats)}
+    out["alexander_lawrence_400rpm"] = {"segments_per_link": segments, "positions": 360,
+                                        "quasi_static_beam_column_s": median_time(
+                                            quasi_static_revolution(segments, beam_column=True), repeats)}
+    return out
+
+
+def floor(settings: list, repeats: int) -> list:
+    """Compiled march per step [s] at each (segments per link, step [deg]) of the FE rig, with
+    its set-up and the ratio to the 3-5 us floor."""
+    from .factorization_benchmark import per_step
+    return [per_step(n, d, repeats) for n, d in settings]
+
+
+# -- the speed sweep, capped ----------------------------------------------------------------------
+def sweep_capped(cap_s: float, workers: int, segments: int = 8, rpm: str = "100:500:5") -> dict:
+    """The periodic sweep in a child process stopped after ``cap_s`` seconds: its result, or
+    {"finished": False, "points_done": how many points it finished, "wall_time_s": cap}."""
+    with tempfile.TemporaryDirectory() as tmp:
+        out_dir, result = Path(tmp) / "run", Path(tmp) / "result.json"
+        cmd = [sys.executable, "-m", "tests.benchmarks.sweep_benchmark", "--workers", str(workers), "--segments",
+               str(segments), "--rpm", rpm, "--out-dir", str(out_dir), "--result", str(result)]
+        tic = time.perf_counter()
+        # Its own process group, so the sweep's worker processes stop with it at the cap.
+        proc = subprocess.Popen(cmd, cwd=ROOT, start_new_session=True, stdout=subprocess.DEVNULL,
+                                stderr=subprocess.PIPE, text=True)
+        try:
+            _, err = proc.communicate(timeout=cap_s)
+            finished = True
+        except subprocess.TimeoutExpired:
+            os.killpg(proc.pid, signal.SIGKILL)
+            _, err = proc.communicate()
+            finished = False
+        wall = time.perf_counter() - tic
+        if finished and proc.returncode == 0 and result.exists():
+            return {"finished": True, "cap_s": cap_s, **json.loads(result.read_text())}
+        summary = out_dir / "sweep" / "summary.json"
+        done = len(json.loads(summary.read_text()).get("points", [])) if summary.exists() else 0
+        row = {"finished": False, "cap_s": cap_s, "wall_time_s": wall, "points_done": done, "rpm": rpm,
+               "workers": workers, "segments_per_link": segments}
+        if finished:
+            lines = (err or "").strip().splitlines()
+            row["error"] = lines[-1] if lines else f"exit status {proc.returncode}"
+        else:
+            row["note"] = f"not finished in {cap_s:.0f} s ({done} points done)"
+        return row
+
+
+# -- the bench's own cost -------------------------------------------------------------------------
+def bench_overhead(rig, macro_multiples, revolutions):
+    """Engine time and the master's, and whole runs without and with rerun streaming [s] and as
+    fractions of the engine's time, at macro steps of ``macro_multiples`` TMM steps (1 deg)."""
+    from cosim.engines import make_engine
+    from cosim.master import CoSimulation
+    from cosim.run import RunOptions, run_scenario
+    from cosim.scenario import load
+    sc = load(rig)
+    # A first short run pays the kernels' first call (cache load), which would fall on the first row.
+    CoSimulation(sc.with_overrides({"solver.tmm.step": "1 deg"}), ("tmm",), mode="prescribed").run(revolutions=0.1)
+    out = {}
+    for m in macro_multiples:
+        s = sc.with_overrides({"coupling.macro_step": f"{m} deg", "solver.tmm.step": "1 deg"})
+        eng = make_engine("tmm")
+        inner = [0.0]
+
+        def timed(method):
+            def call(*args, **kw):
+                tic = time.perf_counter()
+                try:
+                    return method(*args, **kw)
+                finally:
+                    inner[0] += time.perf_counter() - tic
+            return call
+        # The engine's time is its set-up (reset: configurations, quasi-static start) and its steps.
+        eng.advance, eng.reset = timed(eng.advance), timed(eng.reset)
+        tic = time.perf_counter()
+        cs = CoSimulation(s, {"tmm": eng}, mode="prescribed")
+        cs.run(revolutions=revolutions)
+        total = time.perf_counter() - tic
+        # In prescribed mode the master groups macro steps to ~10 deg: record what it ran.
+        row = {"macro_engine_steps": m, "engine_steps_per_call": int(round(cs.macro_step_s / s.engine_step_s("tmm"))),
+               "engine_s": inner[0], "master_s": total - inner[0],
+               "master_fraction": (total - inner[0]) / inner[0]}
+        for viewer in ("none", "save"):
+            with tempfile.TemporaryDirectory() as tmp:
+                tic = time.perf_counter()
+                res = run_scenario(s, RunOptions(engines=("tmm",), revolutions=revolutions, out=Path(tmp) / "r",
+                                                 viewer=viewer, progress=False))
+                wall = time.perf_counter() - tic
+                eng_s = res.summary["engines"]["tmm"]["wall_time_s"]
+                key = "stream" if viewer == "save" else "traces_only"
+                row[f"run_{key}_s"] = wall
+                row[f"overhead_{key}_fraction"] = (wall - eng_s) / eng_s
+        out[str(m)] = row
+    return out
+
+
+# -- TMM scaling ------------------------------------------------------------------------------------
+def tmm_scaling(rig, segments, revolutions_list, tiny):
+    """Per segment count: a quasi-static revolution (360 positions, beam-column) and a time-domain
+    revolution at 1 deg on the default path (dense maps while they fit) and on the Riccati sweeps
+    alone [s]; above 128 segments per link the sweeps march a quarter revolution (scaled to one).
+    Per revolution count: wall time [s], fitted as set-up + cost per revolution."""
+    from cosim.scenario import load
+    from tmm_core import CrankMotion, TimeDomain, quasi_static as qs_solve
+    from .bench_accuracy import scenario_for
+    sc = load(rig)
+    q = np.radians(np.arange(360.0))
+    # A first call loads the compiled kernels (numba's disk cache), which would fall on the first row.
+    qs_solve(sc.mechanism, q[:4], sc.drive.speed_rad_s, beam_column=True, tol=1e-8)
+    rows = []
+    for n in segments:
+        mech = scenario_for(rig, "tmm", {"segments": n}).mechanism
+        tic = time.perf_counter()
+        try:
+            # 1e-8: with hundreds of segments the beam-column iteration stalls near 4e-10 (round-off).
+            qs_solve(mech, q, sc.drive.speed_rad_s, beam_column=True, tol=1e-8)
+        except Exception as exc:
+            rows.append({"segments": n, "error": f"{type(exc).__name__}: {exc}"})
+            continue
+        row = {"segments": n, "quasi_static_revolution_s": time.perf_counter() - tic}
+        # The default path (dense load maps up to MAP_MAX_DOF, then sweeps) and the sweeps alone.
+        for key, limit, budget in (("time_domain_revolution_s", 16 if tiny else 64, None),
+                                   ("time_domain_sweeps_revolution_s", 4 if tiny else 512, 0.0)):
+            if n > limit:
+                continue
+            revs = 0.25 if n > 128 else 1.0
+            td = TimeDomain(mech, integrator="generalized_alpha", gauges=sc.gauges)
+            if budget is not None:
+                td.max_map_bytes = budget
+            tic = time.perf_counter()
+            td.run(CrankMotion.constant_speed(sc.drive.speed_rad_s, step_deg=1.0, revolutions=revs),
+                   start="quasi_static", record_displacements=False)
+            row[key] = (time.perf_counter() - tic) / revs
+            row[key.replace("_revolution_s", "_revolutions_marched")] = revs
+        rows.append(row)
+    revs = []
+    for r in revolutions_list:
+        td = TimeDomain(sc.mechanism, integrator="generalized_alpha", gauges=sc.gauges)
+        tic = time.perf_counter()
+        td.run(CrankMotion.constant_speed(sc.drive.speed_rad_s, step_deg=1.0, revolutions=r), start="quasi_static",
+               record_displacements=False)
+        revs.append({"revolutions": r, "wall_s": time.perf_counter() - tic})
+
+    def exponent(key):
+        ok = [r for r in rows if key in r]
+        if len(ok) < 2:
+            return float("nan")
+        x, y = np.log([r["segments"] for r in ok]), np.log([r[key] for r in ok])
+        return float(np.polyfit(x, y, 1)[0])
+    return {"by_segments": rows, "quasi_static_exponent": exponent("quasi_static_revolution_s"),
+            "time_domain_exponent": exponent("time_domain_revolution_s"),
+            "time_domain_sweeps_exponent": exponent("time_domain_sweeps_revolution_s"),
+            "by_revolutions": revs, **affine(revs)}
+
+
+def affine(revs):
+    """Wall time = set-up + per-revolution cost x revolutions (least squares), and the exponent of
+    the marching part alone (wall - set-up) against revolutions."""
+    r = np.array([x["revolutions"] for x in revs], float)
+    w = np.array([x["wall_s"] for x in revs], float)
+    if len(r) < 2:
+        return {}
+    per_rev, setup = np.polyfit(r, w, 1)
+    march = w - setup
+    ok = march > 0
+    expo = float(np.polyfit(np.log(r[ok]), np.log(march[ok]), 1)[0]) if ok.sum() >= 2 else float("nan")
+    return {"setup_s": float(setup), "per_revolution_s": float(per_rev), "marching_exponent": expo}
