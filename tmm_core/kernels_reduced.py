@@ -1,0 +1,486 @@
+"""Compiled revolution of the reduced transfer-matrix model (numba).
+
+:class:`tmm_core.reduced_periodic.ReducedModel` (``step``, ``second_order``, ``outputs``, numpy)
+is the reference; :func:`revolution` marches the same equations over one period in one compiled
+loop: per step the Newton iteration on the 3-stage Radau IIA equations (3r unknowns: the stage
+accelerations) with the second-order term and its Jacobian, a dense LU of the 3r x 3r Newton
+matrix, the step's Jacobian ``S`` and its product into the monodromy, and the outputs at the
+three collocation points. ``tests/test_reduced.py`` checks it against the numpy path.
+
+Why compiled: the numpy path spends 0.4-1 ms per step in Python calls, small batched products and
+LAPACK calls on 69 x 69 matrices. Here a step costs its arithmetic (FE rig, r = 23, CPU time): a
+Newton matrix about 50 us (its LU 20 us, the second-order Jacobian 3 x 7 us), a chord iteration
+about 12 us, ``S`` and its product into the monodromy 30 us.
+
+Newton: a revolution with the monodromy refactorizes at every iteration, as the numpy path does
+(``S`` comes from the last Newton matrix). Otherwise (``chord``) an iteration reuses the last
+factorization while the updates shrink by ``CHORD_CONTRACTION`` or faster, and a step starts on
+the factorization it kept from the previous revolution (once the shooting has nearly converged
+most steps need none). A chord iteration stops on an update below ``tol`` whose error estimate
+(contraction times update) is 1000x below it, a Newton iteration on an update below ``tol``: either
+way the stage equations are solved to their round-off floor (about 1e-12 of the accelerations).
+
+The second-order term works in node space: ``q = T eta``, ``q' = T eta' + T' eta``, the segment
+forces and their node loads ``g``, ``N = T^T g``; its Jacobian is ``L^T R + T^T Z`` (rank-one
+terms of every segment stacked in ``L``/``R``, the geometric stiffness ``Z = P G T``): matrix
+products (BLAS through ``np.dot``, single-threaded at these sizes). The outputs are linear in the
+stage state (maps built once by the caller) plus the shortening of the gauge segments.
+
+Compiled on first use and cached on disk (numba ``cache=True``); numba's cache checks only this
+file, so after editing it clear ``tmm_core/__pycache__/kernels_reduced*.nbi/.nbc``.
+
+Owns: the compiled revolution of the reduced model. Boundaries: the equations and the data (stage
+matrices, output maps) come from tmm_core.reduced_periodic; no numpy fallback here.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from . import kernels
+
+AVAILABLE = kernels.AVAILABLE
+_COMPILED = {}
+#: Refactorize while the chord iteration contracts slower than this (update ratio).
+CHORD_CONTRACTION = 0.03
+#: After a refactorization, keep the factorization for the next iteration if the relative update
+#: was at most this (the chord iteration then contracts by about this factor: the Newton matrix
+#: moves in proportion to the state).
+CHORD_START = 0.1
+_HELPERS = ("_dot", "_lu_factor", "_lu_solve", "_lu_solve_many", "_second_order", "_stage_states",
+            "_newton_matrix")
+
+
+def compiled_revolution():
+    """The compiled :func:`revolution` (numba, cached on disk)."""
+    if "revolution" not in _COMPILED:
+        import numba
+        # error_model "numpy": a singular Newton matrix gives inf/nan (the step then fails to
+        # converge, as in the numpy path) instead of raising ZeroDivisionError in the kernel.
+        jit = numba.njit(cache=True, error_model="numpy")
+        for name in _HELPERS:
+            globals()[name] = jit(globals()[name])
+        _COMPILED["revolution"] = jit(revolution)
+    return _COMPILED["revolution"]
+
+
+def _lu_factor(a, piv):
+    """In-place LU with partial pivoting of the square ``a`` (LAPACK getrf's pivots, rows swapped
+    whole); ``piv[k]`` is the row swapped with row k. Blocked by 4 columns: the trailing update
+    subtracts four pivot rows in one pass over each row (half the memory traffic of one at a
+    time), on one-dimensional row views (which numba's loops vectorize better than 2-D indexing):
+    measured 2.5x faster than the plain loop at 69 x 69."""
+    n = a.shape[0]
+    for k0 in range(0, n, 4):
+        k1 = min(k0 + 4, n)
+        # Panel: columns k0..k1-1 of every row below, with the pivot search over all of them.
+        for k in range(k0, k1):
+            p = k
+            big = abs(a[k, k])
+            for i in range(k + 1, n):
+                if abs(a[i, k]) > big:
+                    big = abs(a[i, k])
+                    p = i
+            piv[k] = p
+            if p != k:
+                for j in range(n):
+                    t = a[k, j]
+                    a[k, j] = a[p, j]
+                    a[p, j] = t
+            inv = 1.0 / a[k, k]
+            for i in range(k + 1, n):
+                l_ = a[i, k] * inv
+                a[i, k] = l_
+                for j in range(k + 1, k1):
+                    a[i, j] -= l_ * a[k, j]
+        # The pivot rows right of the panel, then the trailing rows.
+        for k in range(k0, k1):
+            for i in range(k + 1, k1):
+                l_ = a[i, k]
+                for j in range(k1, n):
+                    a[i, j] -= l_ * a[k, j]
+        if k1 - k0 == 4:
+            m = n - k1
+            p0, p1, p2, p3 = a[k0, k1:], a[k0 + 1, k1:], a[k0 + 2, k1:], a[k0 + 3, k1:]
+            for i in range(k1, n):
+                l0, l1, l2, l3 = a[i, k0], a[i, k0 + 1], a[i, k0 + 2], a[i, k0 + 3]
+                row = a[i, k1:]
+                for j in range(m):
+                    row[j] -= l0 * p0[j] + l1 * p1[j] + l2 * p2[j] + l3 * p3[j]
+        else:
+            for i in range(k1, n):
+                for k in range(k0, k1):
+                    l_ = a[i, k]
+                    for j in range(k1, n):
+                        a[i, j] -= l_ * a[k, j]
+
+
+def _dot(x, y, lo, hi):
+    """``sum x[lo:hi] y[lo:hi]`` with four partial sums (a single running sum waits on the
+    latency of every addition: 3x slower)."""
+    s0 = 0.0
+    s1 = 0.0
+    s2 = 0.0
+    s3 = 0.0
+    k = lo
+    while k + 4 <= hi:
+        s0 += x[k] * y[k]
+        s1 += x[k + 1] * y[k + 1]
+        s2 += x[k + 2] * y[k + 2]
+        s3 += x[k + 3] * y[k + 3]
+        k += 4
+    while k < hi:
+        s0 += x[k] * y[k]
+        k += 1
+    return (s0 + s1) + (s2 + s3)
+
+
+def _lu_solve(lu, piv, b):
+    """``b <- A^{-1} b`` in place for one right-hand side (``lu``, ``piv`` from _lu_factor)."""
+    n = lu.shape[0]
+    for k in range(n):
+        p = piv[k]
+        if p != k:
+            t = b[k]
+            b[k] = b[p]
+            b[p] = t
+    for i in range(n):
+        b[i] -= _dot(lu[i], b, 0, i)
+    for i in range(n - 1, -1, -1):
+        b[i] = (b[i] - _dot(lu[i], b, i + 1, n)) / lu[i, i]
+
+
+def _lu_solve_many(lu, piv, B):
+    """``B <- A^{-1} B`` in place for the columns of ``B``: row operations on contiguous rows,
+    four rows of the factor at a time (as in _lu_factor)."""
+    n, m = B.shape
+    for k in range(n):
+        p = piv[k]
+        if p != k:
+            for j in range(m):
+                t = B[k, j]
+                B[k, j] = B[p, j]
+                B[p, j] = t
+    # Forward: L Y = B (unit diagonal).
+    for i in range(n):
+        row = B[i]
+        k = 0
+        while k + 4 <= i:
+            l0, l1, l2, l3 = lu[i, k], lu[i, k + 1], lu[i, k + 2], lu[i, k + 3]
+            b0, b1, b2, b3 = B[k], B[k + 1], B[k + 2], B[k + 3]
+            for j in range(m):
+                row[j] -= l0 * b0[j] + l1 * b1[j] + l2 * b2[j] + l3 * b3[j]
+            k += 4
+        while k < i:
+            l_ = lu[i, k]
+            b0 = B[k]
+            for j in range(m):
+                row[j] -= l_ * b0[j]
+            k += 1
+    # Backward: U X = Y.
+    for i in range(n - 1, -1, -1):
+        row = B[i]
+        k = i + 1
+        while k + 4 <= n:
+            u0, u1, u2, u3 = lu[i, k], lu[i, k + 1], lu[i, k + 2], lu[i, k + 3]
+            b0, b1, b2, b3 = B[k], B[k + 1], B[k + 2], B[k + 3]
+            for j in range(m):
+                row[j] -= u0 * b0[j] + u1 * b1[j] + u2 * b2[j] + u3 * b3[j]
+            k += 4
+        while k < n:
+            u_ = lu[i, k]
+            b0 = B[k]
+            for j in range(m):
+                row[j] -= u_ * b0[j]
+            k += 1
+        inv = 1.0 / lu[i, i]
+        for j in range(m):
+            row[j] *= inv
+
+
+def _stage_states(h, A, A2, c, eta, v, acc, es, vs):
+    """Collocation state at the three stages: ``eta'_i = eta' + h sum_j A_ij acc_j``,
+    ``eta_i = eta + h c_i eta' + h^2 sum_j (A^2)_ij acc_j``."""
+    r = eta.shape[0]
+    for i in range(3):
+        a1 = h * A[i, 0], h * A[i, 1], h * A[i, 2]
+        a2 = h * h * A2[i, 0], h * h * A2[i, 1], h * h * A2[i, 2]
+        hc = h * c[i]
+        for j in range(r):
+            vs[i, j] = v[j] + (a1[0] * acc[0, j] + a1[1] * acc[1, j] + a1[2] * acc[2, j])
+            es[i, j] = eta[j] + hc * v[j] + (a2[0] * acc[0, j] + a2[1] * acc[1, j] + a2[2] * acc[2, j])
+
+
+def _second_order(Tp, Tdp, eta, v, jac, seg_w, seg_u, G, k, beta, q, dq, g, w4, N, Lt, Re, Rv, Z, Ne, Nv):
+    """Second-order term at one stage point (basis ``Tp``, ``Tdp`` = T' theta', (n, r)) for the
+    coordinates ``eta``, ``v``: ``N`` (r,) and, with ``jac``, ``Ne = dN/deta``, ``Nv = dN/deta'``
+    (r, r). Segment ``s``: bending DOFs ``seg_w[s]`` (w0, theta0, w1, theta1), axial DOFs
+    ``seg_u[s]`` (u0, u1), geometric matrix ``G[s]`` [1/m], stiffness ``k[s]`` = EA/L [N/m],
+    damping ``beta[s]`` [s]. Same quantities as ReducedModel.second_order (its notation).
+    Work arrays: ``q, dq, g`` (n,), ``w4`` (4, 4), ``Lt, Re, Rv`` (2 n_seg, r), ``Z`` (n, r).
+    The loops over the r coordinates run on one-dimensional row views (they vectorize)."""
+    n, r = Tp.shape
+    ns = seg_w.shape[0]
+    # Node displacements and rates (BLAS matrix-vector products).
+    np.dot(Tp, eta, q)
+    np.dot(Tp, v, dq)
+    dq += np.dot(Tdp, eta)
+    g[:] = 0.0
+    if jac:
+        Z[:, :] = 0.0
+    d, dd, Gd, Gdd = w4[0], w4[1], w4[2], w4[3]
+    for s in range(ns):
+        for a in range(4):
+            d[a] = q[seg_w[s, a]]
+            dd[a] = dq[seg_w[s, a]]
+        delta = 0.0
+        rate = 0.0
+        for a in range(4):
+            x = G[s, a, 0] * d[0] + G[s, a, 1] * d[1] + G[s, a, 2] * d[2] + G[s, a, 3] * d[3]
+            y = G[s, a, 0] * dd[0] + G[s, a, 1] * dd[1] + G[s, a, 2] * dd[2] + G[s, a, 3] * dd[3]
+            Gd[a] = x
+            Gdd[a] = y
+            delta += d[a] * x
+            rate += dd[a] * x
+        delta *= 0.5
+        ks, bs = k[s], beta[s]
+        kb = ks * bs
+        F = ks * (delta + bs * rate)                          # shortening force [N]
+        u0, u1 = seg_u[s, 0], seg_u[s, 1]
+        Pax = ks * ((q[u1] - q[u0]) + bs * (dq[u1] - dq[u0])) + F      # axial force [N]
+        for a in range(4):
+            g[seg_w[s, a]] += Pax * Gd[a]
+        g[u1] += F
+        g[u0] -= F
+        if not jac:
+            continue
+        w0, w1, w2, w3 = seg_w[s, 0], seg_w[s, 1], seg_w[s, 2], seg_w[s, 3]
+        T0, T1, T2, T3, Tu0, Tu1 = Tp[w0], Tp[w1], Tp[w2], Tp[w3], Tp[u0], Tp[u1]
+        D0, D1, D2, D3, Du0, Du1 = Tdp[w0], Tdp[w1], Tdp[w2], Tdp[w3], Tdp[u0], Tdp[u1]
+        Z0, Z1, Z2, Z3 = Z[w0], Z[w1], Z[w2], Z[w3]
+        Lb, La, Reb, Rea, Rvb, Rva = Lt[s], Lt[ns + s], Re[s], Re[ns + s], Rv[s], Rv[ns + s]
+        g0, g1, g2, g3 = Gd[0], Gd[1], Gd[2], Gd[3]
+        h0, h1, h2, h3 = Gdd[0], Gdd[1], Gdd[2], Gdd[3]
+        # P G on the segment's bending DOFs (geometric stiffness), row by row.
+        P00, P01, P02, P03 = Pax * G[s, 0, 0], Pax * G[s, 0, 1], Pax * G[s, 0, 2], Pax * G[s, 0, 3]
+        P10, P11, P12, P13 = Pax * G[s, 1, 0], Pax * G[s, 1, 1], Pax * G[s, 1, 2], Pax * G[s, 1, 3]
+        P20, P21, P22, P23 = Pax * G[s, 2, 0], Pax * G[s, 2, 1], Pax * G[s, 2, 2], Pax * G[s, 2, 3]
+        P30, P31, P32, P33 = Pax * G[s, 3, 0], Pax * G[s, 3, 1], Pax * G[s, 3, 2], Pax * G[s, 3, 3]
+        for j in range(r):
+            t0, t1, t2, t3 = T0[j], T1[j], T2[j], T3[j]
+            b = g0 * t0 + g1 * t1 + g2 * t2 + g3 * t3                                 # dDelta/deta
+            re = (g0 * D0[j] + g1 * D1[j] + g2 * D2[j] + g3 * D3[j]) + (h0 * t0 + h1 * t1 + h2 * t2 + h3 * t3)
+            aj = Tu1[j] - Tu0[j]                                                      # de/deta
+            adj = Du1[j] - Du0[j]
+            F_eta = ks * (b + bs * re)
+            F_v = kb * b
+            Lb[j] = b
+            La[j] = aj
+            Reb[j] = ks * (aj + bs * adj) + F_eta
+            Rea[j] = F_eta
+            Rvb[j] = kb * aj + F_v
+            Rva[j] = F_v
+            Z0[j] += P00 * t0 + P01 * t1 + P02 * t2 + P03 * t3
+            Z1[j] += P10 * t0 + P11 * t1 + P12 * t2 + P13 * t3
+            Z2[j] += P20 * t0 + P21 * t1 + P22 * t2 + P23 * t3
+            Z3[j] += P30 * t0 + P31 * t1 + P32 * t2 + P33 * t3
+    np.dot(Tp.T, g, N)
+    if jac:
+        # dN/deta = sum_s [b (dP/deta)^T + a (dF/deta)^T] + sum_s P Ed^T G Ed; dN/deta' likewise.
+        np.dot(Lt.T, Re, Ne)
+        Ne += np.dot(Tp.T, Z)
+        np.dot(Lt.T, Rv, Nv)
+
+
+def _newton_matrix(h, A, A2, Mr, Cr, Kr, Ne, Nv, P0, J):
+    """The Newton matrix of the stage equations of the step whose stage points start at ``P0``:
+    block ``(i, j)`` = ``h A_ij (C_i + Nv_i) + h^2 (A^2)_ij (K_i + Ne_i)`` (+ ``M_i`` if i = j)."""
+    r = Ne.shape[1]
+    for i in range(3):
+        p = P0 + i
+        for jb in range(3):
+            a1 = h * A[i, jb]
+            a2 = h * h * A2[i, jb]
+            for a in range(r):
+                Jrow = J[i * r + a, jb * r:(jb + 1) * r]
+                Crow, Nvrow, Krow, Nerow = Cr[p, a], Nv[i, a], Kr[p, a], Ne[i, a]
+                for b in range(r):
+                    Jrow[b] = a1 * (Crow[b] + Nvrow[b]) + a2 * (Krow[b] + Nerow[b])
+        for a in range(r):
+            Jrow = J[i * r + a, i * r:(i + 1) * r]
+            Mrow = Mr[p, a]
+            for b in range(r):
+                Jrow[b] += Mrow[b]
+
+
+def revolution(x0, nonlinear, want_jac, want_out, have_guess, chord, chord_start, chord_rate, guess,
+               h, A, A2, c, Mr, Cr, Kr, fr, T, Td,
+               seg_w, seg_u, G, k, beta, O0, Oe, Ov, Oa, gauge_seg, gauge_len, tol, iterations,
+               LUs, pivs, stored, x_end, mono, outs, accs, counts):
+    """March one period (N = ``accs.shape[0]`` Radau IIA steps of ``h`` [s]) from ``x0 = (eta,
+    eta')`` (2r,). Stage point ``p = 3 n + i`` of step ``n``: ``Mr, Cr, Kr`` (P, r, r), ``fr``
+    (P, r), basis ``T`` and ``Td = T' theta'`` (P, n_dof, r); ``A``, ``A2 = A A``, ``c``: the
+    Radau IIA tableau. Stage accelerations start from ``guess[n]`` (``have_guess``) or from the
+    previous step's last stage (``guess[0]`` for the first step).
+
+    Writes ``x_end`` (2r,), the stage accelerations ``accs`` (N, 3, r), with ``want_jac`` the
+    monodromy ``mono`` (2r, 2r) (product of the step Jacobians), with ``want_out`` the outputs
+    ``outs`` (3N, n_out): ``O0[p] + Oe[p] eta_i + Ov[p] eta'_i + Oa[p] acc_i`` plus, with
+    ``nonlinear``, the shortening of gauge segment ``gauge_seg[g]`` over its length in column
+    ``2 + 2 g``; ``counts`` (2,): Newton iterations and factorizations (added to).
+
+    ``chord_start``, ``chord_rate``: :data:`CHORD_START`, :data:`CHORD_CONTRACTION`.
+    ``LUs`` (N, 3r, 3r), ``pivs`` (N, 3r): every step's last factorized Newton matrix, kept across
+    revolutions; ``stored[n]`` says it is one of the nonlinear model's. With ``chord``, a step
+    whose factorization is stored starts with chord iterations on it (after a few shooting
+    iterations the state hardly moves, and the step needs no factorization at all).
+
+    Returns -1, or the index of the step whose Newton iteration did not converge in
+    ``iterations`` (``x_end`` then unset)."""
+    r = x0.shape[0] // 2
+    N = accs.shape[0]
+    n = T.shape[1]
+    ns = seg_w.shape[0]
+    n3 = 3 * r
+    eta = x0[:r].copy()
+    v = x0[r:].copy()
+    eta0, v0, res, q, dq, g = np.empty(r), np.empty(r), np.empty(n3), np.empty(n), np.empty(n), np.empty(n)
+    acc, es, vs, w4 = np.empty((3, r)), np.empty((3, r)), np.empty((3, r)), np.empty((4, 4))
+    Nn, Ne, Nv = np.zeros((3, r)), np.zeros((3, r, r)), np.zeros((3, r, r))   # stay 0 in the linear model
+    Lt, Re, Rv, Z = np.empty((2 * ns, r)), np.empty((2 * ns, r)), np.empty((2 * ns, r)), np.zeros((n, r))
+    Rm, S, prod = np.empty((n3, 2 * r)), np.empty((2 * r, 2 * r)), np.empty((2 * r, 2 * r))
+    if want_jac:
+        mono[:, :] = 0.0
+        for i in range(2 * r):
+            mono[i, i] = 1.0
+    no = O0.shape[1]
+    h2 = h * h
+    for st in range(N):
+        P0 = 3 * st
+        for j in range(r):
+            eta0[j] = eta[j]
+            v0[j] = v[j]
+        for i in range(3):
+            for j in range(r):
+                if have_guess or st == 0:
+                    acc[i, j] = guess[st, i, j]
+                else:
+                    acc[i, j] = accs[st - 1, 2, j]
+        use_chord = chord and nonlinear and not want_jac
+        J = LUs[st]
+        piv = pivs[st]
+        refresh = not (use_chord and stored[st])
+        refreshed = False
+        prev = -1.0                       # last update's size; -1: no update on this matrix yet
+        converged = False
+        for it in range(iterations):
+            _stage_states(h, A, A2, c, eta, v, acc, es, vs)
+            for i in range(3):
+                p = P0 + i
+                if nonlinear:
+                    _second_order(T[p], Td[p], es[i], vs[i], refresh, seg_w, seg_u, G, k, beta, q, dq, g, w4,
+                                  Nn[i], Lt, Re, Rv, Z, Ne[i], Nv[i])
+                for a in range(r):
+                    s = _dot(Mr[p, a], acc[i], 0, r) + _dot(Cr[p, a], vs[i], 0, r) + _dot(Kr[p, a], es[i], 0, r)
+                    res[i * r + a] = -(s - fr[p, a] + Nn[i, a])
+            if refresh:
+                _newton_matrix(h, A, A2, Mr, Cr, Kr, Ne, Nv, P0, J)
+                _lu_factor(J, piv)
+                refreshed = True
+                counts[1] += 1
+            _lu_solve(J, piv, res)
+            counts[0] += 1
+            dmax = 0.0
+            amax = 0.0
+            for i in range(3):
+                for j in range(r):
+                    acc[i, j] += res[i * r + j]
+                    dmax = max(dmax, abs(res[i * r + j]))
+                    amax = max(amax, abs(acc[i, j]))
+            limit = tol * (amax + 1e-300)
+            if not nonlinear:
+                converged = True
+                break
+            if refresh:
+                if dmax <= limit:
+                    converged = True
+                    break
+                refresh = not (use_chord and dmax <= chord_start * amax)
+            elif prev < 0.0:
+                # First iteration on a stored factorization: no contraction rate yet.
+                if dmax == 0.0:
+                    converged = True
+                    break
+            else:
+                theta = dmax / prev
+                if dmax <= limit and theta * dmax <= 1e-3 * limit:
+                    converged = True
+                    break
+                if theta > 1.0:
+                    # Diverging on an old matrix: step back before refactorizing.
+                    for i in range(3):
+                        for j in range(r):
+                            acc[i, j] -= res[i * r + j]
+                # Finish with a Newton step when converged but the estimate is not yet small
+                # (near the round-off floor), or when the chord iteration contracts slowly.
+                refresh = dmax <= limit or not theta <= chord_rate
+            prev = dmax
+        if refreshed:
+            stored[st] = nonlinear
+        if not converged:
+            return st
+        for j in range(r):
+            accs[st, 0, j] = acc[0, j]
+            accs[st, 1, j] = acc[1, j]
+            accs[st, 2, j] = acc[2, j]
+            eta[j] = eta0[j] + h * v0[j] + (h2 * A2[2, 0] * acc[0, j] + h2 * A2[2, 1] * acc[1, j] +
+                                            h2 * A2[2, 2] * acc[2, j])
+            v[j] = v0[j] + (h * A[2, 0] * acc[0, j] + h * A[2, 1] * acc[1, j] + h * A[2, 2] * acc[2, j])
+        if want_out:
+            _stage_states(h, A, A2, c, eta0, v0, acc, es, vs)
+            for i in range(3):
+                p = P0 + i
+                for o in range(no):
+                    s = O0[p, o]
+                    for j in range(r):
+                        s += Oe[p, o, j] * es[i, j] + Ov[p, o, j] * vs[i, j] + Oa[p, o, j] * acc[i, j]
+                    outs[p, o] = s
+                if nonlinear:
+                    for gi in range(gauge_seg.shape[0]):
+                        sg = gauge_seg[gi]
+                        d = w4[0]
+                        for a in range(4):
+                            d[a] = 0.0
+                            row = seg_w[sg, a]
+                            for j in range(r):
+                                d[a] += T[p, row, j] * es[i, j]
+                        delta = 0.0
+                        for a in range(4):
+                            delta += d[a] * (G[sg, a, 0] * d[0] + G[sg, a, 1] * d[1] + G[sg, a, 2] * d[2] +
+                                             G[sg, a, 3] * d[3])
+                        outs[p, 2 + 2 * gi] += 0.5 * delta / gauge_len[gi]
+        if want_jac:
+            # d(acc)/d(eta, eta') = -J^-1 [Ke_i, Ce_i + h c_i Ke_i] (the last Newton matrix).
+            for i in range(3):
+                p = P0 + i
+                hc = h * c[i]
+                for a in range(r):
+                    for b in range(r):
+                        ke = Kr[p, a, b] + Ne[i, a, b]
+                        Rm[i * r + a, b] = ke
+                        Rm[i * r + a, r + b] = (Cr[p, a, b] + Nv[i, a, b]) + hc * ke
+            _lu_solve_many(J, piv, Rm)
+            S[:, :] = 0.0
+            for a in range(r):
+                S[a, a] = 1.0
+                S[a, r + a] = h
+                S[r + a, r + a] = 1.0
+            for a in range(r):
+                for b in range(2 * r):
+                    S[a, b] -= h2 * (A2[2, 0] * Rm[a, b] + A2[2, 1] * Rm[r + a, b] + A2[2, 2] * Rm[2 * r + a, b])
+                    S[r + a, b] -= h * (A[2, 0] * Rm[a, b] + A[2, 1] * Rm[r + a, b] + A[2, 2] * Rm[2 * r + a, b])
+            np.dot(S, mono, prod)
+            mono[:, :] = prod
+    for j in range(r):
+        x_end[j] = eta[j]
+        x_end[r + j] = v[j]
+    return -1
