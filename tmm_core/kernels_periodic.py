@@ -1,0 +1,357 @@
+"""Compiled linearized revolutions of the periodic solver (numba): the monodromy matrix of the
+time-discrete step and the linear model's shooting pass.
+
+:mod:`tmm_core.periodic` marches every unit state (n_state = len(keys) * n_dof columns) through
+one revolution of the time step, linearized about a trajectory (second-order step) or as it is
+(linear step); its numpy code (``_monodromy``, ``_batched_step``) is the reference, and
+``tests/test_periodic.py`` checks this module against it. The same arithmetic is arranged so
+that the per-column work is one dense product per step:
+
+* the step's loads are linear in the integrator history ``(h_a, h_v)`` (inertia, Coriolis and
+  Kelvin-Voigt history; the second-order pseudo-loads' velocity part) and are formed per column
+  in O(n_dof) with the sparse structure of those terms;
+* the second-order step's Jacobian ``J`` in (displacements, segment axial forces) is built from
+  the sparse pseudo-load derivatives (4x4 blocks per segment) and solved once per step for the
+  load-to-displacement operator ``W = (J^-1 [[Z, 0], [A, I]])[:n_dof]`` (n_dof + n_seg right-hand
+  sides instead of n_state), then every column's displacements are ``W @ [loads; axial part]``;
+* the axial-force unknowns and equations of ``J`` are scaled by EA/L (condition ~1e13 -> ~1e5);
+* the integrator's history and update are linear in its state with scalar coefficients per
+  state array, read off the integrator itself (:func:`integrator_coefficients`), so no
+  integrator formula is repeated here;
+* state arrays the first step does not see (generalized-alpha: 1 of 4, Newmark: 1 of 3) are not
+  marched: their columns of Phi are combinations of the others (:func:`_dependent_keys`).
+
+Why: the numpy monodromy spent about 1.4 ms per step in Python calls and small dense solves with
+n_state right-hand sides (measured 0.7-1 s per revolution of 720 steps on the FE rig, 54 dof,
+216 states; one to three per periodic solve). Here (same rig, one thread, warm): 0.05 s for the
+linear pass, 0.14 s per monodromy, of which about half is the per-step solve for W.
+
+Kernels are compiled on first use and cached on disk (numba ``cache=True``); after editing a
+kernel, delete ``tmm_core/__pycache__/*kernels_periodic*`` (numba's cache checks only this file).
+
+Owns: the compiled linearized revolutions. Boundaries: the numpy path in tmm_core.periodic is
+the reference; the step's maps and data come from :meth:`tmm_core.TimeDomain.kernel_data`.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from . import kernels
+
+AVAILABLE = kernels.AVAILABLE
+_COMPILED = {}
+
+
+def compiled(name):
+    """The compiled kernel ``name`` (:func:`push`, :func:`velocities`; numba, cached on disk)."""
+    if name not in _COMPILED:
+        import numba
+        _COMPILED[name] = numba.njit(cache=True)(globals()[name])
+    return _COMPILED[name]
+
+
+def integrator_coefficients(integrator, dt: float):
+    """The integrator as linear maps of its state arrays (every array of ``integrator.initial``):
+    ``(slots, Hc, Gc, ez)`` with ``h_a = sum_j Hc[0, j] x_j``, ``h_v = sum_j Hc[1, j] x_j`` and
+    the update ``x_i' = ez[i] z + sum_j Gc[i, j] x_j`` for new displacements ``z``. Read off by
+    evaluating ``history`` and ``advance`` on unit scalar states (the integrators are linear and
+    act on every degree of freedom alike); ``dt`` [s]."""
+    one, zero = np.ones(1), np.zeros(1)
+    slots = tuple(integrator.initial(zero, zero, zero, (zero, zero)).keys())
+
+    def unit(j):
+        return {s: (one if i == j else zero).copy() for i, s in enumerate(slots)}
+
+    K = len(slots)
+    Hc, Gc, ez = np.zeros((2, K)), np.zeros((K, K)), np.zeros(K)
+    for j in range(K):
+        h_a, h_v = integrator.history(unit(j), dt)
+        Hc[0, j], Hc[1, j] = h_a[0], h_v[0]
+        new = integrator.advance(unit(j), zero, dt)
+        Gc[:, j] = [new[s][0] for s in slots]
+    new = integrator.advance(unit(-1), one, dt)
+    ez[:] = [new[s][0] for s in slots]
+    return slots, Hc, Gc, ez
+
+
+def push(S, Hc, Gc, ez, idx, forced, Z, z0, A, P0, rigid, omega, m, aM, beta_node,
+         seg_start, seg_end, seg_L, seg_EA, seg_beta, seg_K, coriolis, has_kv, dynamic, c_v, zs, vs, Ps):
+    """March the states ``S`` (K slots, n_dof, M columns) in place through the steps at
+    configurations ``idx`` of a map batch: the linear step (``dynamic`` False: loads through the
+    displacement map ``Z``) or the second-order step linearized about the trajectory ``zs, vs,
+    Ps`` (displacements [m, rad], velocities and segment axial forces [N] per step). The first
+    ``forced`` columns also get the configuration's rigid-body loads and the maps' constant parts
+    (the affine response of the linear step); the others are homogeneous (unit states).
+
+    Columns are the last axis: every operation on a degree of freedom is a contiguous row
+    operation over the M columns, and the displacements are one matrix product per step."""
+    K, n, M = S.shape
+    ns = seg_L.shape[0]
+    nx = n + ns
+    h_a = np.empty((n, M))
+    h_v = np.empty((n, M))
+    L = np.empty((n, M))
+    D = np.empty((ns, M))
+    q_ = np.empty(M)
+    Snew = np.empty((K, n, M))
+    EAL = seg_EA / seg_L
+    kb = seg_beta * EAL
+    # Per-segment data of the linearization: the node-vector index of (w0, theta0, w1, theta1),
+    # the consistent geometric-stiffness matrix G (second_order.geometric_matrices), G d, G v_d.
+    dof = np.empty((ns, 4), dtype=np.int64)
+    G = np.empty((ns, 4, 4))
+    base = np.array([[36.0, 3.0, -36.0, 3.0], [3.0, 4.0, -3.0, -1.0], [-36.0, -3.0, 36.0, -3.0], [3.0, -1.0, -3.0, 4.0]])
+    power = np.array([[0, 1, 0, 1], [1, 2, 1, 2], [0, 1, 0, 1], [1, 2, 1, 2]])
+    for s in range(ns):
+        dof[s, 0], dof[s, 1], dof[s, 2], dof[s, 3] = seg_start[s] + 1, seg_start[s] + 2, seg_end[s] + 1, seg_end[s] + 2
+        for p in range(4):
+            for q in range(4):
+                G[s, p, q] = base[p, q] * seg_L[s] ** power[p, q] / (30.0 * seg_L[s])
+    ga = np.empty((ns, 4))
+    Fz = np.empty((ns, 4))           # dF/dz of the shortening force at the segment's 4 dofs
+    J = np.empty((nx, nx))
+    B = np.zeros((nx, nx))           # [[Z, 0], [A, I]], rows scaled like J's
+    W1 = np.empty((n, n))            # the load block of W
+    W2 = np.empty((n, ns))           # the axial-force block of W
+    for j in range(idx.shape[0]):
+        k = idx[j]
+        for i in range(n):
+            for r in range(M):
+                h_a[i, r] = 0.0
+                h_v[i, r] = 0.0
+            for q in range(K):
+                ca, cv = Hc[0, q], Hc[1, q]
+                if ca != 0.0:
+                    for r in range(M):
+                        h_a[i, r] += ca * S[q, i, r]
+                if cv != 0.0:
+                    for r in range(M):
+                        h_v[i, r] += cv * S[q, i, r]
+        # Loads (TimeDomain.step_loads without the rigid-body part): inertia history, Coriolis,
+        # Kelvin-Voigt history.
+        for i in range(n):
+            for r in range(M):
+                L[i, r] = -m[i] * (h_a[i, r] + aM[i] * h_v[i, r])
+        if coriolis:
+            for node in range(n // 3):
+                u, w = 3 * node, 3 * node + 1
+                cu, cw = 2.0 * m[u] * omega[k, u], 2.0 * m[w] * omega[k, w]
+                for r in range(M):
+                    L[u, r] += cu * h_v[w, r]
+                    L[w, r] -= cw * h_v[u, r]
+        if has_kv:
+            for s in range(ns):
+                i0 = seg_start[s]
+                for p in range(6):
+                    for q in range(6):
+                        c = beta_node[i0 + p] * seg_K[s, p, q]
+                        if c != 0.0:
+                            for r in range(M):
+                                L[i0 + p, r] -= c * h_v[i0 + q, r]
+        if dynamic:
+            for s in range(ns):
+                for p in range(4):
+                    sa = 0.0
+                    sb = 0.0
+                    for q in range(4):
+                        sa += G[s, p, q] * zs[j, dof[s, q]]
+                        sb += G[s, p, q] * vs[j, dof[s, q]]
+                    ga[s, p] = sa
+                    # F = EA/L (Delta + beta Delta_dot) with v = c_v z + h_v.
+                    Fz[s, p] = EAL[s] * (sa + seg_beta[s] * sb) + c_v * kb[s] * sa
+            # Velocity-history part of the pseudo-loads and of the axial forces (damping and
+            # shortening rate): f_h h_v on the axial dofs, (damping + F_h) h_v per segment.
+            for s in range(ns):
+                st, en = seg_start[s], seg_end[s]
+                for r in range(M):
+                    q_[r] = kb[s] * (ga[s, 0] * h_v[dof[s, 0], r] + ga[s, 1] * h_v[dof[s, 1], r]
+                                     + ga[s, 2] * h_v[dof[s, 2], r] + ga[s, 3] * h_v[dof[s, 3], r])
+                for r in range(M):
+                    L[st, r] += q_[r]
+                    L[en, r] -= q_[r]
+                    D[s, r] = kb[s] * (h_v[en, r] - h_v[st, r]) + q_[r]
+            # J = [[I - Z f_z, -Z f_P], [-(A f_z + F_z), I - A f_P]] with f_z = Su F_z - sum dP G
+            # (segment blocks), f_P[dof_s, s] = -G d_s; rows of Z and A alike. The axial-force
+            # unknowns and equations are scaled by EA/L (to displacements): unscaled, J mixes
+            # metres and newtons and its condition number is ~1e13 (FE rig), scaled ~1e5.
+            for i in range(nx):
+                for q in range(nx):
+                    J[i, q] = 0.0
+            for i in range(nx):
+                if i < n:
+                    row = Z[k, i]
+                    rs = 1.0
+                else:
+                    row = A[k, i - n]
+                    rs = 1.0 / EAL[i - n]
+                for s in range(ns):
+                    t = row[seg_start[s]] - row[seg_end[s]]
+                    dP = Ps[j, s] - P0[k, s]
+                    fp = 0.0
+                    for p in range(4):
+                        fp -= row[dof[s, p]] * ga[s, p]
+                    J[i, n + s] -= rs * fp * EAL[s]
+                    for q in range(4):
+                        g = 0.0
+                        for p in range(4):
+                            g += row[dof[s, p]] * G[s, p, q]
+                        J[i, dof[s, q]] -= rs * (t * Fz[s, q] - dP * g)
+                J[i, i] += 1.0
+                for q in range(n):
+                    B[i, q] = rs * row[q]
+                if i >= n:
+                    B[i, i] = rs
+            for s in range(ns):
+                for q in range(4):
+                    J[n + s, dof[s, q]] -= Fz[s, q] / EAL[s]
+            W = np.linalg.solve(J, B)
+            for i in range(n):
+                for q in range(n):
+                    W1[i, q] = W[i, q]
+                for s in range(ns):
+                    W2[i, s] = W[i, n + s]
+            z = np.dot(W1, L) + np.dot(W2, D)
+        else:
+            z = np.dot(Z[k], L)
+            for i in range(n):
+                acc = z0[k, i]
+                for q in range(n):
+                    acc += Z[k, i, q] * rigid[k, q]
+                for r in range(forced):
+                    z[i, r] += acc
+        # Integrator update, the same linear map for every degree of freedom.
+        for p in range(K):
+            for i in range(n):
+                for r in range(M):
+                    Snew[p, i, r] = ez[p] * z[i, r]
+                for q in range(K):
+                    c = Gc[p, q]
+                    if c != 0.0:
+                        for r in range(M):
+                            Snew[p, i, r] += c * S[q, i, r]
+        S[:, :, :] = Snew
+
+
+def velocities(S, Hc, Gc, ez, c_v, zs, vs):
+    """Velocities ``vs[j] = c_v zs[j] + h_v`` along the displacements ``zs`` (N, n_dof) of a march
+    from the states ``S`` (K slots, n_dof; updated in place to the end)."""
+    K, n = S.shape
+    Snew = np.empty((K, n))
+    for j in range(zs.shape[0]):
+        for i in range(n):
+            h = 0.0
+            for q in range(K):
+                h += Hc[1, q] * S[q, i]
+            vs[j, i] = c_v * zs[j, i] + h
+        for p in range(K):
+            for i in range(n):
+                acc = ez[p] * zs[j, i]
+                for q in range(K):
+                    acc += Gc[p, q] * S[q, i]
+                Snew[p, i] = acc
+        S[:, :] = Snew
+
+
+def trajectory_velocities(integrator, state, zs, dt: float) -> np.ndarray:
+    """Velocities after every step of a march with displacements ``zs`` (N, n_dof) from the
+    integrator ``state`` (a dict as :meth:`integrator.initial` gives), step ``dt`` [s]: the
+    ``v = c_v z + h_v`` of :func:`tmm_core.periodic._revolution`'s Python loop."""
+    slots, Hc, Gc, ez = integrator_coefficients(integrator, dt)
+    _, c_v = integrator.coefficients(dt)
+    zs = np.ascontiguousarray(zs, dtype=float)
+    S = np.array([np.asarray(state[s], dtype=float) for s in slots])
+    vs = np.empty_like(zs)
+    compiled("velocities")(S, Hc, Gc, ez, c_v, zs, vs)
+    return vs
+
+
+def _inputs(td, cfg, dt):
+    """The step data :func:`push` reads, from the batch's compiled-march arrays."""
+    Z, z0, _, _, A, _, P0, rigid, omega = td.kernel_data(cfg)
+    seg = td.segments
+    slots, Hc, Gc, ez = integrator_coefficients(td.integrator, dt)
+    _, c_v = td.integrator.coefficients(dt)
+    data = (Z, z0, A, P0, rigid, omega, td.m_vec, td.aM_vec, td.beta_node, seg.start, seg.end, seg.length, seg.EA,
+            seg.beta, td.seg_blocks, td.coupling.coriolis, td.has_kv)
+    return slots, (Hc, Gc, ez), data, c_v
+
+
+def _dependent_keys(slots, keys, Hc, Gc):
+    """``(marched, dependent, C)``: positions in ``keys`` of the state arrays whose unit states are
+    marched, of the others, and ``C`` (len(marched), len(dependent)) with
+    ``Phi e_dependent[t] = sum_p C[p, t] Phi e_marched[p]`` per degree of freedom.
+
+    Why: the first step acts on the state only through the integrator update ``Gc x`` and the
+    history ``Hc x``, which span 3 of the 4 generalized-alpha arrays (2 of 3 for Newmark): a
+    state n0 with ``Gc n0 = Hc n0 = 0`` is annihilated, so each dependent unit state is a
+    combination of the marched ones, and a quarter (a third) of the linearized work is saved.
+    n0 comes from an SVD with the columns scaled to unit size (the coefficients span powers of
+    1/dt); the dependent arrays are those with the largest components of n0 (pivoted QR)."""
+    import scipy.linalg
+    cols = [slots.index(key) for key in keys]
+    M = np.vstack([Gc[:, cols], Hc[:, cols]])
+    scale = np.max(np.abs(M), axis=0)
+    scale[scale == 0.0] = 1.0
+    _, sv, Vt = np.linalg.svd(M / scale)                 # M = (M / scale) diag(scale)
+    r = int(np.sum(sv > 1e-12 * sv[0]))
+    if r == len(keys):
+        return list(range(len(keys))), [], np.zeros((len(keys), 0))
+    null_scaled = Vt[r:]                                  # (q, nk): null space in scaled coordinates
+    _, _, piv = scipy.linalg.qr(null_scaled, pivoting=True)
+    dependent = sorted(int(j) for j in piv[:len(null_scaled)])
+    marched = [j for j in range(len(keys)) if j not in dependent]
+    null = (null_scaled / scale).T                        # (nk, q), M null = 0
+    # e_j - null inv(null[dependent]) e_j vanishes at the dependent arrays and has the same image.
+    C = -(null @ np.linalg.inv(null[dependent]))[marched]
+    return marched, dependent, C
+
+
+def _initial_states(slots, keys, n, marched, extra=0):
+    """States ``(K, n, extra + len(marched) n)``: ``extra`` zero columns, then a unit state per
+    degree of freedom of each marched array of ``keys``."""
+    S = np.zeros((len(slots), n, extra + len(marched) * n))
+    i = np.arange(n)
+    for p, j in enumerate(marched):
+        S[slots.index(keys[j]), i, extra + p * n + i] = 1.0
+    return S
+
+
+def _stacked(S, slots, keys):
+    """The stacked state vectors of states ``S`` as columns ``(len(keys) * n, M)``."""
+    return np.concatenate([S[slots.index(key)] for key in keys], axis=0)
+
+
+def _expand(X, marched, dependent, C, n):
+    """The full ``Phi`` (columns: unit states of every array) from the marched columns ``X``."""
+    Phi = np.empty((X.shape[0], (len(marched) + len(dependent)) * n))
+    for p, j in enumerate(marched):
+        Phi[:, j * n:(j + 1) * n] = X[:, p * n:(p + 1) * n]
+    for t, j in enumerate(dependent):
+        Phi[:, j * n:(j + 1) * n] = sum(C[p, t] * X[:, p * n:(p + 1) * n] for p in range(len(marched)))
+    return Phi
+
+
+def linear_shooting(td, cfg, keys, N: int, dt: float):
+    """The linear step's revolution ``x_N = Phi x_0 + c`` (as the first pass of
+    :func:`tmm_core.periodic.periodic_steady_state`): ``(Phi, c)`` for the stacked state of
+    ``keys``, the configurations of ``cfg`` being the N steps of the revolution."""
+    slots, coef, data, c_v = _inputs(td, cfg, dt)
+    n = td.n_dof
+    marched, dependent, C = _dependent_keys(slots, keys, coef[0], coef[1])
+    S = _initial_states(slots, keys, n, marched, extra=1)
+    empty = np.zeros((0, n))
+    compiled("push")(S, *coef, np.arange(1, N + 1) % N, 1, *data, False, c_v, empty, empty, np.zeros((0, len(td.segments.length))))
+    X = _stacked(S, slots, keys)
+    return _expand(X[:, 1:], marched, dependent, C, n), X[:, 0].copy()
+
+
+def monodromy(td, cfg, keys, trajectory, dt: float) -> np.ndarray:
+    """Monodromy matrix of the second-order step linearized about ``trajectory`` (a list of
+    ``(idx, z, v, P)`` per step, as :func:`tmm_core.periodic._revolution` returns it)."""
+    slots, coef, data, c_v = _inputs(td, cfg, dt)
+    idx = np.array([t[0] for t in trajectory], dtype=np.int64)
+    zs, vs, Ps = (np.ascontiguousarray(np.array([t[i] for t in trajectory]), dtype=float) for i in (1, 2, 3))
+    marched, dependent, C = _dependent_keys(slots, keys, coef[0], coef[1])
+    S = _initial_states(slots, keys, td.n_dof, marched)
+    compiled("push")(S, *coef, idx, 0, *data, True, c_v, zs, vs, Ps)
+    return _expand(_stacked(S, slots, keys), marched, dependent, C, td.n_dof)
