@@ -184,6 +184,10 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--method", choices=("periodic", "march"), default="periodic",
                    help="TMM: periodic steady state in one solve with Floquet multipliers (default), or time marching; "
                         "exudyn and MuJoCo always march")
+    s.add_argument("--model", choices=("full", "reduced"),
+                   help="TMM model of the periodic solves: the full transfer-matrix model, or the reduced one (link "
+                        "modes plus a static correction, README 'Reduced model'); default: the scenario's "
+                        "solver.tmm.model")
     _executor_arguments(s, "points")
     s.add_argument("--out", type=Path, help="output folder (default: ./logs/<scenario>-sweep-<timestamp>)")
     s.add_argument("--no-campbell", dest="campbell", action="store_false",
@@ -285,7 +289,8 @@ def _dispatch(parser, args) -> int:
         viewer, save = _viewer(args)
         folder, summary = run_sweep(args.scenario, rpm, _engines(args.engines), args.revolutions, args.workers,
                                     args.scheduler, args.out, record=viewer is not None, progress=not _quiet(args),
-                                    method=args.method, resonance=args.campbell, records_dir=args.records)
+                                    method=args.method, resonance=args.campbell, records_dir=args.records,
+                                    model=args.model)
         out = sys.stderr if viewer is not None and viewer.stdout else sys.stdout     # --stdout: the .rrd
         print(sweep_table(summary), file=out)
         print(f"\nsweep {summary['status']}: {len(summary['points'])} points in {summary['wall_time_s']:.1f} s; "

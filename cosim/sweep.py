@@ -157,11 +157,20 @@ def _rows(point: dict) -> list:
 def run_sweep(scenario: str, rpm, engines=("tmm",), revolutions: float | None = None, workers: int | None = None,
               scheduler: str | None = None, out: Path | None = None, progress: bool = True,
               record: bool = True, method: str = "periodic", resonance: bool = True,
-              records_dir: Path | None = None) -> tuple:
+              records_dir: Path | None = None, model: str | None = None) -> tuple:
     """Run the sweep; returns ``(folder, summary)``. ``resonance``: also the natural-frequency map
     and Campbell diagram (four-bars; 36 eigenvalue searches, with a progress bar); ``records_dir``:
-    where the recorded peaks drawn on the figure come from (default: the shipped records)."""
+    where the recorded peaks drawn on the figure come from (default: the shipped records);
+    ``model``: the TMM model of the periodic solves ('full' or 'reduced'; default: the
+    scenario's ``solver.tmm.model``)."""
     sc = load(scenario)
+    if model is not None:
+        if model not in ("full", "reduced"):
+            raise ScenarioError(f"sweep: model must be 'full' or 'reduced', got {model!r}")
+        sc = sc.with_overrides({"solver.tmm.model": model})
+    if sc.tmm.model == "reduced" and method == "march" and "tmm" in engines:
+        raise ScenarioError("sweep: the reduced TMM model solves the periodic steady state only; use --method "
+                            "periodic, or the full model (--model full) to march in time")
     rpms = parse_rpm(rpm) if isinstance(rpm, str) else np.asarray(rpm, dtype=float)
     revs = sc.output.revolutions if revolutions is None else revolutions
     from .engines import ENGINES
@@ -173,7 +182,7 @@ def run_sweep(scenario: str, rpm, engines=("tmm",), revolutions: float | None = 
     folder = run_folder(f"{sc.name}-sweep", out)
     log.info("sweep of %s at %d speeds (%s); results to %s", sc.name, len(rpms), ", ".join(engines), folder)
     summary = {"scenario": sc.name, "status": "incomplete", "rpm": rpms.tolist(), "engines": list(engines),
-               "revolutions": revs, "method": method, "executor": describe(scheduler),
+               "revolutions": revs, "method": method, "model": sc.tmm.model, "executor": describe(scheduler),
                "points": []}
     write_json(folder / "summary.json", summary)
     bar = None
