@@ -23,7 +23,7 @@ test-all: $(STAMP)
 	$(BIN)/python -m pytest -m ""
 
 bench: $(STAMP)
-	$(BIN)/python -m tests.benchmarks.ked_benchmark
+	$(BIN)/python -m tests.benchmarks.bench --budget 55
 
 clean:
 	rm -rf $(VENV) build *.egg-info
