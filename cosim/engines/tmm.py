@@ -5,6 +5,9 @@ instantaneous structure), so it accepts a prescribed crank motion and returns th
 a motor couples to it by supplying the crank motion. When the crank turns at the scenario's
 constant speed and the step divides a revolution, one revolution of factorized configurations
 is prepared at reset and re-used (the fast path); any other motion is factorized step by step.
+When the drive says its crank history holds beyond the macro step (``DriveInput.ahead``: a
+prescribed-speed run), the engine marches ahead in compiled blocks of a few hundred steps and
+serves the macro steps from them; a save for a coupling iteration rewinds to the steps served.
 
 Owns: the transfer-matrix engine behind the protocol. Boundaries: no time step of its own: it
 calls tmm_core's public step API.
