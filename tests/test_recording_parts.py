@@ -130,3 +130,30 @@ def test_linkage_animation_gif(tmp_path):
     run = SimpleNamespace(t=angle / 10.0, crank_angle=angle, nodes={"crank": bent})
     path = write_gif(tmp_path / "linkage.gif", {"tmm": run}, {"tmm": {"crank": x}}, frames=6)
     assert path.exists() and path.read_bytes()[:6] == b"GIF89a"
+
+
+def test_frames_drawn_in_one_batch_equal_the_frame_by_frame_drawing():
+    rng = np.random.default_rng(5)
+    stations = {"coupler": np.linspace(0.0, 0.3, 5), "rocker": np.linspace(0.0, 0.2, 4)}
+    frames_nodes = [{"crank": rng.normal(size=(2, 2)), "coupler": rng.normal(size=(5, 2)),
+                     "rocker": rng.normal(size=(4, 2))} for _ in range(7)]
+    frames_nodes[3]["rocker"][1, 0] = np.nan            # a non-finite link is left out of its frame
+    straight, deformed, counts = linkage.frames(frames_nodes, stations, 20.0)
+    expected = [linkage.frame(f, stations, 20.0) for f in frames_nodes]
+    assert counts == [len(s) for s, _, _ in expected] and counts[3] == 2
+    for got, want in ((straight, [a for s, _, _ in expected for a in s]),
+                      (deformed, [a for _, d, _ in expected for a in d])):
+        assert len(got) == len(want)
+        for g, w in zip(got, want):
+            np.testing.assert_allclose(g, w, rtol=1e-13, atol=1e-15)
+    # Frames whose links differ fall back to the frame-by-frame drawing.
+    mixed = frames_nodes[:2] + [{"crank": rng.normal(size=(2, 2))}]
+    assert linkage.frames(mixed, stations, 2.0)[2] == [3, 3, 1]
+
+
+def test_line_strips_built_in_one_piece_equal_rerun_s_own_conversion():
+    rr = pytest.importorskip("rerun")
+    from cosim.recording.writer import strips_array
+    rng = np.random.default_rng(6)
+    strips = [rng.normal(size=(n, 2)) for n in (2, 5, 3, 2)]
+    assert strips_array(strips).equals(rr.components.LineStrip2DBatch(strips).pa_array)

@@ -81,3 +81,51 @@ def frame(nodes_by_link: dict, stations_by_link: dict | None, factor: float) -> 
         deformed.append(line + factor * (nodes - line))
         names.append(link)
     return straight, deformed, names
+
+
+def stack_frames(frames_nodes: list) -> dict | None:
+    """``{link: (F, n, 2)}`` of F frames' ``{link: nodes}`` with the same links and node counts
+    in every frame (an engine's frames), else None."""
+    if not frames_nodes:
+        return None
+    links = list(frames_nodes[0])
+    try:
+        stacked = {link: np.asarray([f[link] for f in frames_nodes], dtype=float) for link in links}
+    except (KeyError, ValueError):
+        return None
+    if any(len(f) != len(links) for f in frames_nodes) or any(a.ndim != 3 or a.shape[-1] != 2
+                                                               for a in stacked.values()):
+        return None
+    return stacked
+
+
+def frames(frames_nodes: list, stations_by_link: dict | None, factor: float) -> tuple:
+    """:func:`frame` of many frames at once: ``(straight strips, deformed strips, strips per
+    frame)``, the strips of all frames in order. The arithmetic is batched over the frames of
+    each link (one frame at a time cost ~0.25 ms a frame, more than a transfer-matrix step)."""
+    stacked = stack_frames(frames_nodes)
+    if stacked is None:
+        straight, deformed, counts = [], [], []
+        for nodes in frames_nodes:
+            s, d, _ = frame(nodes, stations_by_link, factor)
+            straight += s
+            deformed += d
+            counts.append(len(s))
+        return straight, deformed, counts
+    drawn = []
+    for link, nodes in stacked.items():
+        if nodes.shape[1] < 2:
+            continue
+        frac = fractions((stations_by_link or {}).get(link), nodes.shape[1])
+        line = chord(nodes, frac)
+        drawn.append((nodes[:, [0, -1]], line + factor * (nodes - line), np.isfinite(nodes).all(axis=(1, 2))))
+    straight, deformed, counts = [], [], []
+    for i in range(len(frames_nodes)):
+        count = 0
+        for ends, shape, finite in drawn:
+            if finite[i]:
+                straight.append(ends[i])
+                deformed.append(shape[i])
+                count += 1
+        counts.append(count)
+    return straight, deformed, counts

@@ -13,6 +13,7 @@ from __future__ import annotations
 import time
 
 import numpy as np
+import pyarrow as pa
 import rerun as rr
 
 from .. import alignment
@@ -28,6 +29,18 @@ def time_columns(t, angle) -> list:
     m, wrapped, rev = angle_indexes(angle)
     return [rr.TimeColumn(SIM_TIME, duration=np.asarray(t, dtype=float)), rr.TimeColumn(CRANK_ANGLE, sequence=m),
             rr.TimeColumn(CRANK_ANGLE_WRAPPED, sequence=wrapped), rr.TimeColumn(REVOLUTION, sequence=rev)]
+
+
+def strips_array(strips: list):
+    """The Arrow array of rerun's line-strip component from a list of (n, 2) point arrays, built
+    in one piece (rerun converts a list strip by strip, ~15 us each: more than the run's own
+    cost of a macro step of the transfer-matrix engine)."""
+    kind = rr.components.LineStrip2DBatch._ARROW_DATATYPE
+    lengths = np.fromiter((len(s) for s in strips), dtype=np.int64, count=len(strips))
+    offsets = pa.array(np.concatenate([[0], np.cumsum(lengths)]).astype(np.int32))
+    points = np.concatenate(strips).astype(np.float32).ravel() if strips else np.zeros(0, np.float32)
+    return pa.ListArray.from_arrays(offsets, pa.FixedSizeListArray.from_arrays(pa.array(points), type=kind.value_type),
+                                    type=kind)
 
 
 class StreamWriter:
@@ -175,26 +188,23 @@ class StreamWriter:
             return
         if self.exaggeration is None:
             # The factor is fixed by the first frames sent: with a file only, the whole run.
-            largest = max(drawing.largest_offset(nodes, self.stations.get(e)) for e, fs in frames.items()
-                          for _, _, nodes in fs)
+            largest = 0.0
+            for e, fs in frames.items():
+                stacked = drawing.stack_frames([nodes for _, _, nodes in fs])
+                for nodes in ([stacked] if stacked is not None else [n for _, _, n in fs]):
+                    largest = max(largest, drawing.largest_offset(nodes, self.stations.get(e)))
             longest = max([length for _, length in self.spec.links] or [0.0])
             self.exaggeration = drawing.auto_factor(largest, longest)
             self._send_blueprint()
         k = self.exaggeration
         for engine, rows in frames.items():
             e = part(engine)
-            straight, deformed, n_straight, n_deformed = [], [], [], []
-            for _, _, nodes in rows:
-                s, dfm, _ = drawing.frame(nodes, self.stations.get(engine), k)
-                straight += s
-                deformed += dfm
-                n_straight.append(len(s))
-                n_deformed.append(len(dfm))
+            straight, deformed, counts = drawing.frames([nodes for _, _, nodes in rows], self.stations.get(engine), k)
             index = time_columns([r[0] for r in rows], [r[1] for r in rows])
             self.rec.send_columns(f"/{e}/linkage/straight", indexes=index,
-                                  columns=rr.LineStrips2D.columns(strips=straight).partition(n_straight))
+                                  columns=rr.LineStrips2D.columns(strips=strips_array(straight)).partition(counts))
             self.rec.send_columns(f"/{e}/linkage/deformed", indexes=index,
-                                  columns=rr.LineStrips2D.columns(strips=deformed).partition(n_deformed))
+                                  columns=rr.LineStrips2D.columns(strips=strips_array(deformed)).partition(counts))
             rows.clear()
 
     def _legend(self):
