@@ -22,20 +22,23 @@ def executor(workers: int | None = None, scheduler: str | None = None):
         finally:
             client.close()
     else:
-        pool = ProcessPoolExecutor(max_workers=workers or os.cpu_count() or 1, initializer=one_blas_thread)
+        pool = ProcessPoolExecutor(max_workers=workers or os.cpu_count() or 1, initializer=one_thread_per_worker)
         try:
             yield pool
         finally:
             pool.shutdown(cancel_futures=True)
 
 
-def one_blas_thread() -> None:
-    """Worker start: one BLAS thread per worker process. The workers already fill the cores;
-    BLAS threads on top of them oversubscribe the machine, and the small dense solves of a
-    periodic solve then slow down by orders of magnitude (measured on 2 cores, two workers: six
-    216 x 216 eigenvalue problems 3.8 s with OpenBLAS's default threads, 0.03 s with one)."""
+def one_thread_per_worker() -> None:
+    """Worker start: one BLAS thread and one compiled-kernel thread per worker process. The
+    workers already fill the cores; threads on top of them oversubscribe the machine, and the
+    small dense solves of a periodic solve then slow down by orders of magnitude (measured on 2
+    cores, two workers: six 216 x 216 eigenvalue problems 3.8 s with OpenBLAS's default threads,
+    0.03 s with one)."""
     from threadpoolctl import threadpool_limits
     threadpool_limits(1, user_api="blas")
+    from tmm_core import kernels_static
+    kernels_static.THREADS = 1
 
 
 def describe(scheduler: str | None) -> str:

@@ -38,6 +38,8 @@ from __future__ import annotations
 
 import math
 
+import os
+
 import numpy as np
 
 from . import kernels, kernels_dense, kernels_factor, matrices
@@ -47,10 +49,15 @@ from .kernels_factor import factor_configuration
 AVAILABLE = kernels.AVAILABLE
 _COMPILED = {}
 #: Threads of the compiled batch solve (None: numba's default, the number of cores). The
-#: configurations of a batch are independent; results do not depend on the thread count. Default
-#: 1: on the shared 2-core machine two threads made a quasi-static revolution 2-3x *slower*
-#: (OpenMP threads spinning between the kernel calls take the core the numpy parts need).
-THREADS: int | None = 1
+#: configurations of a batch are independent; results do not depend on the thread count.
+THREADS: int | None = None
+#: numba's threading layer for it, unless NUMBA_THREADING_LAYER says otherwise. Measured on 2
+#: cores (quasi-static revolution, 8 segments per link): one thread 18 ms; two threads 11 ms with
+#: OpenMP and 12 ms with numba's own work queue on a free machine, but with another process on the
+#: second core 50 ms with OpenMP (its threads spin between the calls and take the core the numpy
+#: parts need) against 18 ms with the work queue. Sweep workers set one thread
+#: (cosim.parallel.one_thread_per_worker).
+THREADING_LAYER = "workqueue"
 numba_prange = range      # numba.prange once compiled
 
 INV_FACT = np.array(matrices.INV_FACT)        # the Stumpff series' 1/k! (the numpy path's table)
@@ -77,6 +84,8 @@ def compiled_solve():
         globals()["solve_loads"] = jit(solve_loads)
         globals()["solve_range"] = jit(solve_range)
         globals()["numba_prange"] = numba.prange
+        if "NUMBA_THREADING_LAYER" not in os.environ:
+            numba.config.THREADING_LAYER = THREADING_LAYER
         _COMPILED["solve"] = numba.njit(cache=True, error_model="numpy", parallel=True)(solve_batch)
         _COMPILED["change"] = jit(kernels_dense.iteration_change)
     return _COMPILED["solve"]
