@@ -150,8 +150,9 @@ def tmm_scaling(rig, segments, revolutions_list, tiny):
     from .bench_accuracy import scenario_for
     sc = load(rig)
     q = np.radians(np.arange(360.0))
-    # A first call loads the compiled kernels (numba's disk cache), which would fall on the first row.
-    qs_solve(sc.mechanism, q[:4], sc.drive.speed_rad_s, beam_column=True, tol=1e-8)
+    # A first call loads the compiled kernels (numba's disk cache) and starts the kernels' thread
+    # pool (a batch this large runs in parallel), which would fall on the first row.
+    qs_solve(sc.mechanism, q, sc.drive.speed_rad_s, beam_column=True, tol=1e-8)
     rows = []
     for n in segments:
         mech = scenario_for(rig, "tmm", {"segments": n}).mechanism
