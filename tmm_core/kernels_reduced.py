@@ -354,6 +354,10 @@ def revolution(x0, nonlinear, want_jac, want_out, have_guess, chord, chord_start
             mono[i, i] = 1.0
     no = O0.shape[1]
     h2 = h * h
+    # The Newton tolerance is relative to the largest stage acceleration of the steps so far as
+    # well as the step's own: where all accelerations pass near zero the step's own scale sits
+    # below the round-off floor of the update and the iteration would never stop.
+    scale = 0.0
     for st in range(N):
         P0 = 3 * st
         for j in range(r):
@@ -396,7 +400,7 @@ def revolution(x0, nonlinear, want_jac, want_out, have_guess, chord, chord_start
                     acc[i, j] += res[i * r + j]
                     dmax = max(dmax, abs(res[i * r + j]))
                     amax = max(amax, abs(acc[i, j]))
-            limit = tol * (amax + 1e-300)
+            limit = tol * (max(amax, scale) + 1e-300)
             if not nonlinear:
                 converged = True
                 break
@@ -428,6 +432,7 @@ def revolution(x0, nonlinear, want_jac, want_out, have_guess, chord, chord_start
             stored[st] = nonlinear
         if not converged:
             return st
+        scale = max(scale, amax)
         for j in range(r):
             accs[st, 0, j] = acc[0, j]
             accs[st, 1, j] = acc[1, j]
