@@ -229,6 +229,7 @@ def march(code, params, dt, c_a, c_v, idx,
             for s in range(ns):
                 x[n + s] = P[s] * to_len[s]
             hist = 0
+            filled = 0              # history columns written since the mixing (re)started
             converged = False
             for it in range(max_iterations):
                 for i in range(n):
@@ -303,7 +304,8 @@ def march(code, params, dt, c_a, c_v, idx,
                 for i in range(nx):
                     r[i] = gx[i] - x[i]
                 if it > 0:
-                    col = (it - 1) % depth
+                    col = filled % depth
+                    filled += 1
                     for i in range(nx):
                         dR[i, col] = r[i] - prev_r[i]
                         dG[i, col] = gx[i] - prev_g[i]
@@ -314,6 +316,10 @@ def march(code, params, dt, c_a, c_v, idx,
                     x[i] = gx[i]
                 if hist > 0:
                     _anderson_coefficients(dR, hist, r, gamma, Q, R)
+                    for c in range(hist):
+                        if not np.isfinite(gamma[c]):
+                            hist = 0            # an overflowing history: start the mixing afresh
+                            filled = 0
                     for i in range(nx):
                         s_ = 0.0
                         for c in range(hist):

@@ -132,7 +132,11 @@ class StepSolver:
             if history:
                 dR = np.stack([h[0] for h in history], axis=1)
                 dG = np.stack([h[1] for h in history], axis=1)
-                x = gx - dG @ anderson_coefficients(dR, r)
+                gamma = anderson_coefficients(dR, r)
+                if np.all(np.isfinite(gamma)):
+                    x = gx - dG @ gamma
+                else:                       # an overflowing history: start the mixing afresh
+                    history = []
         return None, last_finite, (self.axial_iterations, dz, dP)
 
     def _solve_one(self, cfg, k, loads):
@@ -229,15 +233,18 @@ def anderson_coefficients(dR, r):
     h = dR.shape[1]
     Q = np.array(dR, dtype=float)
     R = np.zeros((h, h))
-    big = float(np.max(np.sqrt(np.sum(Q * Q, axis=0))))
-    for c in range(h):
-        for p in range(c):
-            R[p, c] = Q[:, p] @ Q[:, c]
-            Q[:, c] -= R[p, c] * Q[:, p]
-        R[c, c] = math.sqrt(float(Q[:, c] @ Q[:, c]))
-        Q[:, c] = Q[:, c] / R[c, c] if R[c, c] > 1e-12 * big else 0.0
     gamma = np.zeros(h)
-    for c in range(h - 1, -1, -1):
-        if R[c, c] > 1e-12 * big:
-            gamma[c] = (Q[:, c] @ r - R[c, c + 1:] @ gamma[c + 1:]) / R[c, c]
+    # A diverging iteration can overflow here: the coefficients are then not finite, the next
+    # iterate neither, and the step is refactorized (as in the compiled march); no warnings.
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+        big = float(np.max(np.sqrt(np.sum(Q * Q, axis=0))))
+        for c in range(h):
+            for p in range(c):
+                R[p, c] = Q[:, p] @ Q[:, c]
+                Q[:, c] -= R[p, c] * Q[:, p]
+            R[c, c] = math.sqrt(float(Q[:, c] @ Q[:, c]))
+            Q[:, c] = Q[:, c] / R[c, c] if R[c, c] > 1e-12 * big else 0.0
+        for c in range(h - 1, -1, -1):
+            if R[c, c] > 1e-12 * big:
+                gamma[c] = (Q[:, c] @ r - R[c, c + 1:] @ gamma[c + 1:]) / R[c, c]
     return gamma
