@@ -118,6 +118,17 @@ def cheapest_setting(results: list, reference: dict, tol: float = 0.01):
 
 
 # -- one run ------------------------------------------------------------------------------------
+def timed(method, total: list):
+    """``method`` wrapped to add its wall time [s] to ``total[0]`` on every call."""
+    def call(*args, **kw):
+        tic = time.perf_counter()
+        try:
+            return method(*args, **kw)
+        finally:
+            total[0] += time.perf_counter() - tic
+    return call
+
+
 def scenario_for(rig: str, engine: str, setting: dict):
     """The rig with one engine's solver setting; the macro step is that engine's own step (one
     engine alone exchanges nothing, the step must divide the macro step, and in prescribed mode
@@ -151,15 +162,8 @@ def run_setting(rig: str, engine: str, setting: dict, max_revolutions: float, ca
     from cosim.metrics import revolution_change
     sc = scenario_for(rig, engine, setting)
     eng = make_engine(engine)
-    reset, setup = eng.reset, [0.0]
-
-    def timed_reset(*args, **kw):
-        tic = time.perf_counter()
-        try:
-            return reset(*args, **kw)
-        finally:
-            setup[0] += time.perf_counter() - tic
-    eng.reset = timed_reset
+    setup = [0.0]
+    eng.reset = timed(eng.reset, setup)
     T = sc.revolution_period_s
     chunks, state = [], {"next": 2, "steady_at": None, "capped": False}
     start = time.perf_counter()

@@ -89,6 +89,7 @@ def bench_overhead(rig, macro_multiples, revolutions):
     from cosim.master import CoSimulation
     from cosim.run import RunOptions, run_scenario
     from cosim.scenario import load
+    from .bench_accuracy import timed
     sc = load(rig)
     # A first short run pays the kernels' first call (cache load), which would fall on the first row.
     CoSimulation(sc.with_overrides({"solver.tmm.step": "1 deg"}), ("tmm",), mode="prescribed").run(revolutions=0.1)
@@ -97,17 +98,8 @@ def bench_overhead(rig, macro_multiples, revolutions):
         s = sc.with_overrides({"coupling.macro_step": f"{m} deg", "solver.tmm.step": "1 deg"})
         eng = make_engine("tmm")
         inner = [0.0]
-
-        def timed(method):
-            def call(*args, **kw):
-                tic = time.perf_counter()
-                try:
-                    return method(*args, **kw)
-                finally:
-                    inner[0] += time.perf_counter() - tic
-            return call
         # The engine's time is its set-up (reset: configurations, quasi-static start) and its steps.
-        eng.advance, eng.reset = timed(eng.advance), timed(eng.reset)
+        eng.advance, eng.reset = timed(eng.advance, inner), timed(eng.reset, inner)
         tic = time.perf_counter()
         cs = CoSimulation(s, {"tmm": eng}, mode="prescribed")
         cs.run(revolutions=revolutions)

@@ -73,21 +73,14 @@ def timed_process(rig: str, engine: str, setting: dict, revolutions: float, cold
     engine creation included [s]), "maxrss_kB"}."""
     from cosim.engines import make_engine
     from cosim.engines.base import run_prescribed
-    from .bench_accuracy import scenario_for
+    from .bench_accuracy import scenario_for, timed
     sc = scenario_for(rig, engine, setting)
 
     def one(revs):
         tic = time.perf_counter()
         eng = make_engine(engine)          # the cold run pays the library's import here
-        reset, setup = eng.reset, [0.0]
-
-        def timed_reset(*args, **kw):
-            t = time.perf_counter()
-            try:
-                return reset(*args, **kw)
-            finally:
-                setup[0] += time.perf_counter() - t
-        eng.reset = timed_reset
+        setup = [0.0]
+        eng.reset = timed(eng.reset, setup)
         run = run_prescribed(eng, sc, revolutions=revs)
         return time.perf_counter() - tic, setup[0], run.wall_time_s, float(run.t[-1])
     cold, _, _, _ = one(cold_revolutions)
