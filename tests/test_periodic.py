@@ -116,8 +116,11 @@ def test_compiled_linearized_revolutions_match_numpy(integrator):
 
 def test_compiled_monodromy_matches_numpy_near_buckling():
     """At 373 rpm (the coupler near its buckling load; the step's Jacobian condition ~3e5 after
-    scaling) the compiled monodromy agrees with the numpy one to 1e-10 of its largest entry
-    (measured 6e-11; unscaled, the numpy solve alone lost 1e-7)."""
+    scaling) the compiled monodromy agrees with the numpy one to 1e-9 of its largest entry. The
+    numpy reference is itself not reproducible much below that here: measured 5e-11 on one
+    checkout and 1.5e-10 on a fresh clone (BLAS's summation order with its thread count); an
+    error in a term of the linearization shows as 1e-4 or more (unscaled, the numpy solve alone
+    lost 1e-7)."""
     from tmm_core import kernels_periodic as kp
     from tmm_core.periodic import _monodromy, _revolution
     td, cfg, keys, N, dt = _rig(373.0)
@@ -125,7 +128,7 @@ def test_compiled_monodromy_matches_numpy_near_buckling():
     Phi, c = kp.linear_shooting(td, cfg, keys, N, dt)
     _, trajectory, _ = _revolution(td, cfg, keys, np.linalg.solve(np.eye(ns) - Phi, c), N, dt)
     M, M_ref = kp.monodromy(td, cfg, keys, trajectory, dt), _monodromy(td, cfg, keys, trajectory, dt)
-    assert np.max(np.abs(M - M_ref)) < 1e-10 * np.max(np.abs(M_ref))
+    assert np.max(np.abs(M - M_ref)) < 1e-9 * np.max(np.abs(M_ref))
 
 
 def test_compiled_periodic_solution_matches_numpy(monkeypatch):
