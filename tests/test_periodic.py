@@ -118,9 +118,9 @@ def test_compiled_monodromy_matches_numpy_near_buckling():
     """At 373 rpm (the coupler near its buckling load; the step's Jacobian condition ~3e5 after
     scaling) the compiled monodromy agrees with the numpy one to 1e-9 of its largest entry. The
     numpy reference is itself not reproducible much below that here: measured 5e-11 on one
-    checkout and 1.5e-10 on a fresh clone (BLAS's summation order with its thread count); an
-    error in a term of the linearization shows as 1e-4 or more (unscaled, the numpy solve alone
-    lost 1e-7)."""
+    checkout and 1.5e-10 on a fresh clone (BLAS's summation order with its thread count); the
+    comparisons of this file fail with a term of the linearization dropped (checked with the
+    Coriolis term). Unscaled, the numpy solve alone lost 1e-7."""
     from tmm_core import kernels_periodic as kp
     from tmm_core.periodic import _monodromy, _revolution
     td, cfg, keys, N, dt = _rig(373.0)
