@@ -56,7 +56,11 @@ def _run(sc, engine: str):
                     gravity=sc.gravity, gauges=sc.gauges, axial_force=s.axial_force, max_map_bytes=4e9)
     crank = CrankMotion.constant_speed(sc.drive.speed_rad_s, step_s=sc.engine_step_s("tmm"),
                                        revolutions=sc.output.max_revolutions, start_angle=sc.drive.start_angle_rad)
-    r = td.run(crank, start=s.start, steady_tol=sc.output.steady_tolerance, record_displacements=False)
+    # Three revolutions at least: the core may call a run steady after two (revolutions 1 and 2
+    # agree), whose samples span one step less than two revolutions, too short for the bench's
+    # revolution-to-revolution check (cosim.metrics.revolution_change) that the caller applies.
+    r = td.run(crank, start=s.start, steady_tol=sc.output.steady_tolerance, record_displacements=False,
+               min_revolutions=3)
     return type("Run", (), {"crank_angle": r.crank_angle, "gauges": r.gauges, "drive_torque": r.drive_torque,
                             "t": r.t})()
 
