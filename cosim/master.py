@@ -337,18 +337,31 @@ class _Channel:
 def macro_step_for(scenario: Scenario, engines, coupling: CouplingSettings | None = None,
                    mode: str | None = None) -> float:
     """The macro step [s]: the scenario's, or the largest engine step if the others divide it.
-    In ``mode`` 'prescribed' the engines exchange nothing, and the master advances them by as many
-    of those steps as make about PRESCRIBED_MACRO_DEG of crank angle (a whole fraction of a
-    revolution where the revolution is a whole number of them). Raises :class:`CouplingError`
-    naming the engine whose step does not divide it."""
+    In ``mode`` 'prescribed' the engines exchange nothing: the scenario's macro step is the grid
+    if every engine step divides it, else the largest engine step, and the master advances the
+    engines by as many of those as make about PRESCRIBED_MACRO_DEG of crank angle (a whole
+    fraction of a revolution where the revolution is a whole number of them). Raises
+    :class:`CouplingError` naming the engine whose step does not divide it."""
     coupling = coupling or scenario.coupling
     steps = {e: scenario.engine_step_s(e) for e in engines}
+
+    def misfit(H):
+        """The first engine whose step does not divide ``H``, with the ratio, or None."""
+        for e, h in steps.items():
+            n = H / h
+            if round(n) < 1 or abs(n - round(n)) > 1e-6 * max(1.0, n):
+                return e, h, n
+        return None
     H = coupling.macro_step_s if coupling.macro_step_s is not None else max(steps.values())
-    for e, h in steps.items():
-        n = H / h
-        if round(n) < 1 or abs(n - round(n)) > 1e-6 * max(1.0, n):
-            raise CouplingError(f"the macro step {H:.9g} s is not a whole multiple of the {e} step {h:.9g} s "
-                                f"({n:.6g} times it); set coupling.macro_step or solver.{e}.step")
+    if mode == "prescribed" and coupling.macro_step_s is not None and misfit(H) and not misfit(max(steps.values())):
+        # Nothing is exchanged in prescribed mode: the coupling's macro step (a motor-mode setting)
+        # need not fit the engines' steps there; the largest engine step is the grid instead.
+        H = max(steps.values())
+    bad = misfit(H)
+    if bad:
+        e, h, n = bad
+        raise CouplingError(f"the macro step {H:.9g} s is not a whole multiple of the {e} step {h:.9g} s "
+                            f"({n:.6g} times it); set coupling.macro_step or solver.{e}.step")
     if mode == "prescribed" and scenario.drive.speed_rad_s:
         per_rev = 2 * math.pi / (abs(scenario.drive.speed_rad_s) * H)       # macro steps of H per revolution
         most = max(1, int(per_rev * PRESCRIBED_MACRO_DEG / 360.0))

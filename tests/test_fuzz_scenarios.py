@@ -58,7 +58,10 @@ def scaled(value, k: int):
     if isinstance(value, bool):
         return value
     if isinstance(value, (int, float)):
-        return value * 10.0 ** k
+        try:
+            return value * 10.0 ** k
+        except OverflowError:           # an int beyond float range (an earlier mutation's): as it is
+            return value
     m = _QUANTITY.match(value) if isinstance(value, str) else None
     return f"{float(m.group(1)) * 10.0 ** k:g} {m.group(2)}" if m else value
 

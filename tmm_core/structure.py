@@ -254,7 +254,11 @@ def factorize(structure: Structure, case: LoadCase, axial_force: Mapping[str, np
             for j in range(m.n_segments):
                 mats[2 * j + 1] = override[..., j, :, :]
         count = (check_buckling and bool(np.any(P < 0))) if count_inertia is None else count_inertia
-        chain = factor_chain(mats, kinds, count_inertia=count)
+        try:    # a Riccati block that cannot be inverted: no stiffness left, or non-finite axial forces
+            chain = factor_chain(mats, kinds, count_inertia=count)
+        except np.linalg.LinAlgError:
+            raise SingularStructureError(f"member '{m.name}': its transfer-matrix chain is singular or not finite "
+                                         "(far beyond its buckling load, or non-finite axial forces)") from None
         negative = negative + chain.negative_pivots
         if override is None:
             s = P * np.asarray(m.segment_lengths) ** 2 / (m.EI * factor)
