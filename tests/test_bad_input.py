@@ -99,7 +99,7 @@ def test_cantilever_at_and_beyond_euler_load():
 
 def test_single_segment_beyond_its_own_clamped_clamped_load_counts():
     """One segment compressed past k L = 2 pi is counted through the J0 term."""
-    from tmm_core.structure import clamped_clamped_buckling_count
+    from tmm_core.buckling import clamped_clamped_buckling_count
     kl = np.array([1.0, 2 * np.pi - 1e-6, 2 * np.pi + 1e-6, 8.98, 9.0, 4 * np.pi + 0.01, 16.0])
     assert list(clamped_clamped_buckling_count(-kl**2)) == [0, 0, 1, 1, 2, 3, 4]
 

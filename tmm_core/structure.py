@@ -29,6 +29,7 @@ from typing import Mapping
 
 import numpy as np
 
+from .buckling import buckling_message, clamped_clamped_buckling_count
 from .errors import BucklingError, InputError, SingularStructureError, require_finite
 from .matrices import F_IDX, field_matrix, frame_rotation, point_matrix, rigid_element_matrix
 from .riccati import ChainFactor, chain_states, factor_chain, ldl_pivots, load_column, sweep_loads
@@ -51,22 +52,6 @@ def _rotation_6(angle):
     L[..., :3, :3] = R
     L[..., 3:, 3:] = R
     return L
-
-
-def clamped_clamped_buckling_count(s) -> np.ndarray:
-    """Number of clamped-clamped buckling loads of a segment below ``s = P L^2/EI`` (P < 0).
-
-    The roots are ``k L = 2 pi n`` (symmetric modes) and ``k L = 2 x`` with ``tan x = x``
-    (antisymmetric). This is the J0 term of the Wittrick-Williams count for condensed segments.
-    """
-    kl = np.sqrt(np.maximum(-np.asarray(s, dtype=float), 0.0))
-    count = np.floor(kl / (2 * np.pi))
-    x = kl / 2.0
-    m = np.floor(x / np.pi)        # antisymmetric roots lie in (m pi, m pi + pi/2), m >= 1
-    frac = x - m * np.pi
-    past_root = (frac >= np.pi / 2) | ((frac > 0) & (np.tan(np.minimum(frac, np.pi / 2 - 1e-12)) > x))
-    count = count + np.maximum(m - 1, 0) + np.where((m >= 1) & past_root, 1, 0)
-    return count.astype(int)
 
 
 def _member_geometry(member: Member, case: LoadCase):
@@ -303,7 +288,7 @@ def factorize(structure: Structure, case: LoadCase, axial_force: Mapping[str, np
             "(collinear links at a revolute), an unconstrained joint, a member at its buckling load, or a "
             "speed at a natural frequency")
     if check_buckling and np.any(negative > 0):
-        raise BucklingError(_buckling_message(structure, members, negative, batch))
+        raise BucklingError(buckling_message(structure, {k: r.axial_force for k, r in members.items()}, negative))
     inverse = np.linalg.inv(Kff) if check_singular else np.full_like(Kff, np.nan)
     return StructureFactor(structure, case, batch, members, Kfull, inverse, negative, condition, ends, fixed,
                            tuple(labels), T, spring_load, spring_forces)
@@ -486,19 +471,3 @@ def solve_linear(structure: Structure, case: LoadCase, axial_force: Mapping[str,
     factor = factorize(structure, case, axial_force, chord_rotation, check_buckling, True, cond_limit,
                        stiffness_factor, count_inertia=count_inertia)
     return solve_factored(factor, case.node_loads, frame=case.frame)
-
-
-def _buckling_message(structure, members, negative, batch) -> str:
-    worst_name, worst_ratio, worst_P, worst_Pcr = None, -np.inf, 0.0, 0.0
-    for m in structure.members:
-        P = members[m.name].axial_force
-        Pmin = float(np.min(P)) if P.size else 0.0
-        # Pinned-pinned Euler load of the whole member, as an orientation for the user.
-        Pcr = float(np.pi**2 * np.min(m.EI) / m.length**2)
-        ratio = -Pmin / Pcr
-        if ratio > worst_ratio:
-            worst_name, worst_ratio, worst_P, worst_Pcr = m.name, ratio, Pmin, Pcr
-    where = f" (batch entries affected: {int(np.sum(negative > 0))} of {int(np.prod(batch))})" if batch else ""
-    return (f"a member is at or beyond its buckling load: the stiffness has {int(np.max(negative))} negative "
-            f"eigenvalue(s){where}; most compressed member '{worst_name}' carries P = {worst_P:.4g} N "
-            f"against its pinned-pinned Euler load {worst_Pcr:.4g} N")

@@ -172,7 +172,7 @@ def solve_prepared(prep: Prepared, P: np.ndarray, *, check_buckling: bool = True
     at these nodes (B, G, 6, R))`` in the place of the states (much less memory; the load set
     last, as the columns of a map). Raises :class:`SingularStructureError` and, with ``check_buckling``,
     :class:`BucklingError` (:mod:`tmm_core.kernels_static`)."""
-    from .structure import clamped_clamped_buckling_count
+    from .buckling import buckling_message, clamped_clamped_buckling_count
     lay = prep.layout
     B, S = prep.factor.shape
     P = np.ascontiguousarray(np.broadcast_to(np.asarray(P, dtype=float), (B, S)))
@@ -286,21 +286,6 @@ def stack_segments(prep: Prepared, per_member: Mapping[str, np.ndarray]) -> np.n
             P[:, lay.seg_off[i]:lay.seg_off[i + 1]] = np.broadcast_to(np.asarray(per_member[m.name], dtype=float),
                                                                       (B, m.n_segments))
     return P
-
-
-def buckling_message(structure, axial_force: Mapping[str, np.ndarray], negative) -> str:
-    """The refusal of a member at or beyond its buckling load (as :func:`tmm_core.structure.factorize`)."""
-    worst_name, worst_ratio, worst_P, worst_Pcr = None, -np.inf, 0.0, 0.0
-    for m in structure.members:
-        P = axial_force[m.name]
-        Pmin = float(np.min(P)) if P.size else 0.0
-        Pcr = float(np.pi**2 * np.min(m.EI) / m.length**2)
-        if -Pmin / Pcr > worst_ratio:
-            worst_name, worst_ratio, worst_P, worst_Pcr = m.name, -Pmin / Pcr, Pmin, Pcr
-    return (f"a member is at or beyond its buckling load: the stiffness has {int(np.max(negative))} negative "
-            f"eigenvalue(s) (batch entries affected: {int(np.sum(negative > 0))} of {np.size(negative)}); most "
-            f"compressed member '{worst_name}' carries P = {worst_P:.4g} N against its pinned-pinned Euler load "
-            f"{worst_Pcr:.4g} N")
 
 
 def solve_static(structure, case, *, beam_column: bool = False, tol: float = 1e-10, max_iter: int = 200,
