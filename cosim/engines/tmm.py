@@ -15,6 +15,7 @@ calls tmm_core's public step API.
 from __future__ import annotations
 
 import math
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -27,6 +28,25 @@ from .base import DriveInput, EngineError, EngineOutput, steps_in
 # revolution of the FE rig at its 0.5 deg default is 720 steps; 256 keeps the work wasted at the
 # end of a run (a steady stop) to a fraction of a revolution.
 LOOKAHEAD_STEPS = 256
+
+
+class Revolution(NamedTuple):
+    """One revolution of factorized configurations at the scenario's constant speed."""
+    steps: int
+    speed: float            # [rad/s]
+    angles: np.ndarray      # crank angle of each configuration [rad]
+    batch: Any              # tmm_core.ConfigurationBatch
+
+
+class LookAhead(NamedTuple):
+    """Steps marched ahead of the master: steps ``first .. first + len(idx) - 1`` on the cached
+    revolution's configurations ``idx``, their displacements and outputs, and the march state
+    before the first (to rewind to)."""
+    first: int
+    idx: np.ndarray
+    zs: np.ndarray
+    outs: np.ndarray
+    start: tuple
 
 
 class TMMEngine:
@@ -63,18 +83,18 @@ class TMMEngine:
         self.t0, self.k = t0, 0
         self._angle0, self._speed0 = angle, speed
         self.march = self.td.begin(self._dt, angle, speed, 0.0, start=s.start)
-        self.cache = None        # one revolution at the scenario's speed: (steps, speed, angles, batch)
+        self.cache = None        # a Revolution at the scenario's speed
         N = 2 * math.pi / (abs(ref_speed) * self._dt) if ref_speed else 0.0
         if ref_speed and abs(N - round(N)) < 1e-6 and round(N) >= 4:
             N = int(round(N))
             j = np.arange(N)
             angles = angle + ref_speed * self._dt * j
-            self.cache = (N, ref_speed, angles, self.td.configurations(angles, np.full(N, ref_speed), np.zeros(N),
-                                                                         self._dt))
+            self.cache = Revolution(N, ref_speed, angles,
+                                    self.td.configurations(angles, np.full(N, ref_speed), np.zeros(N), self._dt))
         self.links = self.td.links                          # elastic links (their DOFs)
         self.drawn = scenario.mechanism.links()             # every link, rigid ones too
         self._frames = {}     # id(configuration batch) -> per link (rigid node positions, cos, sin)
-        self._ahead = None    # steps marched ahead of self.k (see _serve)
+        self._ahead = None    # a LookAhead: steps marched ahead of self.k (see _serve)
 
     def _frame(self, cfg):
         """Rigid node positions and link orientation of every configuration of a batch."""
@@ -133,23 +153,22 @@ class TMMEngine:
         steps of the block from its start: the march is deterministic)."""
         if self._ahead is None:
             return
-        first, idx, _, _, start = self._ahead
-        k = self.k
-        if k == first + len(idx) - 1:       # the block is used up: the march is at step k
+        block, k = self._ahead, self.k
+        if k == block.first + len(block.idx) - 1:       # the block is used up: the march is at step k
             self._ahead = None
             return
-        self.restore(start)
-        if k >= first:
-            self.march.step_many(self.cache[3], idx[:k - first + 1], record_z=False)
+        self.restore(block.start)
+        if k >= block.first:
+            self.march.step_many(self.cache.batch, block.idx[:k - block.first + 1], record_z=False)
         self.k = k
 
     def _serve(self, ks, drive):
         """Steps ``ks`` of a prescribed crank history on the cached revolution, marched ahead in
-        blocks of at least LOOKAHEAD_STEPS (a whole number of macro steps): the compiled march's call (numba's dispatch of its
-        ~40 arrays, ~50-90 us) and this engine's bookkeeping then cost per block, not per macro
-        step. Returns ``(zs, outs, cache indices)`` of ``ks``."""
+        blocks of at least LOOKAHEAD_STEPS (a whole number of macro steps): the compiled march's
+        call (numba's dispatch of its ~40 arrays, ~50-90 us) and this engine's bookkeeping then
+        cost per block, not per macro step. Returns ``(zs, outs, cache indices)`` of ``ks``."""
         a = self._ahead
-        if a is None or not (a[0] <= ks[0] and ks[-1] < a[0] + len(a[1])):
+        if a is None or not (a.first <= ks[0] and ks[-1] < a.first + len(a.idx)):
             self._rewind()
             # A whole number of macro steps of this length: the next ones then never straddle two blocks.
             kk = self.k + 1 + np.arange(len(ks) * -(-LOOKAHEAD_STEPS // len(ks)))
@@ -159,11 +178,11 @@ class TMMEngine:
             miss = np.flatnonzero(idx < 0)
             idx = idx[:miss[0]] if len(miss) and miss[0] >= len(ks) else idx
             start = self._state()
-            zs, outs = self.march.step_many(self.cache[3], idx)
-            a = self._ahead = (int(kk[0]), idx, zs, outs, start)
-        rows = np.asarray(ks, dtype=np.int64) - a[0]
+            zs, outs = self.march.step_many(self.cache.batch, idx)
+            a = self._ahead = LookAhead(int(kk[0]), idx, zs, outs, start)
+        rows = np.asarray(ks, dtype=np.int64) - a.first
         self.k = int(ks[-1])
-        return a[2][rows], a[3][rows], a[1][rows]
+        return a.zs[rows], a.outs[rows], a.idx[rows]
 
     def advance(self, t_next: float, drive: DriveInput) -> EngineOutput:
         if drive.prescribed is None:
@@ -177,10 +196,9 @@ class TMMEngine:
         hit = self._cache_indices(ks, angle, speed, accel)
         if drive.ahead and np.all(hit >= 0):
             zs, outs, idx = self._serve(ks, drive)
-            runs = [(self.cache[3], idx, zs)]
+            runs = [(self.cache.batch, idx, zs)]
         else:
             self._rewind()
-            self._ahead = None
             runs = self._march(hit, angle, speed, accel)
             outs = np.concatenate([r[3] for r in runs])
             runs = [r[:3] for r in runs]
@@ -206,7 +224,7 @@ class TMMEngine:
             j = i
             while j < n and (hit[j] >= 0) == use_cache:
                 j += 1
-            cfg, idx = (self.cache[3], hit[i:j]) if use_cache else (batch, position[i:j])
+            cfg, idx = (self.cache.batch, hit[i:j]) if use_cache else (batch, position[i:j])
             zs, outs = self.march.step_many(cfg, idx)
             self.k += len(idx)
             runs.append((cfg, idx, zs, outs))
