@@ -289,7 +289,7 @@ def run_scenario(scenario, options: RunOptions = RunOptions(), callback=None) ->
                     "steady" if e["steady"] else "NOT STEADY: the last revolution is a transient") +
                     ("" if change is None else f" (last two revolutions differ by {100 * change:.2f} % of the "
                                                f"peak-to-peak; tolerance {100 * e['steady_tolerance']:.2g} %)"))
-        notes += [f"recording: {p}" for p in recorder[0].close()]
+        recorder[0].hand_over()         # the child finishes the file while the results are written
     for name in engines:
         summary["engines"].setdefault(name, {"status": "interrupted"})
     _finish_exports(exports, engines, result, folder, summary, notes, options)
@@ -300,6 +300,8 @@ def run_scenario(scenario, options: RunOptions = RunOptions(), callback=None) ->
                      "(cosim.load_run reads traces.csv)")
     elif writer.columns is not None:
         _write_results(folder, sc, summary, notes, options)
+    if recorder[0] is not None:
+        notes += [f"recording: {p}" for p in recorder[0].close()]
     if notes:
         summary["notes"] = notes
     write_json(folder / "summary.json", summary)

@@ -16,7 +16,6 @@ processing.
 from __future__ import annotations
 
 import csv
-import io
 from pathlib import Path
 
 import numpy as np
@@ -54,6 +53,7 @@ class TraceWriter:
         self.columns = None
         self.fh = None
         self.rows = 0
+        self._row_format = None
 
     def write_step(self, outputs: dict) -> None:
         """``outputs``: {engine: (EngineOutput, MotorTrace | None)} of one macro step."""
@@ -78,15 +78,13 @@ class TraceWriter:
                 continue
             rows = np.searchsorted(times, np.round(np.asarray(t, dtype=float), TIME_DECIMALS))
             table[rows, j] = v
-        buf = io.StringIO()
-        for t, row in zip(times, table):
-            buf.write(repr(float(t)))
-            for x in row:
-                buf.write(",")
-                if x == x:                     # not NaN
-                    buf.write(f"{x:.10g}")
-            buf.write("\n")
-        self.fh.write(buf.getvalue())          # one write per macro step, then flush: a kill loses at most it
+        # One %-format per row (a cell at a time was the run's largest cost, ~8 us a row); Python
+        # prints every NaN as "nan", and no number contains it: those cells become empty.
+        if self._row_format is None:
+            self._row_format = "%r" + ",%.10g" * len(self.columns) + "\n"
+        fmt = self._row_format
+        text = "".join([fmt % tuple(r) for r in np.column_stack([times, table]).tolist()])
+        self.fh.write(text.replace("nan", ""))  # one write per macro step, then flush: a kill loses at most it
         self.fh.flush()
         self.rows += len(times)
 

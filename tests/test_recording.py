@@ -288,6 +288,10 @@ def test_recorder_in_a_child_process_writes_the_same(sc, tmp_path):
     for cls, path in ((Recorder, here), (RecorderProcess, there)):
         rec, _ = record_run(sc, path, cls=cls)
         rec.log_reference("coupler_mid", "Table I", bending_ue=(310.0, -290.0))
+        # As a run does: hand over, write its other files, then wait. Nothing may be logged between.
+        rec.hand_over()
+        with pytest.raises(RuntimeError, match="closed"):
+            rec.log_text("a", "b")
         assert rec.close() == []
     assert read_back(there) == read_back(here)
     np.testing.assert_array_equal(read_scalars(there, "/tmm/strain/rocker_mid")[1],

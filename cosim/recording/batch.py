@@ -66,7 +66,8 @@ class _EngineBuffer:
 
 
 def _cat(arrays) -> np.ndarray:
-    return np.concatenate([np.atleast_1d(np.asarray(a, dtype=float)) for a in arrays]) if arrays else np.zeros(0)
+    # axis=None ravels each piece (a scalar sample too) in the one C call.
+    return np.concatenate(arrays, axis=None, dtype=float) if arrays else np.zeros(0)
 
 
 class StepBatcher:

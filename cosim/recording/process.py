@@ -112,15 +112,23 @@ class RecorderProcess(Recorder):
             pass
 
     # -- the end -----------------------------------------------------------------------------------
-    def close(self) -> list:
-        """Hand over the rest and wait for the child to finish the file (at most
-        ``close_timeout_s``); with ``--serve`` until it serves everything. Returns warnings."""
-        if self._closed:
-            return []
-        self._closed = True
+    def hand_over(self) -> None:
+        """Send the rest and the close message without waiting: the child finishes the file
+        while the run writes its parquet and figures (:meth:`close` waits)."""
+        super().hand_over()
         self._take()
         self._send("close")
         self._queue.put(_DONE)
+
+    def close(self) -> list:
+        """Hand over the rest (unless :meth:`hand_over` did) and wait for the child to finish the
+        file (at most ``close_timeout_s``); with ``--serve`` until it serves everything. Returns
+        warnings."""
+        if self._closed:
+            return []
+        if not self._handed_over:
+            self.hand_over()
+        self._closed = True
         deadline = time.monotonic() + self.close_timeout_s
         self._thread.join(timeout=self.close_timeout_s)
         problems, finished = [], False

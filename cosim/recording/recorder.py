@@ -127,6 +127,15 @@ class Recorder:
         self._take()
         self.writer.send()
 
+    def hand_over(self) -> None:
+        """Nothing more will be logged: let the writer finish in its own time (a child process
+        does it while the run writes its other files; :meth:`close` then waits). In process,
+        nothing to do before :meth:`close`. Logging after it raises."""
+        self._check_open()
+        self._handed_over = True
+
+    _handed_over = False
+
     def close(self) -> list:
         """Send the rest and the records, finish the file (footer) and the viewer; idempotent.
         Returns the warnings (also logged), e.g. a viewer that did not take everything."""
@@ -157,6 +166,6 @@ class Recorder:
         self.writer.text(path, text)
 
     def _check_open(self):
-        if self._closed:
+        if self._closed or self._handed_over:
             raise RuntimeError("the Recorder is closed")
 
