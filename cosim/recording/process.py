@@ -223,9 +223,6 @@ def _child(level: int) -> int:
         os.nice(WRITER_NICE)
     except (AttributeError, OSError):
         pass
-    from .sinks import serve_until_interrupted
-    from .writer import StreamWriter
-
     signal.signal(signal.SIGINT, signal.SIG_IGN)
 
     def terminate(signum, frame):
@@ -245,7 +242,11 @@ def _child(level: int) -> int:
             status.flush()
         except (BrokenPipeError, OSError, ValueError):
             pass
-    writer, inp = None, sys.stdin.buffer
+    def open_writer(arguments):
+        from .writer import StreamWriter          # imports rerun: ~0.5 s of CPU
+        return StreamWriter(**arguments)
+
+    writer, opening, inp = None, None, sys.stdin.buffer
     try:
         while True:
             try:
@@ -254,14 +255,24 @@ def _child(level: int) -> int:
                 break
             kind, *args = message
             if kind == "open":
-                writer = StreamWriter(**args[0])
+                opening = args[0]
+                # A live viewer starts now. A file only is opened at the first data: rerun's import
+                # then overlaps the single-threaded march, not the engines' set-up, which runs its
+                # compiled solves on every core.
+                if opening["viewer"].viewer != "save":
+                    writer = open_writer(opening)
             elif kind == "close":
                 break
-            elif writer is not None:
-                {"stations": writer.set_stations, "batch": writer.write, "reference": writer.reference,
-                 "text": writer.text}[kind](*args)
+            else:
+                if writer is None and opening is not None:
+                    writer = open_writer(opening)
+                if writer is not None:
+                    {"stations": writer.set_stations, "batch": writer.write, "reference": writer.reference,
+                     "text": writer.text}[kind](*args)
     except KeyboardInterrupt:
         pass
+    if writer is None and opening is not None:        # closed before any data: the file all the same
+        writer = open_writer(opening)
     if writer is None:
         return 0
     try:
@@ -269,6 +280,7 @@ def _child(level: int) -> int:
         if writer.viewer.viewer == "serve" and writer.urls:
             writer.rec.flush(timeout_sec=writer.viewer.timeout_s)
             report(serving=writer.urls[0])
+            from .sinks import serve_until_interrupted
             serve_until_interrupted(parent)
     except KeyboardInterrupt:
         pass
