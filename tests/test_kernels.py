@@ -164,3 +164,37 @@ def test_compiled_configuration_maps_equal_numpy(scenario):
         assert np.max(np.abs(ref - getattr(cfgs[1].maps, key))) <= tol * np.max(np.abs(ref)), key
     np.testing.assert_array_equal(cfgs[0].indefinite, cfgs[1].indefinite)
     assert cfgs[1].factor().batch == cfgs[0].factor().batch
+
+
+def test_iteration_stopping_rule_on_a_geometric_sequence():
+    """Changes falling by r = 1e-3 a solve: the rule stops where the implied error
+    (change * r / (1 - r)) is below tol, which needs three changes; a change below tol stops
+    at once; a growing or single change does not."""
+    from tmm_core.statics import iteration_converged
+    assert not iteration_converged([1e-1], 1e-10)
+    assert not iteration_converged([1e-1, 1e-4], 1e-10)
+    assert iteration_converged([1e-1, 1e-4, 1e-7], 1e-9)          # implied error 1e-10
+    assert not iteration_converged([1e-1, 1e-4, 1e-7], 1e-11)
+    assert not iteration_converged([1e-1, 1e-2, 1e-3, 1e-3], 1e-3)   # stalled: r = 1
+    assert iteration_converged([1.0, 1e-11], 1e-10)
+
+
+@pytest.mark.parametrize("scenario", ["crank_rocker_241rpm", "watt_sixbar_600rpm"])
+def test_quasi_static_stop_is_within_its_tolerance_of_the_converged_answer(scenario):
+    """Convergence check of the stopping rule: the answer at tol 1e-8 (the rule may stop on the
+    implied error, one solve before the change itself falls below tol) lies within 1e-8 of the
+    answer at 1e-13, relative to the largest displacement and force."""
+    from cosim.scenario import load
+    from tmm_core import quasi_static
+    sc = load(scenario)
+    th = np.radians(np.arange(0.0, 360.0, 15.0))
+
+    def solve(tol):
+        return quasi_static(sc.mechanism, th, sc.drive.speed_rad_s, beam_column=True, coupling=sc.tmm.coupling,
+                            gravity=sc.gravity, tol=tol).solution
+
+    loose, tight = solve(1e-8), solve(1e-13)
+    for name, ref in tight.members.items():
+        for part in (slice(0, 3), slice(3, 6)):
+            err = np.max(np.abs(loose.members[name].state[..., part] - ref.state[..., part]))
+            assert err <= 1e-8 * np.max(np.abs(ref.state[..., part])), (name, part)

@@ -19,7 +19,10 @@ def clamped_clamped_buckling_count(s) -> np.ndarray:
     The roots are ``k L = 2 pi n`` (symmetric modes) and ``k L = 2 x`` with ``tan x = x``
     (antisymmetric). This is the J0 term of the Wittrick-Williams count for condensed segments.
     """
-    kl = np.sqrt(np.maximum(-np.asarray(s, dtype=float), 0.0))
+    s = np.asarray(s, dtype=float)
+    if np.min(s, initial=0.0) > -4.0 * np.pi**2:      # kL < 2 pi everywhere, below the first root
+        return np.zeros(s.shape, dtype=int)            # (the usual case; a NaN falls through)
+    kl = np.sqrt(np.maximum(-s, 0.0))
     count = np.floor(kl / (2 * np.pi))
     x = kl / 2.0
     m = np.floor(x / np.pi)        # antisymmetric roots lie in (m pi, m pi + pi/2), m >= 1

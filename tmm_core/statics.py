@@ -15,6 +15,8 @@ Owns: static analysis of an instantaneous structure. Boundaries: no time domain.
 """
 from __future__ import annotations
 
+import math
+
 from dataclasses import dataclass
 from typing import Mapping
 
@@ -98,6 +100,23 @@ def _change(new: LinearSolution, old: LinearSolution) -> float:
     return max(dd / dscale if dscale > 0 else 0.0, df / fscale if fscale > 0 else 0.0)
 
 
+def iteration_converged(changes: list, tol: float) -> bool:
+    """The stopping rule of the successive linear solutions (numpy and compiled), ``changes``
+    their relative changes so far: the last is below ``tol``, or the error of the last iterate
+    that the changes imply is. The iteration contracts linearly (the beam-column update: ratios
+    r ~ 1e-3 to 1e-2 on the rigs); with r the larger of the last two ratios of successive changes
+    (taken only below 1/2, i.e. contracting), the last iterate lies within change * r / (1 - r)
+    of the fixed point. This saves the solve whose only role was to show a change below ``tol``.
+    (One ratio alone underestimated the error 2x on the FE rig at 241 rpm, where r grows from
+    2e-3 to 5e-3; the larger of two did not, on the four rigs of the benchmark.)"""
+    if changes[-1] < tol:
+        return True
+    if len(changes) < 3 or not all(0.0 < c < math.inf for c in changes[-3:]):
+        return False
+    r = max(changes[-1] / changes[-2], changes[-2] / changes[-3])
+    return r < 0.5 and changes[-1] * r / (1.0 - r) < tol
+
+
 def solve_static(structure: Structure, case: LoadCase, *, beam_column: bool = False,
                  large_deflection: bool = False, tol: float = 1e-10, max_iter: int = 200,
                  count_inertia: bool | None = None) -> StaticSolution:
@@ -105,8 +124,8 @@ def solve_static(structure: Structure, case: LoadCase, *, beam_column: bool = Fa
 
     ``beam_column``: iterate on segment axial forces (small deflection, Shin §3.3.1).
     ``large_deflection``: also iterate on segment chord rotations (implies beam-column).
-    ``tol``: relative change of displacements and forces between iterations that ends the
-    iteration. Raises :class:`ConvergenceError` after ``max_iter`` iterations, and
+    ``tol``: relative change of displacements and forces between iterations, or the error it
+    implies (:func:`iteration_converged`), that ends the iteration. Raises :class:`ConvergenceError` after ``max_iter`` iterations, and
     :class:`tmm_core.errors.BucklingError` if in beam-column mode a member reaches its
     buckling load. ``count_inertia=True`` checks every solve for negative stiffness (the
     spin-softening check of the quasi-static analysis).
@@ -117,6 +136,7 @@ def solve_static(structure: Structure, case: LoadCase, *, beam_column: bool = Fa
         return StaticSolution(lin, mode, 1, 0.0)
     relax = 1.0
     prev_change = np.inf
+    changes = []
     P, beta = _update(lin, large_deflection)
     for it in range(2, max_iter + 1):
         new = solve_linear(structure, case, P, beta, check_buckling=not large_deflection, count_inertia=count_inertia)
@@ -124,7 +144,8 @@ def solve_static(structure: Structure, case: LoadCase, *, beam_column: bool = Fa
         if not np.isfinite(change):
             raise ConvergenceError(f"{mode} iteration produced non-finite values at iteration {it}")
         lin = new
-        if change < tol:
+        changes.append(change)
+        if iteration_converged(changes, tol):
             return StaticSolution(lin, mode, it, change)
         if change > prev_change and relax > 0.15:
             relax *= 0.5  # damp an oscillating fixed-point iteration

@@ -82,6 +82,28 @@ def _local_rotation(angle):
     return frame_rotation(-np.asarray(angle, dtype=float))[..., :3, :3]
 
 
+def _to_local_stiffness(K, R3):
+    """``R3 K R3^T`` for node stiffnesses ``K (B, n, 3, 3)`` and the rotations ``R3 (B, 1, 3, 3)``
+    of :func:`_local_rotation` (about the out-of-plane axis: theta untouched), entry by entry on
+    (B, n) arrays: numpy's stacked 3x3 matmuls cost 0.5 ms a member on a 360-position batch, a
+    tenth of a quasi-static revolution."""
+    c, s, k = R3[..., 0, 0], R3[..., 0, 1], K                # R3[:2, :2] = [[c, s], [-s, c]]
+    out = np.empty(np.broadcast_shapes(K.shape, R3.shape))
+    a, b, d, e = K[..., 0, 0], K[..., 0, 1], K[..., 1, 0], K[..., 1, 1]
+    # [[c, s], [-s, c]] [[a, b], [d, e]] [[c, -s], [s, c]]
+    ca_sd, cb_se, cd_sa, ce_sb = c * a + s * d, c * b + s * e, c * d - s * a, c * e - s * b
+    out[..., 0, 0] = ca_sd * c + cb_se * s
+    out[..., 0, 1] = cb_se * c - ca_sd * s
+    out[..., 1, 0] = cd_sa * c + ce_sb * s
+    out[..., 1, 1] = ce_sb * c - cd_sa * s
+    out[..., 0, 2] = c * k[..., 0, 2] + s * k[..., 1, 2]
+    out[..., 1, 2] = c * k[..., 1, 2] - s * k[..., 0, 2]
+    out[..., 2, 0] = k[..., 2, 0] * c + k[..., 2, 1] * s
+    out[..., 2, 1] = k[..., 2, 1] * c - k[..., 2, 0] * s
+    out[..., 2, 2] = k[..., 2, 2]
+    return out
+
+
 @dataclass
 class Prepared:
     """A structure and load case laid out for :func:`solve_batch` (everything but the axial
@@ -144,13 +166,13 @@ def prepare(structure, case, stiffness_factor: Mapping[str, np.ndarray] | None =
         if K is not None:
             K = require_finite(f"member '{m.name}': node_stiffness", K)
             if case.frame == "global":
-                K = R3 @ K @ np.swapaxes(R3, -1, -2)
+                K = _to_local_stiffness(K, R3)
             Kn[:, nl] = np.broadcast_to(K, batch + (m.n_segments + 1, 3, 3))
         F = case.node_loads.get(m.name)
         if F is not None:
             F = require_finite(f"member '{m.name}': node_loads", F)
             if case.frame == "global":
-                F = (R3 @ F[..., None])[..., 0]
+                F = F @ np.swapaxes(R3[:, 0], -1, -2)          # R3 F at every node
             Fn[:, nl] = np.broadcast_to(F, batch + (m.n_segments + 1, 3))
         q = case.distributed_loads.get(m.name)
         if q is not None:
@@ -293,7 +315,7 @@ def solve_static(structure, case, *, beam_column: bool = False, tol: float = 1e-
     """Compiled equivalent of :func:`tmm_core.statics.solve_static` (linear or beam-column, not
     large deflection): the same successive linear solutions, relaxation and stopping rule, on
     the stacked arrays of one :class:`Prepared` batch."""
-    from .statics import StaticSolution
+    from .statics import StaticSolution, iteration_converged
     mode = "beam_column" if beam_column else "linear"
     prep = prepare(structure, case)
     lay = prep.layout
@@ -317,7 +339,7 @@ def solve_static(structure, case, *, beam_column: bool = False, tol: float = 1e-
         dd, dscale, df, fscale = kernels_static.compiled_change()(new, old, w)
         return max(dd / dscale if dscale > 0 else 0.0, df / fscale if fscale > 0 else 0.0)
 
-    relax, prev_change = 1.0, np.inf
+    relax, prev_change, changes = 1.0, np.inf, []
     P = axial(res[0])
     for it in range(2, max_iter + 1):
         new = solve_prepared(prep, P, count_inertia=count_inertia)
@@ -325,7 +347,8 @@ def solve_static(structure, case, *, beam_column: bool = False, tol: float = 1e-
         if not np.isfinite(ch):
             raise ConvergenceError(f"{mode} iteration produced non-finite values at iteration {it}")
         res, P_used = new, P
-        if ch < tol:
+        changes.append(ch)
+        if iteration_converged(changes, tol):
             return StaticSolution(linear_solution(prep, P_used, *res), mode, it, ch)
         if ch > prev_change and relax > 0.15:
             relax *= 0.5
