@@ -16,6 +16,7 @@ cosim.recording.summaries.
 """
 from __future__ import annotations
 
+import json
 import logging
 import math
 import re
@@ -88,6 +89,23 @@ def sweep_point(raw: dict, path: str, rpm: float, engines: tuple, revolutions: f
     return out
 
 
+#: Reduced bases built in this process, by scenario without its speed (a sweep worker builds one
+#: per scenario: the basis depends on the geometry, not on the speed; 50 ms of a ~0.35 s point).
+_BASES: dict = {}
+
+
+def _reduced_basis(sc, td, options):
+    from tmm_core.reduced import build_basis
+    raw = {k: v for k, v in sc.raw.items() if k != "drive"}
+    raw["drive"] = {k: v for k, v in sc.raw.get("drive", {}).items() if k != "speed"}
+    key = (json.dumps(raw, sort_keys=True, default=str), sc.drive.start_angle_rad, repr(options))
+    if key not in _BASES:
+        if len(_BASES) >= 4:
+            _BASES.clear()
+        _BASES[key] = build_basis(td, sc.drive.start_angle_rad, options)
+    return _BASES[key]
+
+
 def periodic_solution(sc):
     """The scenario's periodic steady state (``tmm_core.periodic.periodic_steady_state``) with its
     TMM settings at its drive speed."""
@@ -98,8 +116,9 @@ def periodic_solution(sc):
         # solver.tmm.model = "reduced": link modes plus a static correction (tmm_core.reduced).
         from tmm_core.reduced import ReducedOptions
         from tmm_core.reduced_periodic import periodic_steady_state_reduced
+        options = ReducedOptions(modes=s.modes)
         return periodic_steady_state_reduced(td, sc.drive.speed_rad_s, start_angle=sc.drive.start_angle_rad,
-                                             options=ReducedOptions(modes=s.modes))
+                                             options=options, basis=_reduced_basis(sc, td, options))
     return periodic_steady_state(td, sc.drive.speed_rad_s, step_s=sc.engine_step_s("tmm"),
                                  start_angle=sc.drive.start_angle_rad)
 

@@ -151,3 +151,26 @@ def test_a_sweep_can_use_the_reduced_model_and_agrees_with_the_converged_full_on
     with pytest.raises(ValueError, match="reduced TMM model solves the periodic steady state only"):
         run_sweep("crank_rocker_241rpm", "300", ("tmm",), method="march", model="reduced", out=tmp_path / "m",
                   progress=False, record=False, resonance=False)
+
+
+def test_sweep_points_share_one_reduced_basis_and_get_the_same_answer():
+    """The reduced basis depends on the geometry, not the speed: a sweep worker builds it once
+    (cosim.sweep keeps it by scenario without its speed). The point solved on the shared basis
+    equals the one that builds its own, bit for bit; a changed mesh builds a new basis."""
+    from cosim import sweep as sweep_module
+    from tmm_core.reduced import ReducedOptions
+    from tmm_core.reduced_periodic import periodic_steady_state_reduced
+    sweep_module._BASES.clear()
+    base = load("crank_rocker_241rpm").with_overrides({"solver.tmm.model": "reduced"})
+    at = {rpm: base.with_overrides({"drive.speed": f"{rpm} rpm"}) for rpm in (200, 300)}
+    sweep_module.periodic_solution(at[200])
+    shared = sweep_module.periodic_solution(at[300])
+    assert len(sweep_module._BASES) == 1
+    sc = at[300]
+    own = periodic_steady_state_reduced(sc.time_domain(), sc.drive.speed_rad_s, start_angle=sc.drive.start_angle_rad,
+                                        options=ReducedOptions(modes=sc.tmm.modes))
+    for g, (b, a) in own.gauges.items():
+        np.testing.assert_array_equal(shared.gauges[g][0], b)
+        np.testing.assert_array_equal(shared.gauges[g][1], a)
+    sweep_module.periodic_solution(sc.with_overrides({"solver.tmm.segments": 4}))
+    assert len(sweep_module._BASES) == 2
