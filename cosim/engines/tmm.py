@@ -40,13 +40,19 @@ class Revolution(NamedTuple):
 
 class LookAhead(NamedTuple):
     """Steps marched ahead of the master: steps ``first .. first + len(idx) - 1`` on the cached
-    revolution's configurations ``idx``, their displacements and outputs, and the march state
-    before the first (to rewind to)."""
+    revolution's configurations ``idx``, their outputs and deformed node positions ({link: (k,
+    n_nodes, 2)} [m]), the march state before the first (to rewind to), and the crank history
+    it followed (a ``DriveInput.prescribed``)."""
     first: int
     idx: np.ndarray
-    zs: np.ndarray
     outs: np.ndarray
+    nodes: dict
     start: tuple
+    profile: object
+
+    def covers(self, ks, profile) -> bool:
+        """Whether steps ``ks`` of the crank history ``profile`` are in this block."""
+        return profile is self.profile and self.first <= ks[0] and ks[-1] < self.first + len(self.idx)
 
 
 class TMMEngine:
@@ -166,9 +172,9 @@ class TMMEngine:
         """Steps ``ks`` of a prescribed crank history on the cached revolution, marched ahead in
         blocks of at least LOOKAHEAD_STEPS (a whole number of macro steps): the compiled march's
         call (numba's dispatch of its ~40 arrays, ~50-90 us) and this engine's bookkeeping then
-        cost per block, not per macro step. Returns ``(zs, outs, cache indices)`` of ``ks``."""
+        cost per block, not per macro step. Returns ``(outs, nodes)`` of ``ks``."""
         a = self._ahead
-        if a is None or not (a.first <= ks[0] and ks[-1] < a.first + len(a.idx)):
+        if a is None or not a.covers(ks, drive.prescribed):
             self._rewind()
             # A whole number of macro steps of this length: the next ones then never straddle two blocks.
             kk = self.k + 1 + np.arange(len(ks) * -(-LOOKAHEAD_STEPS // len(ks)))
@@ -179,10 +185,13 @@ class TMMEngine:
             idx = idx[:miss[0]] if len(miss) and miss[0] >= len(ks) else idx
             start = self._state()
             zs, outs = self.march.step_many(self.cache.batch, idx)
-            a = self._ahead = LookAhead(int(kk[0]), idx, zs, outs, start)
+            # The node positions of the whole block at once, too (per macro step they cost ~65 us
+            # of array bookkeeping, a third of a marching revolution on Alexander-Lawrence).
+            a = self._ahead = LookAhead(int(kk[0]), idx, outs, self._nodes([(self.cache.batch, idx, zs)]), start,
+                                        drive.prescribed)
         rows = np.asarray(ks, dtype=np.int64) - a.first
         self.k = int(ks[-1])
-        return a.zs[rows], a.outs[rows], a.idx[rows]
+        return a.outs[rows], {name: v[rows] for name, v in a.nodes.items()}
 
     def advance(self, t_next: float, drive: DriveInput) -> EngineOutput:
         if drive.prescribed is None:
@@ -193,19 +202,20 @@ class TMMEngine:
         ks = self.k + 1 + np.arange(n)
         t = self.t0 + ks * self._dt          # integer step count, never accumulated
         angle, speed, accel = (np.asarray(x, dtype=float) * np.ones(n) for x in drive.prescribed(t))
-        hit = self._cache_indices(ks, angle, speed, accel)
-        if drive.ahead and np.all(hit >= 0):
-            zs, outs, idx = self._serve(ks, drive)
-            runs = [(self.cache.batch, idx, zs)]
+        # Steps of the block marched ahead were matched with the cached revolution when it was made.
+        ahead = drive.ahead and self._ahead is not None and self._ahead.covers(ks, drive.prescribed)
+        hit = None if ahead else self._cache_indices(ks, angle, speed, accel)
+        if ahead or (drive.ahead and np.all(hit >= 0)):
+            outs, nodes = self._serve(ks, drive)
         else:
             self._rewind()
             runs = self._march(hit, angle, speed, accel)
             outs = np.concatenate([r[3] for r in runs])
-            runs = [r[:3] for r in runs]
+            nodes = self._nodes([r[:3] for r in runs])
         if not np.all(np.isfinite(outs)):
             raise EngineError(f"tmm: non-finite response before t = {t_next:.6g} s")
         layout = self.td.outputs
-        return EngineOutput(t, angle, speed, layout.torque(outs), layout.split(outs), self._nodes(runs))
+        return EngineOutput(t, angle, speed, layout.torque(outs), layout.split(outs), nodes)
 
     def _march(self, hit, angle, speed, accel):
         """Steps one by one in blocks: runs of consecutive steps on the same configuration batch
