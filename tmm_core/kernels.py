@@ -45,7 +45,7 @@ def compiled_march():
         jit = numba.njit(cache=True, fastmath={"reassoc", "contract"})
         # The inner functions are compiled first and put in the module's namespace, where numba
         # looks up the names march calls.
-        for name in ("_history", "_advance", "_shape_products", "_anderson_coefficients"):
+        for name in ("_history", "_advance", "_shape_products", "_affine", "_anderson_coefficients"):
             globals()[name] = jit(globals()[name])
         _COMPILED["march"] = jit(march)
     return _COMPILED["march"]
@@ -103,6 +103,16 @@ def _shape_products(start, end, L, z, delta, G):
         g3 = (3.0 * dw + l * (4.0 * t1 - t0)) / 30.0
         G[s, 0], G[s, 1], G[s, 2], G[s, 3] = g0, g1, -g0, g3
         delta[s] = 0.5 * (dw * g0 + t0 * g1 + t1 * g3)
+
+
+def _affine(M, m0, k, v, out):
+    """``out = m0[k] + M[k] @ v``: one affine map of the batch at configuration ``k`` (the step's
+    displacement, output and axial-force maps)."""
+    for i in range(out.shape[0]):
+        s_ = m0[k, i]
+        for q in range(v.shape[0]):
+            s_ += M[k, i, q] * v[q]
+        out[i] = s_
 
 
 def _anderson_coefficients(dR, h, r, gamma, Q, R):
@@ -211,16 +221,8 @@ def march(code, params, dt, c_a, c_v, idx,
                         acc_kh += seg_K[s, p, q] * h_v[i0 + q]
                     loads[i0 + p] -= beta_node[i0 + p] * acc_kh
         if not dynamic:
-            for i in range(n):
-                s_ = z0[k, i]
-                for q in range(n):
-                    s_ += Z[k, i, q] * loads[q]
-                zn[i] = s_
-            for o in range(no):
-                s_ = o0[k, o]
-                for q in range(n):
-                    s_ += O[k, o, q] * loads[q]
-                outv[o] = s_
+            _affine(Z, z0, k, loads, zn)
+            _affine(O, o0, k, loads, outv)
         else:
             for s in range(ns):
                 damp[s] = seg_beta[s] * EAL[s] * (h_v[seg_end[s]] - h_v[seg_start[s]])
@@ -254,16 +256,9 @@ def march(code, params, dt, c_a, c_v, idx,
                     f[i1 + 2] -= dP * G[s, 3]
                 for i in range(n):
                     f[i] += loads[i]
-                for i in range(n):
-                    s_ = z0[k, i]
-                    for q in range(n):
-                        s_ += Z[k, i, q] * f[q]
-                    zn[i] = s_
+                _affine(Z, z0, k, f, zn)
+                _affine(A, a0, k, f, N)
                 for s in range(ns):
-                    s_ = a0[k, s]
-                    for q in range(n):
-                        s_ += A[k, s, q] * f[q]
-                    N[s] = s_
                     Pn[s] = N[s] + damp[s] + F[s]
                 finite = True
                 dz_num, dz_den, dP_num, dP_den = 0.0, 0.0, 0.0, 0.0
@@ -283,11 +278,7 @@ def march(code, params, dt, c_a, c_v, idx,
                 dPr = dP_num / (dP_den + scale_P)
                 if dz < tol_z and dPr < tol_P:
                     converged = True
-                    for o in range(no):
-                        s_ = o0[k, o]
-                        for q in range(n):
-                            s_ += O[k, o, q] * f[q]
-                        outv[o] = s_
+                    _affine(O, o0, k, f, outv)
                     if shortening:
                         _shape_products(seg_start, seg_end, seg_L, zn, delta, G)
                         for gi in range(gauge_seg.shape[0]):
