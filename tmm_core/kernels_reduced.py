@@ -46,7 +46,7 @@ CHORD_CONTRACTION = 0.03
 #: was at most this (the chord iteration then contracts by about this factor: the Newton matrix
 #: moves in proportion to the state).
 CHORD_START = 0.1
-_HELPERS = ("_dot", "_lu_factor", "_lu_solve", "_lu_solve_many", "_second_order", "_stage_states",
+_HELPERS = ("_dot", "_lu_factor", "_lu_solve", "_subtract_rows", "_lu_solve_many", "_second_order", "_stage_states",
             "_newton_matrix")
 
 
@@ -160,41 +160,33 @@ def _lu_solve_many(lu, piv, B):
                 t = B[k, j]
                 B[k, j] = B[p, j]
                 B[p, j] = t
-    # Forward: L Y = B (unit diagonal).
-    for i in range(n):
-        row = B[i]
-        k = 0
-        while k + 4 <= i:
-            l0, l1, l2, l3 = lu[i, k], lu[i, k + 1], lu[i, k + 2], lu[i, k + 3]
-            b0, b1, b2, b3 = B[k], B[k + 1], B[k + 2], B[k + 3]
-            for j in range(m):
-                row[j] -= l0 * b0[j] + l1 * b1[j] + l2 * b2[j] + l3 * b3[j]
-            k += 4
-        while k < i:
-            l_ = lu[i, k]
-            b0 = B[k]
-            for j in range(m):
-                row[j] -= l_ * b0[j]
-            k += 1
-    # Backward: U X = Y.
-    for i in range(n - 1, -1, -1):
-        row = B[i]
-        k = i + 1
-        while k + 4 <= n:
-            u0, u1, u2, u3 = lu[i, k], lu[i, k + 1], lu[i, k + 2], lu[i, k + 3]
-            b0, b1, b2, b3 = B[k], B[k + 1], B[k + 2], B[k + 3]
-            for j in range(m):
-                row[j] -= u0 * b0[j] + u1 * b1[j] + u2 * b2[j] + u3 * b3[j]
-            k += 4
-        while k < n:
-            u_ = lu[i, k]
-            b0 = B[k]
-            for j in range(m):
-                row[j] -= u_ * b0[j]
-            k += 1
+    for i in range(n):                       # forward: L Y = B (unit diagonal)
+        _subtract_rows(lu, i, B, 0, i)
+    for i in range(n - 1, -1, -1):           # backward: U X = Y
+        _subtract_rows(lu, i, B, i + 1, n)
         inv = 1.0 / lu[i, i]
+        row = B[i]
         for j in range(m):
             row[j] *= inv
+
+
+def _subtract_rows(lu, i, B, lo, hi):
+    """``B[i] -= sum(lu[i, k] B[k] for lo <= k < hi)``, four rows of ``B`` per pass over ``B[i]``."""
+    m = B.shape[1]
+    row = B[i]
+    k = lo
+    while k + 4 <= hi:
+        l0, l1, l2, l3 = lu[i, k], lu[i, k + 1], lu[i, k + 2], lu[i, k + 3]
+        b0, b1, b2, b3 = B[k], B[k + 1], B[k + 2], B[k + 3]
+        for j in range(m):
+            row[j] -= l0 * b0[j] + l1 * b1[j] + l2 * b2[j] + l3 * b3[j]
+        k += 4
+    while k < hi:
+        l_ = lu[i, k]
+        b0 = B[k]
+        for j in range(m):
+            row[j] -= l_ * b0[j]
+        k += 1
 
 
 def _stage_states(h, A, A2, c, eta, v, acc, es, vs):
