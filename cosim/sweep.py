@@ -19,6 +19,7 @@ from __future__ import annotations
 import json
 import logging
 import math
+import os
 import re
 import time
 from concurrent.futures import as_completed
@@ -67,7 +68,7 @@ def parse_rpm(text: str) -> np.ndarray:
 
 
 def sweep_point(raw: dict, path: str, rpm: float, engines: tuple, revolutions: float,
-                method: str = "periodic") -> dict:
+                method: str = "periodic", many: bool = False) -> dict:
     """One speed: last-revolution peaks per engine and gauge (runs in a worker). The transfer-
     matrix engine uses the periodic steady-state solve (``method = "periodic"``, with its Floquet
     multipliers) or time marching like the others (``"march"``)."""
@@ -79,7 +80,7 @@ def sweep_point(raw: dict, path: str, rpm: float, engines: tuple, revolutions: f
     tic = time.perf_counter()
     marched = tuple(e for e in engines if not (e == "tmm" and method == "periodic"))
     if "tmm" in engines and method == "periodic":
-        out["engines"]["tmm"] = periodic_point(sc)
+        out["engines"]["tmm"] = periodic_point(sc, many)
     if marched:
         res = CoSimulation(sc, marched, mode="prescribed").run(revolutions=revolutions)
         for name, ch in res.channels.items():
@@ -89,26 +90,42 @@ def sweep_point(raw: dict, path: str, rpm: float, engines: tuple, revolutions: f
     return out
 
 
-#: Reduced bases built in this process, by scenario without its speed (a sweep worker builds one
-#: per scenario: the basis depends on the geometry, not on the speed; 50 ms of a ~0.35 s point).
-_BASES: dict = {}
+#: The reduced model's speed-free parts built in this process, by scenario without its speed:
+#: ``{key: [basis, stage coefficients or None]}``. The basis depends on the geometry, not on the
+#: speed (50 ms of a ~0.35 s point); the stage coefficients (tmm_core.reduced_stages) replace the
+#: ~0.1 s of stage matrices of every further speed by ~0.01 s, but cost ~0.65 s once, so only a
+#: process that solves many speeds (``many``) builds them.
+_REDUCED: dict = {}
+MANY_SPEEDS = 10           # speeds per worker from which a sweep keeps the stage coefficients
 
 
-def _reduced_basis(sc, td, options):
+def _reduced_parts(sc, td, options, many: bool):
+    """``(basis, stage coefficients or None)`` of the scenario for the reduced model."""
+    from tmm_core.ked import CrankMotion
     from tmm_core.reduced import build_basis
+    from tmm_core.reduced_periodic import stage_points
+    from tmm_core.reduced_stages import StageCoefficients
     raw = {k: v for k, v in sc.raw.items() if k != "drive"}
     raw["drive"] = {k: v for k, v in sc.raw.get("drive", {}).items() if k != "speed"}
     key = (json.dumps(raw, sort_keys=True, default=str), sc.drive.start_angle_rad, repr(options))
-    if key not in _BASES:
-        if len(_BASES) >= 4:
-            _BASES.clear()
-        _BASES[key] = build_basis(td, sc.drive.start_angle_rad, options)
-    return _BASES[key]
+    if key not in _REDUCED:
+        if len(_REDUCED) >= 2:
+            _REDUCED.clear()
+        _REDUCED[key] = [build_basis(td, sc.drive.start_angle_rad, options), None]
+    parts = _REDUCED[key]
+    if many and parts[1] is None:
+        # The stage angles of a constant-speed revolution at options.steps steps: every speed's
+        # (ReducedModel checks that they are, and builds directly where they are not).
+        crank = CrankMotion.constant_speed(sc.drive.speed_rad_s, step_deg=360.0 / options.steps, revolutions=1.0,
+                                           start_angle=sc.drive.start_angle_rad)
+        parts[1] = StageCoefficients.of(td, parts[0], stage_points(crank)[1])
+    return parts[0], parts[1]
 
 
-def periodic_solution(sc):
+def periodic_solution(sc, many: bool = False):
     """The scenario's periodic steady state (``tmm_core.periodic.periodic_steady_state``) with its
-    TMM settings at its drive speed."""
+    TMM settings at its drive speed. ``many``: this process solves many speeds of the scenario (a
+    sweep's worker): the reduced model keeps its speed-free stage matrices."""
     from tmm_core.periodic import periodic_steady_state
     s = sc.tmm
     td = sc.time_domain()
@@ -117,8 +134,9 @@ def periodic_solution(sc):
         from tmm_core.reduced import ReducedOptions
         from tmm_core.reduced_periodic import periodic_steady_state_reduced
         options = ReducedOptions(modes=s.modes)
+        basis, stages = _reduced_parts(sc, td, options, many)
         return periodic_steady_state_reduced(td, sc.drive.speed_rad_s, start_angle=sc.drive.start_angle_rad,
-                                             options=options, basis=_reduced_basis(sc, td, options))
+                                             options=options, basis=basis, stages=stages)
     return periodic_steady_state(td, sc.drive.speed_rad_s, step_s=sc.engine_step_s("tmm"),
                                  start_angle=sc.drive.start_angle_rad)
 
@@ -141,12 +159,13 @@ def periodic_point_histories(sc, n_grid: int = 360) -> dict:
     return out
 
 
-def periodic_point(sc) -> dict:
+def periodic_point(sc, many: bool = False) -> dict:
     """Periodic steady state of the scenario's TMM model at its drive speed: peaks, drive
-    torque range and the largest Floquet multiplier (|mu| > 1: parametric resonance)."""
+    torque range and the largest Floquet multiplier (|mu| > 1: parametric resonance); ``many``:
+    see :func:`periodic_solution`."""
     from tmm_core import TMMError
     try:
-        p = periodic_solution(sc)
+        p = periodic_solution(sc, many)
     except TMMError as exc:
         return {"status": "failed", "error": f"{type(exc).__name__}: {exc}"}
     d = {"status": "completed", "error": None, "method": "periodic", "model": p.info.get("model", "full"),
@@ -212,8 +231,10 @@ def run_sweep(scenario: str, rpm, engines=("tmm",), revolutions: float | None = 
     tic = time.perf_counter()
     try:
         with executor(workers, scheduler) as ex:
+            # Enough speeds per worker to repay the reduced model's speed-free stage matrices.
+            many = len(rpms) >= MANY_SPEEDS * (workers or os.cpu_count() or 1)
             futures = {ex.submit(sweep_point, sc.raw, str(sc.path or sc.name), float(r), tuple(engines), revs,
-                                 method): float(r) for r in rpms}
+                                 method, many): float(r) for r in rpms}
             for fut in as_completed(futures):
                 try:
                     point = fut.result()

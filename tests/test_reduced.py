@@ -236,3 +236,33 @@ def test_a_step_whose_accelerations_pass_near_zero_converges():
     for g in runs[0].gauges:
         b0, b1 = runs[0].gauges[g][0], runs[1].gauges[g][0]
         assert np.max(np.abs(b0 - b1)) <= 1e-9 * np.ptp(b1)
+
+
+def test_speed_free_stage_coefficients_give_the_direct_stage_matrices_at_any_speed():
+    """tmm_core.reduced_stages: the stage matrices are polynomials in crank speed and
+    acceleration with angle-only coefficients (one degree of freedom). Built once at one speed,
+    combined at two others, they equal the direct build to round-off (1e-12 of each matrix), and so
+    does a periodic solve on them (1e-9 of the peaks); stage angles of another step count are not
+    theirs and the model builds directly."""
+    from tmm_core.ked import CrankMotion
+    from tmm_core.reduced_periodic import ReducedModel, stage_points
+    from tmm_core.reduced_stages import StageCoefficients
+    sc = load("crank_rocker_241rpm")
+    td = _time_domain(sc)
+    basis = build_basis(td, 0.0, ReducedOptions(modes=4))
+    w0 = sc.drive.speed_rad_s
+
+    def crank(w, steps=360):
+        return CrankMotion.constant_speed(w, step_deg=360.0 / steps, revolutions=1.0)
+
+    stages = StageCoefficients.of(td, basis, stage_points(crank(0.8 * w0))[1])
+    for w in (0.5 * w0, 1.3 * w0):
+        direct, combined = ReducedModel(td, crank(w), basis), ReducedModel(td, crank(w), basis, stages=stages)
+        for name in ("Mr", "Cr", "Kr", "fr", "Td", "Tdd", "om", "alpha", "torque_offset"):
+            ref = getattr(direct, name)
+            assert np.max(np.abs(getattr(combined, name) - ref)) <= 1e-12 * np.max(np.abs(ref)), (w, name)
+    assert not stages.matches(stage_points(crank(w0, steps=180))[1])
+    own = periodic_steady_state_reduced(td, w0, basis=basis)
+    shared = periodic_steady_state_reduced(td, w0, basis=basis, stages=stages)
+    for g, (b, _) in own.gauges.items():
+        assert np.max(np.abs(shared.gauges[g][0] - b)) <= 1e-9 * np.max(np.abs(b)), g

@@ -160,17 +160,21 @@ def test_sweep_points_share_one_reduced_basis_and_get_the_same_answer():
     from cosim import sweep as sweep_module
     from tmm_core.reduced import ReducedOptions
     from tmm_core.reduced_periodic import periodic_steady_state_reduced
-    sweep_module._BASES.clear()
+    sweep_module._REDUCED.clear()
     base = load("crank_rocker_241rpm").with_overrides({"solver.tmm.model": "reduced"})
     at = {rpm: base.with_overrides({"drive.speed": f"{rpm} rpm"}) for rpm in (200, 300)}
     sweep_module.periodic_solution(at[200])
     shared = sweep_module.periodic_solution(at[300])
-    assert len(sweep_module._BASES) == 1
+    assert len(sweep_module._REDUCED) == 1
     sc = at[300]
     own = periodic_steady_state_reduced(sc.time_domain(), sc.drive.speed_rad_s, start_angle=sc.drive.start_angle_rad,
                                         options=ReducedOptions(modes=sc.tmm.modes))
     for g, (b, a) in own.gauges.items():
         np.testing.assert_array_equal(shared.gauges[g][0], b)
         np.testing.assert_array_equal(shared.gauges[g][1], a)
+    # A worker with many speeds also keeps the speed-free stage matrices: equal to round-off.
+    many = sweep_module.periodic_solution(sc, many=True)
+    for g, (b, a) in own.gauges.items():
+        assert np.max(np.abs(many.gauges[g][0] - b)) <= 1e-9 * np.max(np.abs(b)), g
     sweep_module.periodic_solution(sc.with_overrides({"solver.tmm.segments": 4}))
-    assert len(sweep_module._BASES) == 2
+    assert len(sweep_module._REDUCED) == 2

@@ -50,9 +50,10 @@ from scipy.linalg import lu_factor, lu_solve
 
 from . import kernels_reduced
 from .errors import ConvergenceError, InputError
-from .ked import CrankMotion, rigid_body_loads
+from .ked import CrankMotion
 from .periodic import PeriodicResult
 from .reduced import ReducedBasis, ReducedOptions, build_basis
+from .reduced_stages import StageCoefficients, stage_terms
 from .second_order import geometric_matrices
 
 _S6 = math.sqrt(6.0)
@@ -64,6 +65,19 @@ CHORD_RATE = 0.25      # keep the monodromy while the shooting residual falls at
 RADAU_C = np.array([(4 - _S6) / 10, (4 + _S6) / 10, 1.0])
 
 
+def stage_points(crank: CrankMotion):
+    """Times [s], crank angles [rad], speeds [rad/s] and accelerations [rad/s^2] at the three
+    Radau IIA stage points of every step of ``crank`` (N + 1 samples): Hermite interpolation of the
+    samples, exact for constant speed."""
+    h = crank.dt
+    t = np.asarray(crank.t) - crank.t[0]
+    ts = (t[:-1, None] + RADAU_C[None, :] * h).ravel()
+    th = CubicHermiteSpline(t, crank.angle, crank.speed)(ts)
+    w = CubicHermiteSpline(t, crank.speed, crank.acceleration)(ts)
+    al = np.interp(ts, t, crank.acceleration)
+    return crank.t[0] + ts, th, w, al
+
+
 class ReducedModel:
     """The reduced equations at the stage points of a crank history (one period).
 
@@ -73,9 +87,12 @@ class ReducedModel:
     :func:`tmm_core.reduced.build_basis` (geometry only: it may serve every speed).
     ``compiled``: march revolutions in the compiled kernel (:mod:`tmm_core.kernels_reduced`) when
     numba is installed; default ``td.compiled``; False keeps this module's numpy path (the
-    reference)."""
+    reference). ``stages``: :class:`tmm_core.reduced_stages.StageCoefficients` of ``td`` and
+    ``basis`` to combine for this crank history when its stage angles are theirs (else, and by
+    default, the stage matrices are built directly)."""
 
-    def __init__(self, td, crank: CrankMotion, basis: ReducedBasis, compiled: bool | None = None):
+    def __init__(self, td, crank: CrankMotion, basis: ReducedBasis, compiled: bool | None = None,
+                 stages: StageCoefficients | None = None):
         if any(link.viscoelastic is not None for link in td.links):
             raise InputError("the reduced model does not carry viscoelastic (standard-linear-solid) links; use "
                              "solver.tmm.model = 'full'")
@@ -95,70 +112,16 @@ class ReducedModel:
         self.nonlinear = td.axial_force == "dynamic"
         N = len(crank.t) - 1
         self.N, self.h = N, crank.dt
-        # Stage crank states: Hermite interpolation of the samples (exact for constant speed).
-        t = np.asarray(crank.t) - crank.t[0]
-        ts = (t[:-1, None] + RADAU_C[None, :] * self.h).ravel()
-        self.stage_time = crank.t[0] + ts
-        th = CubicHermiteSpline(t, crank.angle, crank.speed)(ts)
-        w = CubicHermiteSpline(t, crank.speed, crank.acceleration)(ts)
-        al = np.interp(ts, t, crank.acceleration)
+        self.stage_time, th, w, al = stage_points(crank)
         self.stage_angle = th
-        self._stages(th, w, al)
-
-    def _stages(self, th, w, al):
-        td, b = self.td, self.basis
-        x = b.angles[0] + np.mod(th - b.angles[0], 2 * np.pi)
-        B = b.weights(x)                            # the basis' periodic splines at the stage points
-        on_grid = lambda W, data: (W @ data.reshape(len(data), -1)).reshape(len(x), *data.shape[1:])  # noqa: E731
-        T, T1, T2 = (on_grid(W, b.T) for W in B)
-        Td = T1 * w[:, None, None]
-        Tdd = T2 * (w**2)[:, None, None] + T1 * al[:, None, None]
-        m = td.m_vec
-        mech = td.mech
-        motion = mech.motion(th, w, al)
-        cp = td.coupling
-        P = len(th)
-
-        def per_dof(name):
-            """A link rate of ``motion`` (per stage point) on every DOF of the link, (P, n)."""
-            return np.concatenate([np.broadcast_to(np.reshape(getattr(motion.link(l.name), name), (-1, 1)),
-                                                   (P, 3 * l.n_nodes)) for l in td.links], axis=1)
-
-        om = per_dof("omega") if cp.any else None
-        alpha = per_dof("alpha") if cp.any else None
-        Kl = td.K_local.toarray()
-        # Batched matrix products (BLAS per stage point): einsum over (P, n, r) was 20x slower.
-        TT = np.swapaxes(T, 1, 2)
-        bn = td.beta_node
-        iu = np.arange(0, td.n_dof, 3)
-
-        def damp(X, p_om):
-            """(D + C_K + G_c) X for X (P, n, r)."""
-            out = (m * td.aM_vec)[None, :, None] * X + bn[None, :, None] * np.matmul(Kl, X)
-            if cp.coriolis:
-                c = 2.0 * m[None, :] * p_om
-                out[:, iu] -= c[:, iu, None] * X[:, iu + 1]
-                out[:, iu + 1] += c[:, iu + 1, None] * X[:, iu]
-            return out
-
-        Mr = TT @ (m[:, None] * T)
-        Cr = TT @ (2.0 * m[None, :, None] * Td + damp(T, om))
-        KX = m[None, :, None] * Tdd + damp(Td, om)
-        if cp.centrifugal:
-            KX = KX - (m[None, :] * om**2)[:, :, None] * T
-        if cp.angular_acceleration:
-            c = m[None, :] * alpha
-            KX[:, iu] -= c[:, iu, None] * T[:, iu + 1]
-            KX[:, iu + 1] += c[:, iu + 1, None] * T[:, iu]
-        Kr = on_grid(B[0], b.K) + TT @ KX
-        f = td.stack(rigid_body_loads(mech, motion, td.gravity, frame="local"))
-        self.T, self.Td, self.Tdd, self.Mr, self.Cr, self.Kr = T, Td, Tdd, Mr, Cr, Kr
-        self.fr = (f[:, None, :] @ T)[:, 0]
+        terms = stages.at(td, th, w, al) if stages is not None and stages.matches(th) else \
+            stage_terms(td, basis, th, w, al)
+        self.T, self.Td, self.Tdd, self.Mr, self.Cr, self.Kr = terms.T, terms.Td, terms.Tdd, terms.Mr, terms.Cr, \
+            terms.Kr
+        self.f, self.om, self.alpha = terms.f, terms.om, terms.alpha
+        self.fr = (terms.f[:, None, :] @ terms.T)[:, 0]
         # Drive torque at the stage points: the reaction part per unit load, the rigid crank's part.
-        self.torque_map = B[0] @ b.torque
-        _, _, offset = mech.drive_torque_terms(motion, td.gravity)
-        self.torque_offset = np.broadcast_to(np.asarray(offset, dtype=float), th.shape)
-        self.f, self.om, self.alpha = f, om, alpha
+        self.torque_map, self.torque_offset = terms.torque_map, terms.torque_offset
         seg = td.segments
         self.k, self.beta, self.G = seg.stiffness, seg.beta, geometric_matrices(seg.length)
         self._segment_maps = None              # built on first use (numpy path only)
@@ -392,14 +355,16 @@ class ReducedModel:
 def periodic_steady_state_reduced(td, speed_rad_s: float | None = None, *, crank: CrankMotion | None = None,
                                   start_angle: float = 0.0, options: ReducedOptions = ReducedOptions(),
                                   basis: ReducedBasis | None = None, newton_tolerance: float = 1e-9,
-                                  newton_iterations: int = 20, compiled: bool | None = None) -> PeriodicResult:
+                                  newton_iterations: int = 20, compiled: bool | None = None,
+                                  stages: StageCoefficients | None = None) -> PeriodicResult:
     """Periodic steady revolution of the reduced model of ``td`` at constant ``speed_rad_s``
     (``options.steps`` steps per revolution) or over one period of a periodic ``crank`` history
     (N + 1 samples; its samples are the steps). Returns a :class:`tmm_core.periodic.PeriodicResult`
     (outputs at the 3 collocation points of each step, 3N samples: the continuous solution, so that
     sampling does not clip sharp peaks; Floquet multipliers of the reduced model, the residual of a
     revolution marched from the periodic state). ``basis``: reuse one (it depends on the
-    geometry only); else built from ``options``. ``compiled``: see :class:`ReducedModel`."""
+    geometry only); else built from ``options``. ``compiled``, ``stages``: see
+    :class:`ReducedModel`."""
     if crank is None:
         if not speed_rad_s:
             raise InputError("reduced model: give a non-zero crank speed or a crank history")
@@ -411,7 +376,7 @@ def periodic_steady_state_reduced(td, speed_rad_s: float | None = None, *, crank
             raise InputError("reduced model: the crank history must span exactly one revolution")
     if basis is None:
         basis = build_basis(td, float(crank.angle[0]), options)
-    model = ReducedModel(td, crank, basis, compiled)
+    model = ReducedModel(td, crank, basis, compiled, stages)
     r = basis.size
     x_lin, mono, _ = model.revolution(np.zeros(2 * r), False)
     x0 = np.linalg.solve(np.eye(2 * r) - mono, x_lin)
