@@ -31,7 +31,9 @@ def torque_from_terms(reactions, joint, arm, offset):
     reactions may carry extra trailing batch axes beyond ``arm``'s (unit-load columns)."""
     R = np.asarray(reactions[joint])
     if arm is None:
-        return R[..., 2] + offset
+        # The offset's batch axes lead; the reactions' extra ones (unit-load columns) follow.
+        extra = max(R.ndim - 1 - np.ndim(offset), 0)
+        return R[..., 2] + np.reshape(offset, np.shape(offset) + (1,) * extra)
     extra = R.ndim - np.ndim(arm)
     a = np.reshape(arm, np.shape(arm)[:-1] + (1,) * extra + (2,))
     o = np.reshape(offset, np.shape(offset) + (1,) * extra)
