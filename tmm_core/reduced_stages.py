@@ -113,7 +113,7 @@ def _loads(td, motion):
     return f, offset
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class StageCoefficients:
     """The speed-free parts of :class:`StageTerms` at the stage ``angle`` [rad] (see the module
     docstring): ``T``, ``T1``, ``T2``; ``Mr``; ``C0, C1``; ``K0, K1, K2, K3``; the link rates per
