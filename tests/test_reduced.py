@@ -268,19 +268,23 @@ def test_speed_free_stage_coefficients_give_the_direct_stage_matrices_at_any_spe
         assert np.max(np.abs(shared.gauges[g][0] - b)) <= 1e-9 * np.max(np.abs(b)), g
 
 
-def test_reduced_linear_model_of_an_elastic_crank_agrees_with_the_full_one():
+@pytest.mark.parametrize("beam_column", [False, True], ids=["linear", "second_order"])
+def test_reduced_model_of_an_elastic_crank_agrees_with_the_full_one(beam_column):
     """Alexander-Lawrence: the crank is elastic and clamped at its pivot, so the drive torque is
     the clamp moment (no rigid-crank arm); the basis' torque per unit load used to fail there (a
-    broadcast of the unit-load columns). Linear theory (beam_column = false): peaks and torque of
-    the reduced periodic state within 1 % of the full model's converged one (0.25 deg; at the
-    scenario's 1 deg the full model's coupler - peak is 1.3 % off it, at 0.5 deg 0.35 %, at 0.25 deg
-    0.11 % from the reduced). (With the second-order term the reduced model's stage equations do
-    not converge on this rig: README, "Reduced model".)"""
+    broadcast of the unit-load columns), and with the second-order term the stage Newton stalled at
+    its round-off floor (Newton matrix condition 6e10: updates ~2e-10 of the accelerations against
+    a tolerance of 1e-10; kernels_reduced.STALL_FACTOR). Peaks of the reduced periodic state within
+    1 % of the full model's converged ones (0.25 deg; measured 0.11 % linear, 0.19 % second order;
+    at the scenario's 1 deg the full model's coupler - peak is 1.3 % off). The drive torque is
+    compared in linear theory only (the reduced torque leaves out the second-order terms' share of
+    the reactions: +1.3 % here)."""
     from cosim.sweep import periodic_solution
-    sc = load("alexander_lawrence_400rpm").with_overrides({"solver.tmm.beam_column": False})
+    sc = load("alexander_lawrence_400rpm").with_overrides({"solver.tmm.beam_column": beam_column})
     full = periodic_solution(sc.with_overrides({"solver.tmm.step": "0.25 deg"}))
     reduced = periodic_solution(sc.with_overrides({"solver.tmm.model": "reduced"}))
     for g, (b, _) in full.gauges.items():
         for peak in (np.max, np.min):
             assert peak(reduced.gauges[g][0]) == pytest.approx(peak(b), rel=0.01), g
-    assert np.max(reduced.drive_torque) == pytest.approx(np.max(full.drive_torque), rel=0.01)
+    if not beam_column:
+        assert np.max(reduced.drive_torque) == pytest.approx(np.max(full.drive_torque), rel=0.01)

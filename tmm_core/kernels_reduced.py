@@ -42,6 +42,11 @@ AVAILABLE = kernels.AVAILABLE
 _COMPILED = {}
 #: Refactorize while the chord iteration contracts slower than this (update ratio).
 CHORD_CONTRACTION = 0.03
+#: A Newton update that no longer shrinks (at least half the last) while within this factor of the
+#: tolerance is the round-off floor of an ill-conditioned Newton matrix: the step has converged
+#: (Alexander-Lawrence: condition 6e10, updates stall near 2e-10 of the accelerations against a
+#: tolerance of 1e-10). Used by the numpy path too.
+STALL_FACTOR = 1e3
 #: After a refactorization, keep the factorization for the next iteration if the relative update
 #: was at most this (the chord iteration then contracts by about this factor: the Newton matrix
 #: moves in proportion to the state).
@@ -397,7 +402,7 @@ def revolution(x0, nonlinear, want_jac, want_out, have_guess, chord, chord_start
                 converged = True
                 break
             if refresh:
-                if dmax <= limit:
+                if dmax <= limit or (prev > 0.0 and dmax <= STALL_FACTOR * limit and dmax >= 0.5 * prev):
                     converged = True
                     break
                 refresh = not (use_chord and dmax <= chord_start * amax)

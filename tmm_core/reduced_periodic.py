@@ -185,6 +185,7 @@ class ReducedModel:
         h, A, A2, c = self.h, RADAU_A, self.A2, RADAU_C
         P = 3 * n + np.arange(3)
         Mr, Cr, Kr, fr = self.Mr[P], self.Cr[P], self.Kr[P], self.fr[P]
+        prev = None             # the last update's size (kernels_reduced.STALL_FACTOR)
         for it in range(iterations):
             vs = v[None] + h * A @ acc
             es = eta[None] + h * c[:, None] * v[None] + h * h * A2 @ acc
@@ -201,8 +202,13 @@ class ReducedModel:
             # Relative to the step's own accelerations or ``scale`` (the largest of the steps before
             # it in the revolution): where all of them pass near zero the step's own scale sits
             # below the round-off floor of the update (seen at 120 rpm on the FE rig).
-            if not nonlinear or np.max(np.abs(dacc)) <= tol * (max(np.max(np.abs(acc)), scale) + 1e-300):
+            dmax, limit = float(np.max(np.abs(dacc))), tol * (max(float(np.max(np.abs(acc))), scale) + 1e-300)
+            if not nonlinear or dmax <= limit:
                 break
+            # An update that stopped shrinking near the tolerance: the round-off floor.
+            if prev is not None and dmax <= kernels_reduced.STALL_FACTOR * limit and dmax >= 0.5 * prev:
+                break
+            prev = dmax
         else:
             raise ConvergenceError(f"reduced model: the stage equations of step {n} did not converge "
                                    f"(crank angle {math.degrees(float(self.stage_angle[3 * n + 2])):.6g} deg)")
