@@ -42,6 +42,10 @@ AVAILABLE = kernels.AVAILABLE
 _COMPILED = {}
 #: Refactorize while the chord iteration contracts slower than this (update ratio).
 CHORD_CONTRACTION = 0.03
+#: The stage Newton iteration's tolerance (update relative to the stage accelerations) and
+#: iteration limit, in the numpy path and the compiled one.
+STAGE_TOL = 1e-10
+STAGE_ITERATIONS = 25
 #: A Newton update that no longer shrinks (at least half the last) while within this factor of the
 #: tolerance is the round-off floor of an ill-conditioned Newton matrix: the step has converged
 #: (Alexander-Lawrence: condition 6e10, updates stall near 2e-10 of the accelerations against a

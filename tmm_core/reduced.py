@@ -115,17 +115,12 @@ class ReducedBasis:
     def size(self) -> int:
         return self.T.shape[-1]
 
-    def splines(self):
-        """Periodic cubic splines in the crank angle of ``T``, ``K`` and ``torque``."""
-        th = np.concatenate([self.angles, [self.angles[0] + 2 * np.pi]])
-        close = lambda x: np.concatenate([x, x[:1]], axis=0)  # noqa: E731
-        return tuple(CubicSpline(th, close(x), axis=0, bc_type="periodic") for x in (self.T, self.K, self.torque))
-
     def weights(self, x):
-        """The periodic cubic splines of :meth:`splines` as weights on the grid: ``(B, B', B'')``
-        (len(x), J) with ``spline(x) = B @ data`` (and its angle derivatives) for data over the grid
-        (a spline is linear in its data). One matrix product per quantity: 3x faster than the
-        evaluation of the spline of ``T`` (its (n, r) values per angle)."""
+        """The periodic cubic splines in the crank angle over the basis grid as weights:
+        ``(B, B', B'')`` (len(x), J) with ``spline(x) = B @ data`` (and its angle derivatives) for
+        data over the grid, e.g. ``T``, ``K``, ``torque`` (a spline is linear in its data). One
+        matrix product per quantity: 3x faster than evaluating the spline of ``T`` itself (its
+        (n, r) values per angle)."""
         J = len(self.angles)
         th = np.concatenate([self.angles, [self.angles[0] + 2 * np.pi]])
         unit = CubicSpline(th, np.concatenate([np.eye(J), np.eye(J)[:1]]), axis=0, bc_type="periodic")

@@ -176,7 +176,8 @@ class ReducedModel:
         return N, bT @ P_eta + H + aT @ F_eta, bT @ P_v + aT @ F_v, Pax, delta
 
     # -- one step ----------------------------------------------------------------------------
-    def step(self, n, eta, v, acc, nonlinear, jacobian=True, tol=1e-10, iterations=25, scale=0.0):
+    def step(self, n, eta, v, acc, nonlinear, jacobian=True, tol=kernels_reduced.STAGE_TOL,
+             iterations=kernels_reduced.STAGE_ITERATIONS, scale=0.0):
         """Radau IIA step ``n`` from ``(eta, eta')`` with a guess ``acc`` (3, r) of the stage
         accelerations: ``(eta, eta')`` at its end, the stage accelerations and the step's Jacobian
         ``S`` (2r, 2r) with respect to ``(eta, eta')`` (from the last Newton matrix; None unless
@@ -277,7 +278,8 @@ class ReducedModel:
         failed = kernels_reduced.compiled_revolution()(
             x0, bool(nonlinear), bool(jacobian), bool(outputs), self.stage_acc is not None, self.chord,
             kernels_reduced.CHORD_START, kernels_reduced.CHORD_CONTRACTION, guess,
-            self.h, RADAU_A, self.A2, RADAU_C, *args, 1e-10, 25, *self._factors, x_end, mono, outs, accs, counts)
+            self.h, RADAU_A, self.A2, RADAU_C, *args, kernels_reduced.STAGE_TOL, kernels_reduced.STAGE_ITERATIONS,
+            *self._factors, x_end, mono, outs, accs, counts)
         self.counts = counts
         if failed >= 0:
             raise ConvergenceError(f"reduced model: the stage equations of step {failed} did not converge (crank "
