@@ -53,7 +53,6 @@ class TraceWriter:
         self.columns = None
         self.fh = None
         self.rows = 0
-        self._row_format = None
 
     def write_step(self, outputs: dict) -> None:
         """``outputs``: {engine: (EngineOutput, MotorTrace | None)} of one macro step."""
@@ -80,9 +79,7 @@ class TraceWriter:
             table[rows, j] = v
         # One %-format per row (a cell at a time was the run's largest cost, ~8 us a row); Python
         # prints every NaN as "nan", and no number contains it: those cells become empty.
-        if self._row_format is None:
-            self._row_format = "%r" + ",%.10g" * len(self.columns) + "\n"
-        fmt = self._row_format
+        fmt = "%r" + ",%.10g" * len(self.columns) + "\n"
         text = "".join([fmt % tuple(r) for r in np.column_stack([times, table]).tolist()])
         self.fh.write(text.replace("nan", ""))  # one write per macro step, then flush: a kill loses at most it
         self.fh.flush()

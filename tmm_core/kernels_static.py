@@ -37,7 +37,6 @@ the time domain's configurations with their maps 5x faster (16 segments per link
 from __future__ import annotations
 
 import math
-
 import os
 
 import numpy as np

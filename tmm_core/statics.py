@@ -16,7 +16,6 @@ Owns: static analysis of an instantaneous structure. Boundaries: no time domain.
 from __future__ import annotations
 
 import math
-
 from dataclasses import dataclass
 from typing import Mapping
 
@@ -125,7 +124,8 @@ def solve_static(structure: Structure, case: LoadCase, *, beam_column: bool = Fa
     ``beam_column``: iterate on segment axial forces (small deflection, Shin §3.3.1).
     ``large_deflection``: also iterate on segment chord rotations (implies beam-column).
     ``tol``: relative change of displacements and forces between iterations, or the error it
-    implies (:func:`iteration_converged`), that ends the iteration. Raises :class:`ConvergenceError` after ``max_iter`` iterations, and
+    implies (:func:`iteration_converged`), that ends the iteration. Raises
+    :class:`ConvergenceError` after ``max_iter`` iterations, and
     :class:`tmm_core.errors.BucklingError` if in beam-column mode a member reaches its
     buckling load. ``count_inertia=True`` checks every solve for negative stiffness (the
     spin-softening check of the quasi-static analysis).

@@ -234,8 +234,8 @@ def anderson_coefficients(dR, r):
     Q = np.array(dR, dtype=float)
     R = np.zeros((h, h))
     gamma = np.zeros(h)
-    # A diverging iteration can overflow here: the coefficients are then not finite, the next
-    # iterate neither, and the step is refactorized (as in the compiled march); no warnings.
+    # A diverging iteration can overflow here: the coefficients are then not finite and the
+    # caller restarts the mixing (as the compiled march does); no warnings.
     with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
         big = float(np.max(np.sqrt(np.sum(Q * Q, axis=0))))
         for c in range(h):
