@@ -2,10 +2,15 @@
 
 Why a process: importing rerun and converting arrays to chunks cost a TMM run of a few seconds
 more than the TMM itself (about 0.35 s for the import and the first send alone). The child
-starts when the run starts, imports rerun while the engines set up, and writes while they run,
-on another core; the run only collects references to its arrays (:mod:`cosim.recording.batch`)
-and hands a pickled batch to a pipe a few times a second (from a thread, so a slow child never
-stalls the run).
+writes while the engines run, on another core; the run only collects references to its arrays
+(:mod:`cosim.recording.batch`) and hands a pickled batch to a pipe a few times a second (from a
+thread, so a slow child never stalls the run).
+
+When the child starts: a live viewer's at once (the viewer opens while the engines set up). A
+file's at the run's first data (the engines' stations or first batch): the engines' set-up runs
+its compiled solves on every core, and a child starting beside it (Python and numpy, ~0.15 s of
+CPU) made the TMM's set-up ~60 % slower (0.041 -> 0.065 s median at 241 rpm); until then the
+messages wait in the queue. A run killed during its set-up leaves no file; it had no data.
 
 The child ignores Ctrl-C (it runs in its own session): the run closes the recording when it
 ends, interrupted or not. If the run's process dies, the child sees its input end and finishes
@@ -42,6 +47,7 @@ from .sinks import ViewerOptions
 
 log = logging.getLogger("cosim.recording")
 _DONE = object()
+_BEFORE_DATA = ("open", "text", "reference")    # messages that do not start a file's child
 WRITER_NICE = 10              # the child's scheduling priority offset (Unix nice)
 
 
@@ -61,15 +67,11 @@ class RecorderProcess(Recorder):
         self.batcher = StepBatcher(linkage_every, linkage_fps)
         self._record_colors, self._last_take, self._closed = {}, time.monotonic(), False
         self._broken = None
-        root = str(Path(__file__).resolve().parents[2])            # so the child imports this cosim
-        env = dict(os.environ, PYTHONPATH=os.pathsep.join(filter(None, [root, os.environ.get("PYTHONPATH")])))
-        level = logging.getLogger("cosim").getEffectiveLevel()
-        self._proc = subprocess.Popen([sys.executable, "-m", "cosim.recording.process", str(level)],
-                                      stdin=subprocess.PIPE, stdout=subprocess.PIPE, env=env,
-                                      start_new_session=True)
+        self._proc: subprocess.Popen | None = None
         self._queue: queue.Queue = queue.Queue()
         self._thread = threading.Thread(target=self._pump, name="recording-pipe", daemon=True)
-        self._thread.start()
+        if viewer.viewer != "save":
+            self._start_child()
         self._send("open", dict(spec=self.spec, save_path=None if save_path is None else str(save_path),
                                 viewer=viewer, exaggeration=exaggeration, application_id=application_id,
                                 stations=engines))
@@ -91,8 +93,19 @@ class RecorderProcess(Recorder):
     def _text(self, path, text):
         self._send("text", path, text)
 
+    def _start_child(self):
+        root = str(Path(__file__).resolve().parents[2])            # so the child imports this cosim
+        env = dict(os.environ, PYTHONPATH=os.pathsep.join(filter(None, [root, os.environ.get("PYTHONPATH")])))
+        level = logging.getLogger("cosim").getEffectiveLevel()
+        self._proc = subprocess.Popen([sys.executable, "-m", "cosim.recording.process", str(level)],
+                                      stdin=subprocess.PIPE, stdout=subprocess.PIPE, env=env,
+                                      start_new_session=True)
+        self._thread.start()
+
     def _send(self, *message):
         self._queue.put(pickle.dumps(message, protocol=pickle.HIGHEST_PROTOCOL))
+        if self._proc is None and message[0] not in _BEFORE_DATA:
+            self._start_child()
 
     def _pump(self):
         """Thread: queued messages into the child's stdin (blocking here, not in the run)."""
@@ -242,11 +255,8 @@ def _child(level: int) -> int:
             status.flush()
         except (BrokenPipeError, OSError, ValueError):
             pass
-    def open_writer(arguments):
-        from .writer import StreamWriter          # imports rerun: ~0.5 s of CPU
-        return StreamWriter(**arguments)
 
-    writer, opening, inp = None, None, sys.stdin.buffer
+    writer, inp = None, sys.stdin.buffer
     try:
         while True:
             try:
@@ -255,24 +265,15 @@ def _child(level: int) -> int:
                 break
             kind, *args = message
             if kind == "open":
-                opening = args[0]
-                # A live viewer starts now. A file only is opened at the first data: rerun's import
-                # then overlaps the single-threaded march, not the engines' set-up, which runs its
-                # compiled solves on every core.
-                if opening["viewer"].viewer != "save":
-                    writer = open_writer(opening)
+                from .writer import StreamWriter          # imports rerun: ~0.5 s of CPU
+                writer = StreamWriter(**args[0])
             elif kind == "close":
                 break
-            else:
-                if writer is None and opening is not None:
-                    writer = open_writer(opening)
-                if writer is not None:
-                    {"stations": writer.set_stations, "batch": writer.write, "reference": writer.reference,
-                     "text": writer.text}[kind](*args)
+            elif writer is not None:
+                {"stations": writer.set_stations, "batch": writer.write, "reference": writer.reference,
+                 "text": writer.text}[kind](*args)
     except KeyboardInterrupt:
         pass
-    if writer is None and opening is not None:        # closed before any data: the file all the same
-        writer = open_writer(opening)
     if writer is None:
         return 0
     try:
