@@ -179,11 +179,14 @@ def test_iteration_stopping_rule_on_a_geometric_sequence():
     assert iteration_converged([1.0, 1e-11], 1e-10)
 
 
-@pytest.mark.parametrize("scenario", ["crank_rocker_241rpm", "watt_sixbar_600rpm"])
+@pytest.mark.parametrize("scenario", ["crank_rocker_241rpm", "crank_rocker_373rpm", "watt_sixbar_600rpm"])
 def test_quasi_static_stop_is_within_its_tolerance_of_the_converged_answer(scenario):
     """Convergence check of the stopping rule: the answer at tol 1e-8 (the rule may stop on the
     implied error, one solve before the change itself falls below tol) lies within 1e-8 of the
-    answer at 1e-13, relative to the largest displacement and force."""
+    answer at 1e-13, in the tolerance's own measure: displacements (rotations x the longest
+    link) against the largest displacement of the batch, forces (moments / the longest link)
+    against the largest force. At 373 rpm the configurations stop after different numbers of
+    solves (the iteration runs to each one's own stop)."""
     from cosim.scenario import load
     from tmm_core import quasi_static
     sc = load(scenario)
@@ -194,7 +197,10 @@ def test_quasi_static_stop_is_within_its_tolerance_of_the_converged_answer(scena
                             gravity=sc.gravity, tol=tol).solution
 
     loose, tight = solve(1e-8), solve(1e-13)
-    for name, ref in tight.members.items():
-        for part in (slice(0, 3), slice(3, 6)):
-            err = np.max(np.abs(loose.members[name].state[..., part] - ref.state[..., part]))
-            assert err <= 1e-8 * np.max(np.abs(ref.state[..., part])), (name, part)
+    Lc = max(r.member.length for r in tight.members.values())
+    w = np.array([1.0, 1.0, Lc, 1.0 / Lc, 1.0, 1.0])
+    for part in (slice(0, 3), slice(3, 6)):
+        scale = max(np.max(np.abs(ref.state[..., part] * w[part])) for ref in tight.members.values())
+        err = max(np.max(np.abs((loose.members[k].state - ref.state)[..., part] * w[part]))
+                  for k, ref in tight.members.items())
+        assert err <= 1e-8 * scale, part

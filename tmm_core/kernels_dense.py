@@ -1,6 +1,6 @@
 """Small dense helpers of the compiled factorization (:mod:`tmm_core.kernels_static`): Stumpff
 functions, 3x3 inverse and product, LDL^T inertia, LU with partial pivoting, the sparse blocks of a
-segment's field matrix and the iteration change. Plain Python here;
+segment's field matrix, and the beam-column iteration's change and stopping rule. Plain Python here;
 :func:`tmm_core.kernels_static.compiled_solve` compiles them (numba, cached on disk) and binds the
 compiled objects where the kernels look them up.
 
@@ -112,32 +112,39 @@ def ldl_inertia(S, n, work):
     return negative, pmin, pmax
 
 
-def iteration_change(new, old, w):
-    """``(largest |displacement change|, largest |displacement|, largest |force change|, largest
-    |force|)`` of two station-state arrays ``(B, Nn, 2, 6)`` weighted by ``w (6,)``."""
+def state_change(new, old, w, scales):
+    """Relative change between two station-state arrays ``(Nn, 2, 6)`` of one configuration,
+    weighted by ``w (6,)`` (as :func:`tmm_core.statics.solve_static`'s change): the larger of the
+    largest displacement change over ``scales[0]`` and the largest force change over
+    ``scales[1]`` (the largest displacement and force of the batch; 0: not counted). NaN if
+    ``new`` is not finite."""
     dd = 0.0
-    ds = 0.0
     df = 0.0
-    fs = 0.0
-    B, Nn = new.shape[0], new.shape[1]
-    for b in range(B):
-        for i in range(Nn):
-            for side in range(2):
-                for k in range(6):
-                    a = new[b, i, side, k] * w[k]
-                    d = abs(a - old[b, i, side, k] * w[k])
-                    a = abs(a)
-                    if k < 3:
-                        if a > ds:
-                            ds = a
-                        if d > dd:
-                            dd = d
-                    else:
-                        if a > fs:
-                            fs = a
-                        if d > df:
-                            df = d
-    return dd, ds, df, fs
+    for i in range(new.shape[0]):
+        for side in range(2):
+            for k in range(6):
+                x = new[i, side, k]
+                if not math.isfinite(x):
+                    return math.nan
+                d = abs(x - old[i, side, k]) * w[k]
+                if k < 3:
+                    dd = max(dd, d)
+                else:
+                    df = max(df, d)
+    return max(dd / scales[0] if scales[0] > 0.0 else 0.0, df / scales[1] if scales[1] > 0.0 else 0.0)
+
+
+def iteration_converged(c1, c2, c3, n, tol):
+    """The stopping rule of the successive linear solutions, on the last three relative changes
+    ``c1, c2, c3`` (``c3`` the last; ``n`` changes so far): see
+    :func:`tmm_core.statics.iteration_converged`, which applies it to every configuration of a
+    batch in the numpy path; the compiled iteration calls it directly."""
+    if c3 < tol:
+        return True
+    if n < 3 or not (0.0 < c1 < math.inf and 0.0 < c2 < math.inf and 0.0 < c3 < math.inf):
+        return False
+    r = max(c3 / c2, c2 / c1)
+    return r < 0.5 and c3 * r / (1.0 - r) < tol
 
 
 def lu_factor(A, n, lu, piv):

@@ -21,6 +21,7 @@ from typing import Mapping
 
 import numpy as np
 
+from . import kernels_dense
 from .errors import ConvergenceError, InputError
 from .post import distortion, static_safety_factor, surface_stresses
 from .structure import LinearSolution, LoadCase, MemberResult, Structure, solve_linear
@@ -82,38 +83,47 @@ def _update(linear: LinearSolution, large: bool):
     return P, beta
 
 
-def _change(new: LinearSolution, old: LinearSolution) -> float:
-    """Largest relative change between two iterates: translations and rotations x length
-    against the largest displacement, forces and moments / length against the largest force."""
-    Lc = max(r.member.length for r in new.members.values())
-    w = np.array([1.0, 1.0, Lc, 1.0 / Lc, 1.0, 1.0])   # (u, w, theta, M, V, N) -> m or N
-
-    def worst(x):
-        return max(float(np.max(np.abs(x(k)))) for k in new.members)
-
-    scaled = {k: new.members[k].state * w for k in new.members}
-    before = {k: old.members[k].state * w for k in new.members}
-    dscale, fscale = worst(lambda k: scaled[k][..., :3]), worst(lambda k: scaled[k][..., 3:])
-    dd = worst(lambda k: scaled[k][..., :3] - before[k][..., :3])
-    df = worst(lambda k: scaled[k][..., 3:] - before[k][..., 3:])
-    return max(dd / dscale if dscale > 0 else 0.0, df / fscale if fscale > 0 else 0.0)
+def change_weights(longest_member_m: float) -> np.ndarray:
+    """Weights of the station-state entries (u, w, theta, M, V, N) in the iteration's change:
+    rotations x length and moments / length, so displacements compare in m and forces in N."""
+    return np.array([1.0, 1.0, longest_member_m, 1.0 / longest_member_m, 1.0, 1.0])
 
 
-def iteration_converged(changes: list, tol: float) -> bool:
+def change_scales(states, weights) -> tuple:
+    """``(largest |displacement|, largest |force|)`` of station-state arrays ``(..., 2, 6)``
+    weighted by ``weights``: what the iteration's changes are relative to."""
+    return (max(float(np.max(np.abs(x[..., :3] * weights[:3]), initial=0.0)) for x in states),
+            max(float(np.max(np.abs(x[..., 3:] * weights[3:]), initial=0.0)) for x in states))
+
+
+def _change(new: LinearSolution, old: LinearSolution, weights, scales) -> np.ndarray:
+    """Largest relative change between two iterates, per configuration of the batch: of the
+    displacements against ``scales[0]``, of the forces against ``scales[1]``."""
+    def worst(part):
+        return np.max([np.max(np.abs(new.members[k].state[..., part] - old.members[k].state[..., part])
+                              * weights[part], axis=(-3, -2, -1)) for k in new.members], axis=0)
+
+    d, f = slice(0, 3), slice(3, 6)
+    return np.maximum(worst(d) / scales[0] if scales[0] > 0 else 0.0, worst(f) / scales[1] if scales[1] > 0 else 0.0)
+
+
+def iteration_converged(changes: list, tol: float) -> np.ndarray:
     """The stopping rule of the successive linear solutions (numpy and compiled), ``changes``
-    their relative changes so far: the last is below ``tol``, or the error of the last iterate
-    that the changes imply is. The iteration contracts linearly (the beam-column update: ratios
-    r ~ 1e-3 to 1e-2 on the rigs); with r the larger of the last two ratios of successive changes
-    (taken only below 1/2, i.e. contracting), the last iterate lies within change * r / (1 - r)
-    of the fixed point. This saves the solve whose only role was to show a change below ``tol``.
-    (One ratio alone underestimated the error 2x on the FE rig at 241 rpm, where r grows from
-    2e-3 to 5e-3; the larger of two did not, on the four rigs of the benchmark.)"""
-    if changes[-1] < tol:
-        return True
-    if len(changes) < 3 or not all(0.0 < c < math.inf for c in changes[-3:]):
-        return False
-    r = max(changes[-1] / changes[-2], changes[-2] / changes[-3])
-    return r < 0.5 and changes[-1] * r / (1.0 - r) < tol
+    the relative changes so far, each an array over the batch (one configuration each): where the
+    last is below ``tol``, or the error of the last iterate that the changes imply is. The
+    iteration contracts linearly (the beam-column update: ratios r ~ 1e-3 to 1e-2 on the rigs);
+    with r the larger of the last two ratios of successive changes (taken only below 1/2, i.e.
+    contracting), the last iterate lies within change * r / (1 - r) of the fixed point. This
+    saves the solve whose only role was to show a change below ``tol``. (One ratio alone
+    underestimated the error 2x on the FE rig at 241 rpm, where r grows from 2e-3 to 5e-3; the
+    larger of two did not, on the four rigs of the benchmark.) The rule itself, for one
+    configuration, is :func:`tmm_core.kernels_dense.iteration_converged`."""
+    last = [np.asarray(c, dtype=float) for c in ([0.0, 0.0] + list(changes))[-3:]]
+    c1, c2, c3 = np.broadcast_arrays(*last)
+    out = np.zeros(c3.shape, dtype=bool)
+    for i in np.ndindex(c3.shape):
+        out[i] = kernels_dense.iteration_converged(c1[i], c2[i], c3[i], len(changes), tol)
+    return out
 
 
 def solve_static(structure: Structure, case: LoadCase, *, beam_column: bool = False,
@@ -123,8 +133,11 @@ def solve_static(structure: Structure, case: LoadCase, *, beam_column: bool = Fa
 
     ``beam_column``: iterate on segment axial forces (small deflection, Shin §3.3.1).
     ``large_deflection``: also iterate on segment chord rotations (implies beam-column).
-    ``tol``: relative change of displacements and forces between iterations, or the error it
-    implies (:func:`iteration_converged`), that ends the iteration. Raises
+    ``tol``: change of displacements and forces between iterations, relative to the largest
+    displacement and force of the linear solution (the whole batch's), or the error it implies
+    (:func:`iteration_converged`), that ends the iteration. Every configuration of a batch
+    iterates to its own stop (the iteration count returned is the largest, the change the
+    largest last change); a configuration stays at the axial forces it converged with. Raises
     :class:`ConvergenceError` after ``max_iter`` iterations, and
     :class:`tmm_core.errors.BucklingError` if in beam-column mode a member reaches its
     buckling load. ``count_inertia=True`` checks every solve for negative stiffness (the
@@ -134,27 +147,38 @@ def solve_static(structure: Structure, case: LoadCase, *, beam_column: bool = Fa
     lin = solve_linear(structure, case, count_inertia=count_inertia)
     if mode == "linear":
         return StaticSolution(lin, mode, 1, 0.0)
-    relax = 1.0
-    prev_change = np.inf
+    # Every configuration of a batch iterates to its own tolerance (its own changes, relaxation
+    # and stop), as the compiled iteration does one configuration at a time: a configuration
+    # that has converged keeps its axial forces, so the later solves repeat its solution.
+    # Changes are relative to the largest displacement and force of the batch's linear solution.
+    weights = change_weights(max(r.member.length for r in lin.members.values()))
+    scales = change_scales([r.state for r in lin.members.values()], weights)
+    batch = next(iter(lin.members.values())).state.shape[:-3]
+    active = np.ones(batch, dtype=bool)
+    relax, prev_change = np.ones(batch), np.full(batch, np.inf)
+    iterations, last_change = np.full(batch, max_iter), np.zeros(batch)
     changes = []
     P, beta = _update(lin, large_deflection)
     for it in range(2, max_iter + 1):
         new = solve_linear(structure, case, P, beta, check_buckling=not large_deflection, count_inertia=count_inertia)
-        change = _change(new, lin)
-        if not np.isfinite(change):
+        change = np.where(active, _change(new, lin, weights, scales), 0.0)
+        if not np.all(np.isfinite(change)):
             raise ConvergenceError(f"{mode} iteration produced non-finite values at iteration {it}")
         lin = new
         changes.append(change)
-        if iteration_converged(changes, tol):
-            return StaticSolution(lin, mode, it, change)
-        if change > prev_change and relax > 0.15:
-            relax *= 0.5  # damp an oscillating fixed-point iteration
-        prev_change = change
+        done = active & iteration_converged(changes, tol)
+        iterations[done], last_change[done] = it, change[done]
+        active &= ~done
+        if not active.any():
+            return StaticSolution(lin, mode, int(np.max(iterations)), float(np.max(last_change)))
+        relax[active & (change > prev_change) & (relax > 0.15)] *= 0.5  # damp an oscillating iteration
+        prev_change = np.where(active, change, prev_change)
         P_new, beta_new = _update(lin, large_deflection)
-        P = {k: P[k] + relax * (P_new[k] - P[k]) for k in P}
-        beta = {k: beta[k] + relax * (beta_new[k] - beta[k]) for k in beta}
+        keep, step = ~active[..., None], relax[..., None]
+        P = {k: np.where(keep, P[k], P[k] + step * (P_new[k] - P[k])) for k in P}
+        beta = {k: np.where(keep, beta[k], beta[k] + step * (beta_new[k] - beta[k])) for k in beta}
     raise ConvergenceError(f"{mode} iteration did not converge in {max_iter} iterations "
-                           f"(last relative change {change:.3g}, tolerance {tol:.3g})")
+                           f"(largest last relative change {float(np.max(changes[-1])):.3g}, tolerance {tol:.3g})")
 
 
 def external_resultant(solution: StaticSolution | LinearSolution, deformed: bool = False) -> np.ndarray:

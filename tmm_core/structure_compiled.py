@@ -194,19 +194,53 @@ def solve_prepared(prep: Prepared, P: np.ndarray, *, check_buckling: bool = True
     at these nodes (B, G, 6, R))`` in the place of the states (much less memory; the load set
     last, as the columns of a map). Raises :class:`SingularStructureError` and, with ``check_buckling``,
     :class:`BucklingError` (:mod:`tmm_core.kernels_static`)."""
-    from .buckling import buckling_message, clamped_clamped_buckling_count
+    # A writable copy: the kernel is compiled for writable arrays (an iteration updates P).
+    P = np.array(np.broadcast_to(np.asarray(P, dtype=float), prep.factor.shape))
+    out = _run(prep, P, check_buckling, count_inertia, node_loads, compact_nodes, (0.0, 1, False))
+    return _checked(prep, P, out, check_buckling, cond_limit)
+
+
+def iterate_prepared(prep: Prepared, *, tol: float, max_iter: int, check_buckling: bool = True,
+                     cond_limit: float = 1e12, count_inertia: bool | None = None):
+    """The beam-column iteration of every configuration of a :class:`Prepared` batch (the loop
+    of :func:`tmm_core.statics.solve_static`, each configuration to its own tolerance): the
+    linear solve, then the iteration in one compiled call. Returns ``(P (B, S) the last axial
+    forces, (states, q, reaction, inertia count) of the last solve as :func:`solve_prepared`,
+    solves made (B,), last relative change (B,))``. Raises :class:`ConvergenceError` where a
+    configuration has a non-finite iterate or does not converge in ``max_iter`` solves."""
+    from .statics import change_weights, change_scales
+    lay = prep.layout
+    P = np.zeros(prep.factor.shape)
+    linear = solve_prepared(prep, P, check_buckling=check_buckling, cond_limit=cond_limit, count_inertia=count_inertia)
+    start = linear[0]
+    weights = change_weights(max(m.length for m in prep.structure.members))
+    scales = np.array(change_scales([start], weights))
+    left = np.arange(int(lay.seg_off[-1])) + np.repeat(np.arange(len(lay.seg_off) - 1), np.diff(lay.seg_off))
+    P = np.where(lay.rigid, 0.0, 0.5 * (start[:, left, 1, 5] + start[:, left + 1, 0, 5]))
+    recount = count_inertia is None and check_buckling
+    out = _run(prep, P, check_buckling, count_inertia, None, None, (float(tol), int(max_iter), recount),
+               weights, start, scales)
+    status, iterations, last_change = out[5], out[6], out[7]
+    for code, what in ((3, "produced non-finite values"), (4, f"did not converge in {max_iter} iterations")):
+        if np.any(status == code):
+            at = np.flatnonzero(status == code)
+            raise ConvergenceError(f"beam_column iteration {what} at batch entries {at[:5].tolist()} (last relative "
+                                   f"change {float(np.max(last_change[at])):.3g}, tolerance {tol:.3g})")
+    return P, _checked(prep, P, out, check_buckling, cond_limit), iterations, last_change
+
+
+def _run(prep, P, check_buckling, count_inertia, node_loads, compact_nodes, iteration, weights=np.ones(6),
+         start=None, scales=np.ones(2)):
+    """The compiled call: ``(states, q, reaction, negative, pivots, status, iterations,
+    last_change)``; ``P`` is updated in place by an iteration."""
     lay = prep.layout
     B, S = prep.factor.shape
-    P = np.ascontiguousarray(np.broadcast_to(np.asarray(P, dtype=float), (B, S)))
     if count_inertia is None:
         count = np.array([check_buckling and bool(np.any(P[:, lay.seg_off[i]:lay.seg_off[i + 1]] < 0))
                           for i in range(len(lay.seg_off) - 1)], dtype=np.bool_)
     else:
         count = np.full(len(lay.seg_off) - 1, bool(count_inertia))
-    s = P * lay.L**2 / (lay.EI * prep.factor)
-    if np.any(s > 700.0**2):
-        raise InputError(f"segment tension parameter P*L^2/EI = {float(np.max(s)):.4g} overflows cosh; "
-                         "split the link into more segments")
+    _check_tension(prep, P)
     nd = len(lay.labels)
     Fn = prep.Fn[:, None] if node_loads is None else node_loads
     R = Fn.shape[1]
@@ -223,6 +257,7 @@ def solve_prepared(prep: Prepared, P: np.ndarray, *, check_buckling: bool = True
     negative = np.zeros((B, 2), dtype=np.int64)
     pivots = np.empty((B, 2))
     status = np.zeros(B, dtype=np.int64)
+    iterations, last_change = np.ones(B, dtype=np.int64), np.zeros(B)
     solve = kernels_static.compiled_solve()
     import numba
     threads = kernels_static.THREADS
@@ -230,7 +265,9 @@ def solve_prepared(prep: Prepared, P: np.ndarray, *, check_buckling: bool = True
     chunks = max(1, min(B, threads if B * Fn.shape[1] >= 64 else 1))
     args = (kernels_static.INV_FACT, lay.seg_off, lay.L, lay.EA, lay.EI, lay.rigid, prep.factor, P, prep.qloc, prep.Kn,
             Fn, prep.angle, lay.ends, lay.free, count, states, q, reaction, negative, pivots, status, zout, nout,
-            gnode, gstate)
+            gnode, gstate, iteration, np.asarray(weights, dtype=float),
+            np.empty((B, 0, 2, 6)) if start is None else np.ascontiguousarray(start), np.asarray(scales, dtype=float),
+            iterations, last_change)
     if chunks == 1:
         kernels_static.solve_range(0, B, *args)      # no parallel region: its start costs ~0.4 ms
     else:
@@ -239,6 +276,24 @@ def solve_prepared(prep: Prepared, P: np.ndarray, *, check_buckling: bool = True
         states = (zout, nout, gstate)
     elif node_loads is None:
         states, q, reaction = states[:, 0], q[:, 0], reaction[:, 0]
+    return states, q, reaction, negative, pivots, status, iterations, last_change
+
+
+def _check_tension(prep, P):
+    lay = prep.layout
+    s = P * lay.L**2 / (lay.EI * prep.factor)
+    if np.any(s > 700.0**2):
+        raise InputError(f"segment tension parameter P*L^2/EI = {float(np.max(s)):.4g} overflows cosh; "
+                         "split the link into more segments")
+    return s
+
+
+def _checked(prep, P, out, check_buckling, cond_limit):
+    """``(states, q, reaction, inertia count)`` of a compiled call, after its checks (singular
+    structure, pivot ratio, buckling at the axial forces ``P``)."""
+    from .buckling import buckling_message, clamped_clamped_buckling_count
+    states, q, reaction, negative, pivots, status = out[:6]
+    lay = prep.layout
     if np.any(status == 1):
         raise SingularStructureError("instantaneous structure is singular: no stiffness at a joint DOF "
                                      f"(batch entries {np.flatnonzero(status == 1)[:5].tolist()})")
@@ -251,7 +306,7 @@ def solve_prepared(prep: Prepared, P: np.ndarray, *, check_buckling: bool = True
             f"{float(condition[worst]):.3g} at batch index ({worst},)): a toggle position (collinear links at a "
             "revolute), an unconstrained joint, a member at its buckling load, or a speed at a natural frequency")
     total = negative[:, 0] + negative[:, 1]
-    total = total + np.sum(np.where(lay.rigid, 0, clamped_clamped_buckling_count(s)), -1)
+    total = total + np.sum(np.where(lay.rigid, 0, clamped_clamped_buckling_count(_check_tension(prep, P))), -1)
     if check_buckling and np.any(total > 0):
         raise BucklingError(buckling_message(prep.structure, {m.name: P[:, lay.seg_off[i]:lay.seg_off[i + 1]]
                                                               for i, m in enumerate(prep.structure.members)}, total))
@@ -313,46 +368,14 @@ def stack_segments(prep: Prepared, per_member: Mapping[str, np.ndarray]) -> np.n
 def solve_static(structure, case, *, beam_column: bool = False, tol: float = 1e-10, max_iter: int = 200,
                  count_inertia: bool | None = None):
     """Compiled equivalent of :func:`tmm_core.statics.solve_static` (linear or beam-column, not
-    large deflection): the same successive linear solutions, relaxation and stopping rule, on
-    the stacked arrays of one :class:`Prepared` batch."""
-    from .statics import StaticSolution, iteration_converged
-    mode = "beam_column" if beam_column else "linear"
+    large deflection): the same successive linear solutions, relaxation and stopping rule for
+    every configuration, in one compiled call (:func:`iterate_prepared`)."""
+    from .statics import StaticSolution
     prep = prepare(structure, case)
-    lay = prep.layout
-    P = np.zeros(prep.factor.shape)
-    res = solve_prepared(prep, P, count_inertia=count_inertia)
     if not beam_column:
-        return StaticSolution(linear_solution(prep, P, *res), mode, 1, 0.0)
-    # Stacked forms of the iteration of tmm_core.statics: segment s of member i lies between
-    # nodes s + i and s + i + 1; the change is weighted by the longest member.
-    left = np.arange(int(lay.seg_off[-1])) + np.repeat(np.arange(len(lay.seg_off) - 1), np.diff(lay.seg_off))
-    Lc = max(m.length for m in structure.members)
-    w = np.array([1.0, 1.0, Lc, 1.0 / Lc, 1.0, 1.0])
-
-    def axial(states):
-        return np.where(lay.rigid, 0.0, 0.5 * (states[:, left, 1, 5] + states[:, left + 1, 0, 5]))
-
-    def change(new, old):
-        # NaN anywhere: non-finite (the compiled maxima skip NaN, so check it here).
-        if not (np.isfinite(new[:, 0, 0, 0]).all() and np.isfinite(new).all()):
-            return float("nan")
-        dd, dscale, df, fscale = kernels_static.compiled_change()(new, old, w)
-        return max(dd / dscale if dscale > 0 else 0.0, df / fscale if fscale > 0 else 0.0)
-
-    relax, prev_change, changes = 1.0, np.inf, []
-    P = axial(res[0])
-    for it in range(2, max_iter + 1):
-        new = solve_prepared(prep, P, count_inertia=count_inertia)
-        ch = change(new[0], res[0])
-        if not np.isfinite(ch):
-            raise ConvergenceError(f"{mode} iteration produced non-finite values at iteration {it}")
-        res, P_used = new, P
-        changes.append(ch)
-        if iteration_converged(changes, tol):
-            return StaticSolution(linear_solution(prep, P_used, *res), mode, it, ch)
-        if ch > prev_change and relax > 0.15:
-            relax *= 0.5
-        prev_change = ch
-        P = P + relax * (axial(res[0]) - P)
-    raise ConvergenceError(f"{mode} iteration did not converge in {max_iter} iterations "
-                           f"(last relative change {ch:.3g}, tolerance {tol:.3g})")
+        P = np.zeros(prep.factor.shape)
+        return StaticSolution(linear_solution(prep, P, *solve_prepared(prep, P, count_inertia=count_inertia)),
+                              "linear", 1, 0.0)
+    P, res, iterations, last_change = iterate_prepared(prep, tol=tol, max_iter=max_iter, count_inertia=count_inertia)
+    return StaticSolution(linear_solution(prep, P, *res), "beam_column", int(np.max(iterations)),
+                          float(np.max(last_change)))
