@@ -36,9 +36,10 @@ iteration instead of one per solve (each region's start woke the second thread, 
 2-core machine), and no solves for configurations that have converged.
 
 Measured (FE rig at 241 rpm, 8 segments per link, 360 positions, side by side with numpy,
-``tests/benchmarks/factorization_benchmark.py``): a beam-column quasi-static revolution 11x faster
-(7.9 ms best, 10.2 ms median; 11.7 / 13.8 ms with one region per solve), the time domain's
-configurations with their maps 5x faster (16 segments per link: 10x and 6x).
+``tests/benchmarks/factorization_benchmark.py``): a beam-column quasi-static revolution 9-11x faster
+(best 7.9-9.7 ms, median 10.2-15 ms with the machine's noise; 15-30 % more with one region per
+solve), the time domain's configurations with their maps 5x faster (16 segments per link: 10x
+and 6x).
 """
 from __future__ import annotations
 

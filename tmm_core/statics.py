@@ -92,8 +92,9 @@ def change_weights(longest_member_m: float) -> np.ndarray:
 def change_scales(states, weights) -> tuple:
     """``(largest |displacement|, largest |force|)`` of station-state arrays ``(..., 2, 6)``
     weighted by ``weights``: what the iteration's changes are relative to."""
-    return (max(float(np.max(np.abs(x[..., :3] * weights[:3]), initial=0.0)) for x in states),
-            max(float(np.max(np.abs(x[..., 3:] * weights[3:]), initial=0.0)) for x in states))
+    scaled = [np.abs(x * weights) for x in states]
+    return (max(float(np.max(a[..., :3], initial=0.0)) for a in scaled),
+            max(float(np.max(a[..., 3:], initial=0.0)) for a in scaled))
 
 
 def _change(new: LinearSolution, old: LinearSolution, weights, scales) -> np.ndarray:
