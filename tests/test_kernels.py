@@ -117,6 +117,23 @@ def test_compiled_quasi_static_revolution_equals_numpy():
             assert _rel(runs[0].gauges[g][k], runs[1].gauges[g][k]) < 1e-12, g
 
 
+def test_beam_column_iteration_that_cannot_meet_its_tolerance_fails_alike_in_both_paths():
+    """At an unreachable tolerance the iteration stops at ``max_iter`` solves with
+    ConvergenceError in the numpy path and in the compiled one (which iterates each position in
+    the kernel and reports the positions that did not converge)."""
+    from tmm_core import ConvergenceError, structure_compiled
+    from tmm_core.statics import solve_static
+    _, mech, case = _fe_quasi_static_case(positions=12)
+    structure = mech.structure()
+    for solver in (solve_static, structure_compiled.solve_static):
+        with pytest.raises(ConvergenceError, match="did not converge in 3 iterations"):
+            solver(structure, case, beam_column=True, tol=1e-30, max_iter=3, count_inertia=True)
+    # A reachable tolerance: both converge, after the same number of solves.
+    runs = [solver(structure, case, beam_column=True, tol=1e-8, max_iter=8, count_inertia=True)
+            for solver in (solve_static, structure_compiled.solve_static)]
+    assert runs[0].iterations == runs[1].iterations <= 8
+
+
 @pytest.mark.parametrize("segments", [1, 4])
 def test_inertia_count_of_a_pinned_pinned_column_changes_exactly_at_the_euler_load(segments):
     """Wittrick-Williams count from the factorization's pivots (no eigenvalue problem): a
