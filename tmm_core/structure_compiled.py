@@ -196,8 +196,9 @@ def solve_prepared(prep: Prepared, P: np.ndarray, *, check_buckling: bool = True
     :class:`BucklingError` (:mod:`tmm_core.kernels_static`)."""
     # A writable copy: the kernel is compiled for writable arrays (an iteration updates P).
     P = np.array(np.broadcast_to(np.asarray(P, dtype=float), prep.factor.shape))
+    s = _tension_parameter(prep, P)
     out = _run(prep, P, check_buckling, count_inertia, node_loads, compact_nodes, (0.0, 1, False))
-    return _checked(prep, P, out, check_buckling, cond_limit)
+    return _checked(prep, P, s, out, check_buckling, cond_limit)
 
 
 def iterate_prepared(prep: Prepared, *, tol: float, max_iter: int, check_buckling: bool = True,
@@ -218,6 +219,7 @@ def iterate_prepared(prep: Prepared, *, tol: float, max_iter: int, check_bucklin
     left = np.arange(int(lay.seg_off[-1])) + np.repeat(np.arange(len(lay.seg_off) - 1), np.diff(lay.seg_off))
     P = np.where(lay.rigid, 0.0, 0.5 * (start[:, left, 1, 5] + start[:, left + 1, 0, 5]))
     recount = count_inertia is None and check_buckling
+    _tension_parameter(prep, P)
     out = _run(prep, P, check_buckling, count_inertia, None, None, (float(tol), int(max_iter), recount),
                weights, start, scales)
     status, iterations, last_change = out[5], out[6], out[7]
@@ -226,13 +228,15 @@ def iterate_prepared(prep: Prepared, *, tol: float, max_iter: int, check_bucklin
             at = np.flatnonzero(status == code)
             raise ConvergenceError(f"beam_column iteration {what} at batch entries {at[:5].tolist()} (last relative "
                                    f"change {float(np.max(last_change[at])):.3g}, tolerance {tol:.3g})")
-    return P, _checked(prep, P, out, check_buckling, cond_limit), iterations, last_change
+    # The last axial forces, checked as every solve's are.
+    return P, _checked(prep, P, _tension_parameter(prep, P), out, check_buckling, cond_limit), iterations, last_change
 
 
 def _run(prep, P, check_buckling, count_inertia, node_loads, compact_nodes, iteration, weights=np.ones(6),
          start=None, scales=np.ones(2)):
     """The compiled call: ``(states, q, reaction, negative, pivots, status, iterations,
-    last_change)``; ``P`` is updated in place by an iteration."""
+    last_change)``; ``P`` is updated in place by an iteration (checked by the caller:
+    :func:`_tension_parameter`)."""
     lay = prep.layout
     B, S = prep.factor.shape
     if count_inertia is None:
@@ -240,7 +244,6 @@ def _run(prep, P, check_buckling, count_inertia, node_loads, compact_nodes, iter
                           for i in range(len(lay.seg_off) - 1)], dtype=np.bool_)
     else:
         count = np.full(len(lay.seg_off) - 1, bool(count_inertia))
-    _check_tension(prep, P)
     nd = len(lay.labels)
     Fn = prep.Fn[:, None] if node_loads is None else node_loads
     R = Fn.shape[1]
@@ -279,7 +282,8 @@ def _run(prep, P, check_buckling, count_inertia, node_loads, compact_nodes, iter
     return states, q, reaction, negative, pivots, status, iterations, last_change
 
 
-def _check_tension(prep, P):
+def _tension_parameter(prep, P):
+    """``P L^2 / EI`` of every segment ``(B, S)``; refused where cosh would overflow."""
     lay = prep.layout
     s = P * lay.L**2 / (lay.EI * prep.factor)
     if np.any(s > 700.0**2):
@@ -288,9 +292,9 @@ def _check_tension(prep, P):
     return s
 
 
-def _checked(prep, P, out, check_buckling, cond_limit):
+def _checked(prep, P, s, out, check_buckling, cond_limit):
     """``(states, q, reaction, inertia count)`` of a compiled call, after its checks (singular
-    structure, pivot ratio, buckling at the axial forces ``P``)."""
+    structure, pivot ratio, buckling at the axial forces ``P``, tension parameters ``s``)."""
     from .buckling import buckling_message, clamped_clamped_buckling_count
     states, q, reaction, negative, pivots, status = out[:6]
     lay = prep.layout
@@ -306,7 +310,7 @@ def _checked(prep, P, out, check_buckling, cond_limit):
             f"{float(condition[worst]):.3g} at batch index ({worst},)): a toggle position (collinear links at a "
             "revolute), an unconstrained joint, a member at its buckling load, or a speed at a natural frequency")
     total = negative[:, 0] + negative[:, 1]
-    total = total + np.sum(np.where(lay.rigid, 0, clamped_clamped_buckling_count(_check_tension(prep, P))), -1)
+    total = total + np.sum(np.where(lay.rigid, 0, clamped_clamped_buckling_count(s)), -1)
     if check_buckling and np.any(total > 0):
         raise BucklingError(buckling_message(prep.structure, {m.name: P[:, lay.seg_off[i]:lay.seg_off[i + 1]]
                                                               for i, m in enumerate(prep.structure.members)}, total))
