@@ -151,6 +151,31 @@ def test_frames_drawn_in_one_batch_equal_the_frame_by_frame_drawing():
     assert linkage.frames(mixed, stations, 2.0)[2] == [3, 3, 1]
 
 
+def test_frames_are_stacked_in_blocks_and_drawn_as_frame_by_frame():
+    """A batch's linkage frames travel stacked per link (few arrays to pickle); a new block starts
+    where the links or a link's node count change, and the blocks draw as the frames do."""
+    from cosim.recording.batch import frame_blocks
+    rng = np.random.default_rng(7)
+    frames = [(0.1 * i, 0.2 * i, {"coupler": rng.normal(size=(5 if i < 3 else 6, 2)), "rocker": rng.normal(size=(4, 2))})
+              for i in range(5)]
+    frames.append((0.5, 1.0, {"coupler": rng.normal(size=(6, 2))}))
+    blocks = frame_blocks(frames)
+    assert [len(b.t) for b in blocks] == [3, 2, 1]
+    assert [sorted(b.nodes) for b in blocks] == [["coupler", "rocker"]] * 2 + [["coupler"]]
+    np.testing.assert_array_equal(np.concatenate([b.t for b in blocks]), [f[0] for f in frames])
+    np.testing.assert_array_equal(np.concatenate([b.angle for b in blocks]), [f[1] for f in frames])
+    np.testing.assert_array_equal(blocks[1].nodes["coupler"][1], frames[4][2]["coupler"])
+    stations = {"rocker": np.linspace(0.0, 0.2, 4)}
+    for block, group in zip(blocks, (frames[:3], frames[3:5], frames[5:])):
+        got = linkage.block_strips(block.nodes, len(block.t), stations, 5.0)
+        want = linkage.frames([f[2] for f in group], stations, 5.0)
+        assert got[2] == want[2]
+        for g, w in zip(got[0] + got[1], want[0] + want[1]):
+            np.testing.assert_array_equal(g, w)
+    assert frame_blocks([]) == []
+    assert len(frame_blocks(frames[:3])) == 1
+
+
 def test_line_strips_built_in_one_piece_equal_rerun_s_own_conversion():
     rr = pytest.importorskip("rerun")
     from cosim.recording.writer import strips_array

@@ -101,8 +101,7 @@ def stack_frames(frames_nodes: list) -> dict | None:
 
 def frames(frames_nodes: list, stations_by_link: dict | None, factor: float) -> tuple:
     """:func:`frame` of many frames at once: ``(straight strips, deformed strips, strips per
-    frame)``, the strips of all frames in order. The arithmetic is batched over the frames of
-    each link (one frame at a time cost ~0.25 ms a frame, more than a transfer-matrix step)."""
+    frame)``, the strips of all frames in order; :func:`block_strips` when the frames stack."""
     stacked = stack_frames(frames_nodes)
     if stacked is None:
         straight, deformed, counts = [], [], []
@@ -112,15 +111,25 @@ def frames(frames_nodes: list, stations_by_link: dict | None, factor: float) -> 
             deformed += d
             counts.append(len(s))
         return straight, deformed, counts
+    return block_strips(stacked, len(frames_nodes), stations_by_link, factor)
+
+
+def block_strips(stacked: dict, n_frames: int, stations_by_link: dict | None, factor: float) -> tuple:
+    """:func:`frame` of ``n_frames`` frames stacked per link (``{link: (F, n, 2)}``, e.g. a
+    :class:`cosim.recording.batch.FrameBlock`'s nodes): ``(straight strips, deformed strips,
+    strips per frame)``. The arithmetic is batched over the frames of each link (one frame at a
+    time cost ~0.25 ms a frame, more than a transfer-matrix step); a link with a non-finite node
+    is left out of that frame."""
     drawn = []
     for link, nodes in stacked.items():
-        if nodes.shape[1] < 2:
+        nodes = np.asarray(nodes, dtype=float)
+        if nodes.ndim != 3 or nodes.shape[-1] != 2 or nodes.shape[1] < 2:
             continue
         frac = fractions((stations_by_link or {}).get(link), nodes.shape[1])
         line = chord(nodes, frac)
         drawn.append((nodes[:, [0, -1]], line + factor * (nodes - line), np.isfinite(nodes).all(axis=(1, 2))))
     straight, deformed, counts = [], [], []
-    for i in range(len(frames_nodes)):
+    for i in range(n_frames):
         count = 0
         for ends, shape, finite in drawn:
             if finite[i]:

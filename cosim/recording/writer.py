@@ -58,7 +58,7 @@ class StreamWriter:
         self.stations = {e: dict(s or {}) for e, s in (stations or {}).items()}
         self._buffers: dict[str, list] = {}          # entity -> [(t, angle, values)]
         self._declared: set = set()
-        self._frames: dict[str, list] = {}           # engine -> [(t, angle, {link: nodes})]
+        self._frames: dict[str, list] = {}           # engine -> [cosim.recording.batch.FrameBlock]
         self._history: dict[str, list] = {}          # engine -> [(t, angle)]
         self._engines: list = []
         self._references: list = []
@@ -183,29 +183,30 @@ class StreamWriter:
 
     # -- linkage -----------------------------------------------------------------------------------
     def _send_frames(self):
-        frames = {e: f for e, f in self._frames.items() if f}
+        frames = {e: blocks for e, blocks in self._frames.items() if blocks}      # {engine: [FrameBlock]}
         if not frames:
             return
         if self.exaggeration is None:
             # The factor is fixed by the first frames sent: with a file only, the whole run.
-            largest = 0.0
-            for e, fs in frames.items():
-                stacked = drawing.stack_frames([nodes for _, _, nodes in fs])
-                for nodes in ([stacked] if stacked is not None else [n for _, _, n in fs]):
-                    largest = max(largest, drawing.largest_offset(nodes, self.stations.get(e)))
+            largest = max(drawing.largest_offset(b.nodes, self.stations.get(e)) for e, bs in frames.items() for b in bs)
             longest = max([length for _, length in self.spec.links] or [0.0])
             self.exaggeration = drawing.auto_factor(largest, longest)
             self._send_blueprint()
         k = self.exaggeration
-        for engine, rows in frames.items():
+        for engine, blocks in frames.items():
             e = part(engine)
-            straight, deformed, counts = drawing.frames([nodes for _, _, nodes in rows], self.stations.get(engine), k)
-            index = time_columns([r[0] for r in rows], [r[1] for r in rows])
+            straight, deformed, counts = [], [], []
+            for b in blocks:
+                s, d, c = drawing.block_strips(b.nodes, len(b.t), self.stations.get(engine), k)
+                straight += s
+                deformed += d
+                counts += c
+            index = time_columns(np.concatenate([b.t for b in blocks]), np.concatenate([b.angle for b in blocks]))
             self.rec.send_columns(f"/{e}/linkage/straight", indexes=index,
                                   columns=rr.LineStrips2D.columns(strips=strips_array(straight)).partition(counts))
             self.rec.send_columns(f"/{e}/linkage/deformed", indexes=index,
                                   columns=rr.LineStrips2D.columns(strips=strips_array(deformed)).partition(counts))
-            rows.clear()
+            blocks.clear()
 
     def _legend(self):
         """The linkage view's engine legend: a labelled dot per engine in its colour, at the view's
