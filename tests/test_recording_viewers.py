@@ -146,3 +146,23 @@ def test_spawn_without_a_display_says_so_and_records(tmp_path):
                          timeout=300, env=env)
     assert res.returncode == 0 and b"warning: --spawn: no display" in res.stderr, res.stderr.decode()[-2000:]
     assert read_back(tmp_path / "r" / "run.rrd")["/tmm/strain/coupler_mid"] > 10
+
+
+def test_the_writer_process_imports_this_cosim_whatever_the_working_directory(tmp_path, monkeypatch):
+    """A run started in a folder holding another ``cosim`` package (another checkout) still records:
+    the child process does not put the working directory first on its path."""
+    from cosim.recording import RecorderProcess
+    from cosim.scenario import load
+    from tests.test_recording import fake_steps, stations_of
+    other = tmp_path / "elsewhere" / "cosim"
+    (other / "recording").mkdir(parents=True)
+    (other / "__init__.py").write_text("raise ImportError('the wrong cosim was imported')\n")
+    (other / "recording" / "__init__.py").write_text("")
+    monkeypatch.chdir(tmp_path / "elsewhere")
+    sc = load("crank_rocker_373rpm")
+    engines = stations_of(sc)
+    rec = RecorderProcess(sc, engines, "prescribed", save_path=tmp_path / "run.rrd")
+    for step in fake_steps(sc, engines, motor=False):
+        rec.log_macro_step(step)
+    assert rec.close() == []
+    assert read_back(tmp_path / "run.rrd")["/tmm/strain/coupler_mid"] > 10

@@ -97,7 +97,9 @@ class RecorderProcess(Recorder):
         root = str(Path(__file__).resolve().parents[2])            # so the child imports this cosim
         env = dict(os.environ, PYTHONPATH=os.pathsep.join(filter(None, [root, os.environ.get("PYTHONPATH")])))
         level = logging.getLogger("cosim").getEffectiveLevel()
-        self._proc = subprocess.Popen([sys.executable, "-m", "cosim.recording.process", str(level)],
+        # -P: not the working directory first on the child's path (another cosim there would be
+        # imported instead of this one).
+        self._proc = subprocess.Popen([sys.executable, "-P", "-m", "cosim.recording.process", str(level)],
                                       stdin=subprocess.PIPE, stdout=subprocess.PIPE, env=env,
                                       start_new_session=True)
         self._thread.start()
