@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import structure_compiled
-from .configuration_batch import StepMaps
+from .configuration_batch import StepFactors, StepMaps
 from .mechanism import torque_from_terms
 from .post import gauge_strains
 from .structure import MemberResult
@@ -29,19 +29,11 @@ def compiled_maps(td, prep, P, motion):
     unit = np.zeros((1, n + 1, n // 3, 3))
     unit[0, np.arange(n), np.arange(n) // 3, np.arange(n) % 3] = 1.0
     lay = prep.layout
-    index = {lab: k for k, lab in enumerate(lay.labels)}
-    supports = [(j.name, j.support) for j in td.structure.joints if j.support != "free"]
     axial = td.axial_force == "dynamic"
     maps = StepMaps.empty(B, n, td.outputs.size, len(td.segments.length) if axial else None)
     negative = np.empty(B, dtype=int)
     drive = td.mech.drive_torque_terms(motion, td.gravity)
-    members = {m.name: (i, m) for i, m in enumerate(td.structure.members)}
-    # The gauges read the right-side state of the node that starts their segment.
-    gauge_at = []
-    for g in td.gauges:
-        i, m = members[g.link]
-        j = int(np.clip(np.searchsorted(m.stations, g.position_m, side="right") - 1, 0, m.n_segments - 1))
-        gauge_at.append(int(lay.node_off[i]) + j)
+    gauge_at = gauge_nodes(td, lay)
     chunk = max(1, int(MAP_CHUNK_BYTES // (8.0 * (n + 1) * (2 * n + 6 * len(td.gauges) + 8))))
     for c0 in range(0, B, chunk):
         sl = slice(c0, min(B, c0 + chunk))
@@ -51,26 +43,7 @@ def compiled_maps(td, prep, P, motion):
         (z, N, gstates), _, reaction, neg = structure_compiled.solve_prepared(
             part, P[sl], check_buckling=False, count_inertia=True, node_loads=unit, compact_nodes=gauge_at)
         negative[sl] = neg                                      # z: (b, n_dof, loads+1), N: (b, n_seg, loads+1)
-        reactions = {}
-        for name, support in supports:
-            r = np.zeros(reaction.shape[:-1] + (3,))
-            r[..., 0] = reaction[..., index[(name, "x")]]
-            r[..., 1] = reaction[..., index[(name, "y")]]
-            if support == "clamped":
-                r[..., 2] = reaction[..., index[(name, "r")]]
-            reactions[name] = r
-        torque = torque_from_terms(reactions, *terms_at(drive, sl))          # (b, loads+1)
-        g_out = []
-        for k, g in enumerate(td.gauges):
-            i, m = members[g.link]
-            # Only the state gauge_strains reads (node j, right side) is real: a broadcast view.
-            gs = np.moveaxis(gstates[:, k], 1, -1)                                    # (b, loads+1, 6)
-            state = np.broadcast_to(gs[:, :, None, None, :], gs.shape[:2] + (m.n_segments + 1, 2, 6))
-            res = MemberResult(m, part.angle[:, i, None], part.origin[m.name][:, None], state,
-                               P[sl, None, lay.seg_off[i]:lay.seg_off[i + 1]], np.zeros((1, 1, m.n_segments)),
-                               part.factor[:, None, lay.seg_off[i]:lay.seg_off[i + 1]])
-            g_out.append(np.stack(gauge_strains(res, g), -1))
-        outs = np.concatenate([torque[..., None]] + g_out, axis=-1) if g_out else torque[..., None]
+        outs = _outputs(td, part, P[sl], sl, drive, reaction, gstates)
         np.subtract(z[:, :, :-1], z[:, :, -1:], out=maps.Z[sl])
         maps.z0[sl] = z[:, :, -1]
         maps.O[sl] = np.swapaxes(outs[:, :-1] - outs[:, -1:], 1, 2)
@@ -80,3 +53,68 @@ def compiled_maps(td, prep, P, motion):
             maps.a0[sl] = N[:, :, -1]
         del z, N, gstates
     return maps, negative
+
+
+def compiled_factors(td, prep, P, motion):
+    """The map-free alternative: every configuration's compiled factorization kept
+    (:func:`tmm_core.structure_compiled.factor_prepared`) and the outputs' affine functionals of
+    the joint reactions and gauge states (their coefficients: the outputs of unit inputs); returns
+    a :class:`StepFactors` and the inertia count ``(B,)``."""
+    B = len(P)
+    lay = prep.layout
+    stored, negative = structure_compiled.factor_prepared(prep, P)
+    gauge_at = gauge_nodes(td, lay)
+    nd, G = len(lay.labels), len(gauge_at)
+    ny = nd + 6 * G
+    Y = np.vstack([np.eye(ny), np.zeros((1, ny))])                         # unit inputs and a zero column
+    reaction = np.broadcast_to(Y[:, :nd], (B, ny + 1, nd))
+    gstates = np.broadcast_to(np.moveaxis(Y[:, nd:].reshape(ny + 1, G, 6), 0, -1), (B, G, 6, ny + 1))
+    outs = _outputs(td, prep, P, slice(0, B), td.mech.drive_torque_terms(motion, td.gravity), reaction, gstates)
+    layout = (lay.seg_off, lay.rigid, np.ascontiguousarray(prep.angle), lay.ends, lay.free,
+              np.asarray(gauge_at, dtype=np.int64))
+    return StepFactors(layout, stored, np.ascontiguousarray(np.swapaxes(outs[:, :-1] - outs[:, -1:], 1, 2)),
+                       np.ascontiguousarray(outs[:, -1])), negative
+
+
+def gauge_nodes(td, lay) -> list:
+    """The compiled node whose right-side state each gauge of ``td`` reads (the node that starts
+    the gauge's segment)."""
+    members = {m.name: (i, m) for i, m in enumerate(td.structure.members)}
+    out = []
+    for g in td.gauges:
+        i, m = members[g.link]
+        j = int(np.clip(np.searchsorted(m.stations, g.position_m, side="right") - 1, 0, m.n_segments - 1))
+        out.append(int(lay.node_off[i]) + j)
+    return out
+
+
+def _outputs(td, part, P, sl, drive, reaction, gstates):
+    """Output rows ``(b, R, n_out)`` (:class:`tmm_core.configuration_batch.OutputLayout`) of the
+    configurations ``sl`` of a batch (``part``: their :class:`structure_compiled.Prepared`,
+    ``P (b, S)`` their axial forces) from R solutions given by their joint forces
+    ``reaction (b, R, nd)`` and the right-side states at the gauge nodes ``gstates (b, G, 6, R)``."""
+    lay = part.layout
+    index = {lab: k for k, lab in enumerate(lay.labels)}
+    reactions = {}
+    for j in td.structure.joints:
+        if j.support == "free":
+            continue
+        r = np.zeros(reaction.shape[:-1] + (3,))
+        r[..., 0] = reaction[..., index[(j.name, "x")]]
+        r[..., 1] = reaction[..., index[(j.name, "y")]]
+        if j.support == "clamped":
+            r[..., 2] = reaction[..., index[(j.name, "r")]]
+        reactions[j.name] = r
+    torque = torque_from_terms(reactions, *terms_at(drive, sl))          # (b, R)
+    members = {m.name: (i, m) for i, m in enumerate(td.structure.members)}
+    g_out = []
+    for k, g in enumerate(td.gauges):
+        i, m = members[g.link]
+        # Only the state gauge_strains reads (node j, right side) is real: a broadcast view.
+        gs = np.moveaxis(gstates[:, k], 1, -1)                                    # (b, R, 6)
+        state = np.broadcast_to(gs[:, :, None, None, :], gs.shape[:2] + (m.n_segments + 1, 2, 6))
+        res = MemberResult(m, part.angle[:, i, None], part.origin[m.name][:, None], state,
+                           P[:, None, lay.seg_off[i]:lay.seg_off[i + 1]], np.zeros((1, 1, m.n_segments)),
+                           part.factor[:, None, lay.seg_off[i]:lay.seg_off[i + 1]])
+        g_out.append(np.stack(gauge_strains(res, g), -1))
+    return np.concatenate([torque[..., None]] + g_out, axis=-1) if g_out else torque[..., None]

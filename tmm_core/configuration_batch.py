@@ -44,6 +44,28 @@ class StepMaps:
 
 
 @dataclass(frozen=True)
+class StepFactors:
+    """The map-free alternative to :class:`StepMaps` (:mod:`tmm_core.kernels_factored`): the
+    compiled factorization of each of B configurations, kept, on which a step solves its loads
+    (memory and work linear in the segments; the maps are quadratic).
+
+    ``layout``: ``(seg_off, rigid, angle (B, M) [rad], ends, free, gauge nodes)`` of the compiled
+    structure; ``stored``: the arrays of :data:`tmm_core.kernels_factored.STORED`, batch axis
+    first; the outputs (:class:`OutputLayout`) are ``Oc[k] @ y + oc[k]`` with ``y`` the joint
+    reactions [N, N m] and the gauge nodes' right-side states of a solve: ``Oc`` (B, n_out, ny),
+    ``oc`` (B, n_out)."""
+
+    layout: tuple
+    stored: tuple
+    Oc: np.ndarray
+    oc: np.ndarray
+
+    @property
+    def nbytes(self) -> int:
+        return int(sum(a.nbytes for a in self.stored) + self.Oc.nbytes + self.oc.nbytes)
+
+
+@dataclass(frozen=True)
 class CrankStates:
     """Crank states of a batch: angle [rad], speed [rad/s], acceleration [rad/s^2], each (B,)."""
 
@@ -68,8 +90,9 @@ class ConfigurationBatch:
     N m]; ``drive``: the drive-torque terms (:meth:`FourBarMechanism.drive_torque_terms`);
     ``P0`` (B, n_seg) or None: the segment axial forces [N] in the field matrices;
     ``indefinite`` (B,): configurations whose step system is not positive definite at ``P0``;
-    ``maps``: :class:`StepMaps` or None (the step then runs Riccati load sweeps on the numpy
-    factorization, built on first use by ``make_factor``). ``cache`` holds what is derived from
+    ``maps``: :class:`StepMaps` or None; ``factors``: :class:`StepFactors` or None (with neither
+    the step runs Riccati load sweeps on the numpy factorization, built on first use by
+    ``make_factor``). ``cache`` holds what is derived from
     the batch once (the factorization, selections of it, the compiled march's packed arrays)."""
 
     crank: CrankStates
@@ -80,6 +103,7 @@ class ConfigurationBatch:
     indefinite: np.ndarray
     maps: StepMaps | None
     make_factor: Callable[[], Any]
+    factors: StepFactors | None = None
     cache: dict = field(default_factory=dict, repr=False, compare=False)
 
     def __len__(self) -> int:

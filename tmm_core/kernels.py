@@ -45,7 +45,10 @@ def compiled_march():
         jit = numba.njit(cache=True, fastmath={"reassoc", "contract"})
         # The inner functions are compiled first and put in the module's namespace, where numba
         # looks up the names march calls.
-        for name in ("_history", "_advance", "_shape_products", "_affine", "_anderson_coefficients"):
+        from . import kernels_factored
+        globals()["factored_solve"] = kernels_factored.compiled_factored()[1]
+        for name in ("_history", "_advance", "_shape_products", "_affine", "_respond", "_output",
+                     "_anderson_coefficients"):
             globals()[name] = jit(globals()[name])
         _COMPILED["march"] = jit(march)
     return _COMPILED["march"]
@@ -115,6 +118,32 @@ def _affine(M, m0, k, v, out):
         out[i] = s_
 
 
+def factored_solve(k, f, layout, stored, work, zn, N, y):
+    """Placeholder: :func:`tmm_core.kernels_factored.factored_solve`, bound at compile time."""
+    raise NotImplementedError
+
+
+def _respond(factored, axial, k, f, Z, z0, A, a0, flayout, fstored, fwork, zn, N, y):
+    """The response of configuration ``k`` to the node loads ``f``: displacements ``zn`` and, with
+    ``axial``, segment axial forces ``N`` from the maps, or, ``factored``, from a solve on the
+    stored factorization (which also gives the output inputs ``y``)."""
+    if factored:
+        factored_solve(k, f, flayout, fstored, fwork, zn, N, y)
+    else:
+        _affine(Z, z0, k, f, zn)
+        if axial:
+            _affine(A, a0, k, f, N)
+
+
+def _output(factored, k, f, O, o0, Oc, oc, y, out):
+    """The outputs of configuration ``k`` for the node loads ``f`` (maps) or the last solve's
+    ``y`` (factored)."""
+    if factored:
+        _affine(Oc, oc, k, y, out)
+    else:
+        _affine(O, o0, k, f, out)
+
+
 def _anderson_coefficients(dR, h, r, gamma, Q, R):
     """Least-squares coefficients ``gamma[:h]`` of ``dR[:, :h] gamma = r`` by modified
     Gram-Schmidt QR (h <= 4 columns). A column whose remaining norm is below 1e-12 of the
@@ -161,14 +190,17 @@ def _anderson_coefficients(dR, h, r, gamma, Q, R):
 
 
 def march(code, params, dt, c_a, c_v, idx,
-          Z, z0, O, o0, A, a0, P0, rigid, omega,
+          Z, z0, O, o0, A, a0, P0, rigid, omega, factored, flayout, fstored, fwork, Oc, oc,
           m, aM, beta_node, seg_start, seg_end, seg_L, seg_EA, seg_beta, seg_K, gauge_seg,
           coriolis, has_kv, dynamic, shortening, own_force, tol_z, tol_P, max_iterations, depth,
           d, v, a, acc, d1, d2, P, out_hist, z_hist, P_hist, iterations):
     """March the steps whose configuration indices are ``idx`` (into the map batch), updating
     the state ``d, v, a, acc, d1, d2`` and the segment axial forces ``P`` in place and writing
     the outputs of each step into ``out_hist`` / ``z_hist`` / ``P_hist`` (rows; an array with no
-    rows is not written) and its iteration count.
+    rows is not written) and its iteration count. The responses come from the maps ``Z, z0, O,
+    o0, A, a0`` or, with ``factored``, from solves on the stored factorizations
+    (:func:`tmm_core.kernels_factored.factored_solve`: ``flayout, fstored, fwork``; the outputs
+    ``Oc @ y + oc``).
     Returns the number of steps done (``len(idx)`` unless a step failed: then the state is that
     of the step before it)."""
     n = d.shape[0]
@@ -188,6 +220,7 @@ def march(code, params, dt, c_a, c_v, idx,
     G = np.empty((ns, 4))
     damp = np.empty(ns)
     outv = np.empty(no)
+    y = np.empty(Oc.shape[2])
     x = np.empty(nx)
     gx = np.empty(nx)
     r = np.empty(nx)
@@ -221,8 +254,8 @@ def march(code, params, dt, c_a, c_v, idx,
                         acc_kh += seg_K[s, p, q] * h_v[i0 + q]
                     loads[i0 + p] -= beta_node[i0 + p] * acc_kh
         if not dynamic:
-            _affine(Z, z0, k, loads, zn)
-            _affine(O, o0, k, loads, outv)
+            _respond(factored, False, k, loads, Z, z0, A, a0, flayout, fstored, fwork, zn, N, y)
+            _output(factored, k, loads, O, o0, Oc, oc, y, outv)
         else:
             for s in range(ns):
                 damp[s] = seg_beta[s] * EAL[s] * (h_v[seg_end[s]] - h_v[seg_start[s]])
@@ -256,8 +289,7 @@ def march(code, params, dt, c_a, c_v, idx,
                     f[i1 + 2] -= dP * G[s, 3]
                 for i in range(n):
                     f[i] += loads[i]
-                _affine(Z, z0, k, f, zn)
-                _affine(A, a0, k, f, N)
+                _respond(factored, True, k, f, Z, z0, A, a0, flayout, fstored, fwork, zn, N, y)
                 for s in range(ns):
                     Pn[s] = N[s] + damp[s] + F[s]
                 finite = True
@@ -278,7 +310,7 @@ def march(code, params, dt, c_a, c_v, idx,
                 dPr = dP_num / (dP_den + scale_P)
                 if dz < tol_z and dPr < tol_P:
                     converged = True
-                    _affine(O, o0, k, f, outv)
+                    _output(factored, k, f, O, o0, Oc, oc, y, outv)
                     if shortening:
                         _shape_products(seg_start, seg_end, seg_L, zn, delta, G)
                         for gi in range(gauge_seg.shape[0]):

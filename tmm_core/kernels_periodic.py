@@ -267,7 +267,9 @@ def trajectory_velocities(integrator, state, zs, dt: float) -> np.ndarray:
 
 def _inputs(td, cfg, dt):
     """The step data :func:`push` reads, from the batch's compiled-march arrays."""
-    Z, z0, _, _, A, _, P0, rigid, omega = td.kernel_data(cfg)
+    if cfg.maps is None:
+        raise ValueError("the compiled periodic solve needs the configurations' load-to-response maps")
+    Z, z0, _, _, A, _, P0, rigid, omega = td.kernel_data(cfg)[:9]
     seg = td.segments
     slots, Hc, Gc, ez = integrator_coefficients(td.integrator, dt)
     _, c_v = td.integrator.coefficients(dt)

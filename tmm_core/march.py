@@ -91,12 +91,13 @@ class March:
 
     def step_many(self, cfg, indices, record_z: bool = True, record_axial: bool = False):
         """Steps through configurations ``indices`` of a batch, compiled when the batch has
-        cached maps (:mod:`tmm_core.kernels`), else one by one in numpy. Returns ``(zs, outs)``:
+        cached maps or stored factorizations (:mod:`tmm_core.kernels`), else one by one in numpy. Returns ``(zs, outs)``:
         displacements ``(k, n_dof)`` (None unless ``record_z``) and outputs ``(k, n_out)``; with
         ``record_axial`` also the segment axial forces ``(k, n_seg)`` of the 'dynamic' step."""
         indices = np.asarray(indices, dtype=np.int64)
         td = self.td
-        if td.compiled and cfg.maps is not None and not self.has_visco and td.integrator.name in kernels.INTEGRATOR_CODES:
+        if td.compiled and (cfg.maps is not None or cfg.factors is not None) and not self.has_visco \
+                and td.integrator.name in kernels.INTEGRATOR_CODES:
             return self._compiled(cfg, indices, record_z, record_axial)
         zs = np.empty((len(indices), td.n_dof)) if record_z else None
         outs = np.empty((len(indices), self.n_out))

@@ -262,10 +262,7 @@ def _run(prep, P, check_buckling, count_inertia, node_loads, compact_nodes, iter
     status = np.zeros(B, dtype=np.int64)
     iterations, last_change = np.ones(B, dtype=np.int64), np.zeros(B)
     solve = kernels_static.compiled_solve()
-    import numba
-    threads = kernels_static.THREADS
-    threads = numba.get_num_threads() if threads is None else max(1, min(int(threads), numba.config.NUMBA_NUM_THREADS))
-    chunks = max(1, min(B, threads if B * Fn.shape[1] >= 64 else 1))
+    chunks = _thread_chunks(B, B * Fn.shape[1])
     args = (kernels_static.INV_FACT, lay.seg_off, lay.L, lay.EA, lay.EI, lay.rigid, prep.factor, P, prep.qloc, prep.Kn,
             Fn, prep.angle, lay.ends, lay.free, count, states, q, reaction, negative, pivots, status, zout, nout,
             gnode, gstate, iteration, np.asarray(weights, dtype=float),
@@ -280,6 +277,63 @@ def _run(prep, P, check_buckling, count_inertia, node_loads, compact_nodes, iter
     elif node_loads is None:
         states, q, reaction = states[:, 0], q[:, 0], reaction[:, 0]
     return states, q, reaction, negative, pivots, status, iterations, last_change
+
+
+def _thread_chunks(B: int, solves: int) -> int:
+    """Parts of a batch of ``B`` configurations for the compiled threads (one, without a parallel
+    region, for fewer than 64 solves: a region's start costs ~0.4 ms)."""
+    import numba
+    threads = kernels_static.THREADS
+    threads = numba.get_num_threads() if threads is None else max(1, min(int(threads), numba.config.NUMBA_NUM_THREADS))
+    return max(1, min(B, threads if solves >= 64 else 1))
+
+
+def factor_prepared(prep: Prepared, P: np.ndarray, *, cond_limit: float = 1e12):
+    """The compiled factorization of every configuration of a :class:`Prepared` batch at the
+    stacked segment axial forces ``P (B, S)``, kept for later solves
+    (:mod:`tmm_core.kernels_factored`): ``(stored, inertia count (B,))``, ``stored`` the arrays of
+    :data:`tmm_core.kernels_factored.STORED` with the batch axis first. Raises
+    :class:`SingularStructureError` as :func:`solve_prepared` (no buckling check: the caller
+    reads the inertia count)."""
+    from . import kernels_factored
+    P = np.array(np.broadcast_to(np.asarray(P, dtype=float), prep.factor.shape))
+    s = _tension_parameter(prep, P)
+    lay = prep.layout
+    B = prep.factor.shape[0]
+    M = len(lay.seg_off) - 1
+    mmax = 2 * int(np.max(np.diff(lay.seg_off))) + 1
+    nd, nf = len(lay.labels), len(lay.free)
+    # The chain's factors before its first deformable segment (index 2 j + 1, j its first
+    # flexible segment) are kept up to that index only.
+    nlead = 2 + 2 * max(int(np.argmax(~lay.rigid[lay.seg_off[i]:lay.seg_off[i + 1]])) for i in range(M))
+    shapes = {"lead": (M, nlead, 6, 6), "prefix": (M, nlead, 6, 6), "lcol": (M, 6), "B0": (M, 3, 3), "T220": (M, 3, 3),
+              "SP": (M, mmax, 10), "TL": (M, mmax, 6), "Gis": (M, mmax, 3, 3), "Xs": (M, mmax, 3, 3),
+              "BGis": (M, mmax, 3, 3), "HGis": (M, mmax, 3, 3), "Cs": (M, mmax + 1, 3, 3), "Ds": (M, mmax + 1, 3, 3),
+              "Af": (M, 3, 3), "Bf": (M, 3, 3), "firsts": (M,), "Kfull": (nd, nd), "lu": (nf, nf), "piv": (nf,)}
+    stored = tuple(np.zeros((B,) + shapes[k], dtype=np.int64 if k in ("firsts", "piv") else float)
+                   for k in kernels_factored.STORED)
+    negative = np.zeros((B, 2), dtype=np.int64)
+    pivots = np.empty((B, 2))
+    status = np.zeros(B, dtype=np.int64)
+    factor_batch, _ = kernels_factored.compiled_factored()
+    args = (kernels_static.INV_FACT, lay.seg_off, lay.L, lay.EA, lay.EI, lay.rigid, prep.factor, P, prep.qloc, prep.Kn,
+            prep.angle, lay.ends, lay.free, np.ones(M, dtype=np.bool_), negative, pivots, status, stored)
+    chunks = _thread_chunks(B, B)
+    if chunks == 1:
+        kernels_factored.factor_range(0, B, *args)
+    else:
+        factor_batch(*args, chunks)
+    return stored, _checked(prep, P, s, (None, None, None, negative, pivots, status), False, cond_limit)[3]
+
+
+def stored_bytes(prep: Prepared) -> float:
+    """Memory of :func:`factor_prepared`'s stored factorizations of a batch [bytes]."""
+    lay = prep.layout
+    B, S = prep.factor.shape
+    M = len(lay.seg_off) - 1
+    mmax = 2 * int(np.max(np.diff(lay.seg_off))) + 1
+    nd, nf = len(lay.labels), len(lay.free)
+    return 8.0 * B * (M * (2 * 4 * 36 + 6 + 4 * 9 + 1 + mmax * (16 + 36) + 2 * 9 * (mmax + 1)) + nd * nd + nf * nf + nf)
 
 
 def _tension_parameter(prep, P):

@@ -176,22 +176,50 @@ class StepSolver:
                 .reshape(l.n_nodes, 3)[None, None] for l in self.links}
 
     def kernel_data(self, cfg):
-        """The arrays of a configuration batch the compiled march reads (cached in the batch)."""
+        """The arrays of a configuration batch the compiled march reads (cached in the batch):
+        its maps, or its stored factorizations (:class:`tmm_core.configuration_batch.StepFactors`)
+        with placeholder maps."""
         data = cfg.cache.get("kernel")
         if data is None:
-            maps = cfg.maps
+            maps, fac = cfg.maps, cfg.factors
             B = len(cfg)
-            ns = len(self.segments.length)
+            n, ns, no = self.n_dof, len(self.segments.length), self.outputs.size
             dynamic = self.axial_force == "dynamic"
             motion = cfg.motion
             omega = np.concatenate([np.repeat(np.asarray(motion.link(l.name).omega, float).reshape(B, 1), 3 * l.n_nodes,
                                               axis=1) for l in self.links], axis=1) if self.coupling.coriolis else \
                 np.zeros((1, self.n_dof))
-            data = cfg.cache["kernel"] = tuple(np.ascontiguousarray(x, dtype=float) for x in (
-                maps.Z, maps.z0, maps.O, maps.o0,
-                maps.A if dynamic else np.zeros((1, ns, self.n_dof)), maps.a0 if dynamic else np.zeros((1, ns)),
+            if maps is not None:
+                arrays = (maps.Z, maps.z0, maps.O, maps.o0, maps.A if dynamic else np.zeros((1, ns, n)),
+                          maps.a0 if dynamic else np.zeros((1, ns)))
+            else:
+                arrays = (np.zeros((1, n, n)), np.zeros((1, n)), np.zeros((1, no, n)), np.zeros((1, no)),
+                          np.zeros((1, ns, n)), np.zeros((1, ns)))
+            data = tuple(np.ascontiguousarray(x, dtype=float) for x in arrays + (
                 cfg.P0 if dynamic else np.zeros((1, ns)), cfg.rigid, omega))
+            data += self._factored_data(fac)
+            cfg.cache["kernel"] = data
         return data
+
+    def _factored_data(self, fac):
+        """``(factored, layout, stored, work, Oc, oc)`` of the compiled march: the stored
+        factorizations and the scratch arrays of their solve, or placeholders of the same types."""
+        from . import kernels_factored
+        if fac is None:
+            # Placeholders of the same array types: one compiled march serves both paths.
+            lay = (np.zeros(2, np.int64), np.zeros(1, np.bool_), np.zeros((1, 1)), np.zeros((1, 6), np.int64),
+                   np.zeros(0, np.int64), np.zeros(0, np.int64))
+            stored = tuple(np.zeros((1,) * nd_, dtype=np.int64 if k in ("firsts", "piv") else float)
+                           for k, nd_ in zip(kernels_factored.STORED, (5, 5, 3, 4, 4, 4, 4, 5, 5, 5, 5, 5, 5, 4, 4,
+                                                                        2, 3, 3, 2)))
+            work = kernels_factored.work_arrays(1, 1, 1, 1, 1, 1, 0)
+            return False, lay, stored, work, np.zeros((1, self.outputs.size, 0)), np.zeros((1, self.outputs.size))
+        seg_off = fac.layout[0]
+        M = len(seg_off) - 1
+        mmax = 2 * int(np.max(np.diff(seg_off))) + 1
+        nd, nf, G = fac.stored[16].shape[1], fac.stored[17].shape[1], len(fac.layout[5])
+        work = kernels_factored.work_arrays(M, mmax, self.n_dof // 3, len(self.segments.length), nd, nf, G)
+        return True, fac.layout, fac.stored, work, fac.Oc, fac.oc
 
 
 def terms_at(terms, k):

@@ -46,6 +46,16 @@ from .time_step import AXIAL_FORCE_MODELS, DYNAMIC_TERMS, StepSolver, select, te
 # further revolution costs the maps almost nothing. So the maps are used up to 32 segments per
 # link (and within max_map_bytes); beyond, the sweeps keep the cost linear in the segment count.
 MAP_MAX_DOF = 320
+# With the compiled factorization the alternative to the maps is the compiled march on the stored
+# factorizations (tmm_core.kernels_factored): a set-up of one factorization per configuration
+# instead of n_dof + 1 solves, a step ~2x dearer at small models and as cheap from ~150 DOFs.
+# Measured (one revolution's set-up, then per step; 2-core machine): FE rig 4 segments per link,
+# 1 deg (30 DOFs) 21 / 8 ms, 5.1 / 14.5 us; Alexander-Lawrence 4 segments (45 DOFs) 32 / 11 ms,
+# 9.0 / 21 us; FE rig 8 segments, 0.5 deg (54 DOFs) 60 / 14 ms, 9.2 / 17.9 us; Alexander-Lawrence
+# 8 segments (81 DOFs) 109 / 13 ms, 16.6 / 28.8 us; Watt six-bar 8 segments (135 DOFs) 215 / 25 ms,
+# 25.5 / 32.6 us; FE rig 32 segments (198 DOFs) 446 / 27 ms, 45 / 41 us. The maps repay their
+# set-up after ~5 revolutions at 45-54 DOFs, ~23 at 81 and ~74 at 135: they are built up to 64.
+FACTORS_ABOVE_DOF = 64
 
 
 class TimeDomain(StepSolver):
@@ -199,7 +209,11 @@ class TimeDomain(StepSolver):
         """Factorize the instantaneous structures of a batch of crank states and return the
         affine maps from nodal loads (local, stacked) to nodal displacements, drive torque and
         gauge strains (and, for the 'dynamic' axial force, segment axial forces). ``maps``: True,
-        False, or "auto" (only for models up to MAP_MAX_DOF). ``axial_force``: stacked segment
+        "auto" (the maps only for models up to FACTORS_ABOVE_DOF with the compiled factorization,
+        MAP_MAX_DOF without), "factors" (the compiled factorizations kept instead of maps:
+        :class:`tmm_core.configuration_batch.StepFactors`) or False (the numpy factorization, built
+        when a step asks for it). Beyond max_map_bytes neither maps nor factors are kept.
+        ``axial_force``: stacked segment
         forces ``(B, n_seg)`` [N] for the field matrices instead of the quasi-static estimate."""
         mech = self.mech
         motion = mech.motion(angle, speed, accel)
@@ -224,7 +238,11 @@ class TimeDomain(StepSolver):
         B = len(angle)
         n_rows = self.n_dof + self.outputs.size + (len(self.segments.length) if self.axial_force == "dynamic" else 0)
         n_bytes = 8.0 * B * self.n_dof * n_rows
-        with_maps = bool(maps) and n_bytes <= self.max_map_bytes and not (maps == "auto" and self.n_dof > MAP_MAX_DOF)
+        if maps not in (True, False, "auto", "factors"):
+            raise InputError(f"configurations: maps must be True, False, 'auto' or 'factors', got {maps!r}")
+        compiled = self.compiled_factorization
+        largest = FACTORS_ABOVE_DOF if compiled else MAP_MAX_DOF
+        with_maps = (maps is True or (maps == "auto" and self.n_dof <= largest)) and n_bytes <= self.max_map_bytes
         joints_flat = mech.joint_positions(motion)
         joints = {k: v[:, None, :] for k, v in joints_flat.items()}
         case = LoadCase(joints, {}, {}, {k: v[:, None] for k, v in Kn.items()}, frame="local")
@@ -233,14 +251,23 @@ class TimeDomain(StepSolver):
             return factorize(self.structure, case, None if P is None else {k: v[:, None] for k, v in P.items()},
                              check_buckling=False, stiffness_factor=factors, count_inertia=True)
 
-        use_compiled = with_maps and self.compiled_factorization
-        if use_compiled:
-            # The maps come from the compiled factorization (tmm_core.kernels_static); the numpy
-            # factor is built only if a step asks for it (ConfigurationBatch.factor).
+        prep = None
+        if maps is not False and compiled:
+            # The maps come from the compiled factorization (tmm_core.kernels_static); without
+            # them ('factors', or too many DOFs or bytes) the compiled factorizations are kept
+            # instead (tmm_core.kernels_factored: linear in the segments), within the same memory
+            # budget. The numpy factor is built only if a step asks for it (ConfigurationBatch.factor).
             prep = structure_compiled.prepare(self.structure, LoadCase(joints_flat, {}, {}, Kn, frame="local"),
-                                          stiffness_factor=factors)
+                                              stiffness_factor=factors)
+            if not with_maps and structure_compiled.stored_bytes(prep) > self.max_map_bytes:
+                prep = None
+        step_factors = None
+        if prep is not None:
             P_stacked = structure_compiled.stack_segments(prep, P or {})
-            maps, negative = maps_module.compiled_maps(self, prep, P_stacked, motion)
+            if with_maps:
+                maps, negative = maps_module.compiled_maps(self, prep, P_stacked, motion)
+            else:
+                step_factors, negative = maps_module.compiled_factors(self, prep, P_stacked, motion)
             factor = None
         else:
             factor = make_factor()
@@ -262,9 +289,9 @@ class TimeDomain(StepSolver):
             # Configurations whose estimated axial forces leave the step indefinite: the dynamic
             # step refactorizes them at its own axial forces.
             return ConfigurationBatch(crank, motion, self.stack(loads_local), drive, P0, indefinite, step_maps,
-                                      make_factor, {} if factor is None else {"factor": factor})
-        if use_compiled:
-            return batch(maps)
+                                      make_factor, step_factors, {} if factor is None else {"factor": factor})
+        if prep is not None:
+            return batch(maps if with_maps else None)
         if not with_maps:
             return batch(None)
         unit = {}

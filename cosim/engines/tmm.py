@@ -225,7 +225,7 @@ class TMMEngine:
         batch = None
         rest = np.flatnonzero(hit < 0)
         if len(rest):
-            batch = self.td.configurations(angle[rest], speed[rest], accel[rest], self._dt, maps=False)
+            batch = self.td.configurations(angle[rest], speed[rest], accel[rest], self._dt, maps="factors")
             position = np.full(n, -1, dtype=np.int64)
             position[rest] = np.arange(len(rest))
         runs, i = [], 0

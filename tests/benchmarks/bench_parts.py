@@ -148,11 +148,12 @@ def bench_overhead(rig, macro_multiples, revolutions):
 # -- TMM scaling ------------------------------------------------------------------------------------
 def tmm_scaling(rig, segments, revolutions_list, tiny):
     """Per segment count: a quasi-static revolution (360 positions, beam-column) and a time-domain
-    revolution at 1 deg on the default path (dense maps while they fit) and on the Riccati sweeps
-    alone [s]; above 128 segments per link the sweeps march a quarter revolution (scaled to one).
+    revolution at 1 deg on the default path (dense maps up to FACTORS_ABOVE_DOF, then the stored
+    factorizations), on the maps alone and on the numpy Riccati sweeps alone [s]; above 128
+    segments per link the sweeps march a quarter revolution (scaled to one).
     Per revolution count: wall time [s], fitted as set-up + cost per revolution."""
     from cosim.scenario import load
-    from tmm_core import CrankMotion, TimeDomain, quasi_static as qs_solve
+    from tmm_core import CrankMotion, TimeDomain, quasi_static as qs_solve, transient
     from .bench_accuracy import scenario_for
     sc = load(rig)
     q = np.radians(np.arange(360.0))
@@ -170,18 +171,25 @@ def tmm_scaling(rig, segments, revolutions_list, tiny):
             rows.append({"segments": n, "error": f"{type(exc).__name__}: {exc}"})
             continue
         row = {"segments": n, "quasi_static_revolution_s": time.perf_counter() - tic}
-        # The default path (dense load maps up to MAP_MAX_DOF, then sweeps) and the sweeps alone.
-        for key, limit, budget in (("time_domain_revolution_s", 16 if tiny else 64, None),
-                                   ("time_domain_sweeps_revolution_s", 4 if tiny else 512, 0.0)):
+        # The default path (dense load maps up to FACTORS_ABOVE_DOF, then the compiled march on
+        # stored factorizations), the maps as far as they go, and the numpy Riccati sweeps alone.
+        for key, limit, budget, maps_to in (("time_domain_revolution_s", 16 if tiny else 512, None, None),
+                                            ("time_domain_maps_revolution_s", 8 if tiny else 64, None, 10**9),
+                                            ("time_domain_sweeps_revolution_s", 4 if tiny else 512, 0.0, None)):
             if n > limit:
                 continue
-            revs = 0.25 if n > 128 else 1.0
+            revs = 0.25 if n > 128 and budget is not None else 1.0
             td = TimeDomain(mech, integrator="generalized_alpha", gauges=sc.gauges)
             if budget is not None:
                 td.max_map_bytes = budget
-            tic = time.perf_counter()
-            td.run(CrankMotion.constant_speed(sc.drive.speed_rad_s, step_deg=1.0, revolutions=revs),
-                   start="quasi_static", record_displacements=False)
+            default_limit = transient.FACTORS_ABOVE_DOF
+            transient.FACTORS_ABOVE_DOF = default_limit if maps_to is None else maps_to
+            try:
+                tic = time.perf_counter()
+                td.run(CrankMotion.constant_speed(sc.drive.speed_rad_s, step_deg=1.0, revolutions=revs),
+                       start="quasi_static", record_displacements=False)
+            finally:
+                transient.FACTORS_ABOVE_DOF = default_limit
             row[key] = (time.perf_counter() - tic) / revs
             row[key.replace("_revolution_s", "_revolutions_marched")] = revs
         rows.append(row)
@@ -201,6 +209,7 @@ def tmm_scaling(rig, segments, revolutions_list, tiny):
         return float(np.polyfit(x, y, 1)[0])
     return {"by_segments": rows, "quasi_static_exponent": exponent("quasi_static_revolution_s"),
             "time_domain_exponent": exponent("time_domain_revolution_s"),
+            "time_domain_maps_exponent": exponent("time_domain_maps_revolution_s"),
             "time_domain_sweeps_exponent": exponent("time_domain_sweeps_revolution_s"),
             "by_revolutions": revs, **affine(revs)}
 

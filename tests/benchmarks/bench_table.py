@@ -167,18 +167,20 @@ def scaling_rows(data: dict) -> list[str]:
     if "error" in s:
         return [f"TMM scaling: {s['error']}"]
     rows = ["| segments per link | quasi-static revolution [s] | time-domain revolution, default [s] | "
-            "time-domain revolution, sweeps only [s] |", "|---|---|---|---|"]
+            "time-domain revolution, maps only [s] | time-domain revolution, numpy sweeps only [s] |",
+            "|---|---|---|---|---|"]
     for r in s["by_segments"]:
         part = "" if r.get("time_domain_sweeps_revolutions_marched", 1.0) == 1.0 else \
             f" ({r['time_domain_sweeps_revolutions_marched']:g} revolution, scaled)"
         rows.append(f"| {r['segments']} | {_num(r.get('quasi_static_revolution_s'))} | "
-                    f"{_num(r.get('time_domain_revolution_s'))} | "
+                    f"{_num(r.get('time_domain_revolution_s'))} | {_num(r.get('time_domain_maps_revolution_s'))} | "
                     f"{_num(r.get('time_domain_sweeps_revolution_s'))}{part} |")
     rows.append("")
     def x(key, fmt=".2f"):
         return _num(s.get(key), fmt, "n/a")        # NaN (too few points to fit) is stored as null
     rows.append(f"Fitted exponents in segments: quasi-static {x('quasi_static_exponent')}, time domain "
-                f"{x('time_domain_exponent')} (default), {x('time_domain_sweeps_exponent')} (sweeps only). "
+                f"{x('time_domain_exponent')} (default), {x('time_domain_maps_exponent')} (maps only), "
+                f"{x('time_domain_sweeps_exponent')} (numpy sweeps only). "
                 f"Revolutions: set-up {x('setup_s', '.3g')} s + {x('per_revolution_s', '.3g')} s per revolution, "
                 f"marching exponent {x('marching_exponent')}.")
     return rows

@@ -1,0 +1,136 @@
+"""Compiled factorizations kept per configuration, and a time step's solve on them (numba): the
+map-free path of the compiled march (:mod:`tmm_core.kernels`).
+
+The load-to-response maps of :mod:`tmm_core.compiled_maps` cost ``n_dof + 1`` solves per
+configuration to build and ``O(n_dof^2)`` memory and work per step: quadratic in the segments.
+Here every configuration's factorization (:func:`tmm_core.kernels_factor.factor_configuration`:
+the members' Riccati factors, the joint stiffness and its LU factors) is stored as it is, and a
+step's iteration solves its loads on it (:func:`tmm_core.kernels_static.solve_loads`: the load
+sweep, the joint solve and the back-substitution): ``O(segments)`` memory and work, linear in
+the segments. The outputs (drive torque, gauge strains) are affine in the joint reactions and the
+gauges' station states; their coefficients per configuration come from the Python side
+(:func:`tmm_core.compiled_maps.compiled_factors`).
+
+Owns: the stored factorizations (:func:`factor_range`, :func:`factor_batch`) and the solve of
+one set of node loads on one of them (:func:`factored_solve`). Boundaries: the factorization and
+the load solve themselves are :mod:`tmm_core.kernels_factor` and :mod:`tmm_core.kernels_static`.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from . import kernels_factor, kernels_static
+
+_COMPILED = {}
+numba_prange = range      # numba.prange once compiled
+factor_configuration = kernels_factor.factor_configuration
+solve_loads = kernels_static.solve_loads
+
+#: The stored arrays of one configuration, in the order of the tuple the march reads.
+STORED = ("lead", "prefix", "lcol", "B0", "T220", "SP", "TL", "Gis", "Xs", "BGis", "HGis", "Cs", "Ds", "Af",
+          "Bf", "firsts", "Kfull", "lu", "piv")
+
+
+def compiled_factored():
+    """``(factor_batch, factored_solve)`` compiled (numba, cached on disk)."""
+    if "batch" not in _COMPILED:
+        import numba
+        kernels_static.compiled_solve()           # compiles and binds the factorization and the load solve
+        globals()["factor_configuration"] = kernels_factor.factor_configuration
+        globals()["solve_loads"] = kernels_static.solve_loads
+        globals()["numba_prange"] = numba.prange
+        jit = numba.njit(cache=True, error_model="numpy")
+        globals()["factor_range"] = jit(factor_range)
+        _COMPILED["solve"] = globals()["factored_solve"] = jit(factored_solve)
+        _COMPILED["batch"] = numba.njit(cache=True, error_model="numpy", parallel=True)(factor_batch)
+    return _COMPILED["batch"], _COMPILED["solve"]
+
+
+def factor_batch(inv_fact, seg_off, L, EA, EI, rigid, factor, P, qloc, Kn, angle, ends, free, count, negative, pivots,
+                 status, stored, chunks):
+    """:func:`factor_range` over the whole batch in ``chunks`` parts, in parallel."""
+    B = P.shape[0]
+    for c in numba_prange(chunks):
+        factor_range(B * c // chunks, B * (c + 1) // chunks, inv_fact, seg_off, L, EA, EI, rigid, factor, P, qloc, Kn,
+                     angle, ends, free, count, negative, pivots, status, stored)
+
+
+def factor_range(b_start, b_stop, inv_fact, seg_off, L, EA, EI, rigid, factor, P, qloc, Kn, angle, ends, free, count,
+                 negative, pivots, status, stored):
+    """Factorize the configurations ``b_start <= b < b_stop`` into ``stored`` (the arrays of
+    :data:`STORED`, each with the batch axis first; inputs and ``negative``, ``pivots``,
+    ``status`` as :func:`tmm_core.kernels_static.solve_range`)."""
+    lead, prefix, lcol, B0, T220, SP, TL, Gis, Xs, BGis, HGis, Cs, Ds, Af, Bf, firsts, Kfull, lu, piv = stored
+    M = seg_off.shape[0] - 1
+    nd = Kfull.shape[1]
+    nf = lu.shape[1]
+    Kc = np.zeros((6, 6))
+    T6 = np.zeros((6, 6))
+    t6 = np.zeros(6)
+    tmp6 = np.zeros((6, 6))
+    Kff = np.zeros((nf, nf))
+    Ks = np.zeros((nf, nf))
+    work = np.zeros((max(nf, 3), max(nf, 3)))
+    c5 = np.zeros(5)
+    sp = np.zeros(10)
+    T11 = np.zeros((3, 3))
+    T12 = np.zeros((3, 3))
+    T21 = np.zeros((3, 3))
+    T22 = np.zeros((3, 3))
+    A = np.zeros((3, 3))
+    Bm = np.zeros((3, 3))
+    C = np.zeros((3, 3))
+    D = np.zeros((3, 3))
+    t1 = np.zeros(3)
+    t2 = np.zeros(3)
+    zi = np.array([0, 1, 2])
+    fi = np.array([5, 4, 3])
+    for bi in range(b_start, b_stop):
+        factor_configuration(bi, inv_fact, seg_off, L, EA, EI, rigid, factor, P, qloc, Kn, angle, ends, free, count,
+                             negative, pivots, status, M, nd, nf, lead[bi], prefix[bi], lcol[bi], B0[bi], T220[bi],
+                             SP[bi], TL[bi], Gis[bi], Xs[bi], BGis[bi], HGis[bi], Cs[bi], Ds[bi], Af[bi], Bf[bi],
+                             firsts[bi], Kc, T6, t6, tmp6, Kfull[bi], Kff, Ks, lu[bi], piv[bi], work, c5, sp, T11, T12,
+                             T21, T22, A, Bm, C, D, t1, t2, zi, fi)
+
+
+def work_arrays(M, mmax, Nn, S, nd, nf, G):
+    """The scratch arrays of :func:`factored_solve` (allocated once per march)."""
+    return (np.zeros((1, 1, Nn, 3)), np.zeros((1, 0, Nn, 2, 6)), np.zeros((1, 1, nd)), np.zeros((1, 1, nd)),
+            np.zeros((1, 3 * Nn, 1)), np.zeros((1, S, 1)), np.zeros((1, G, 6, 1)),
+            np.zeros((M, mmax + 1, 6)), np.zeros((M, mmax, 3)), np.zeros((M, mmax + 1, 3)), np.zeros((M, 3)),
+            np.zeros(6), np.zeros(3), np.zeros(3), np.zeros(3), np.zeros(3), np.zeros(3), np.zeros(3), np.zeros(nd),
+            np.zeros(nf), np.zeros(nf), np.zeros(nd), np.zeros(6), np.zeros(3), np.zeros(3), np.zeros(6), np.zeros(6),
+            np.zeros((mmax + 1, 3)), np.zeros((Nn, 2, 6)), np.array([0, 1, 2]), np.array([5, 4, 3]))
+
+
+def factored_solve(k, f, layout, stored, work, zn, N, y):
+    """Solve configuration ``k`` of the stored factorizations for the stacked local node loads
+    ``f (n_dof)`` [N, N m] (the configuration's distributed loads included): node displacements
+    ``zn (n_dof)`` [m, rad] (left side of each node, local frames), segment axial forces ``N (S)``
+    [N, tension +] (mean of the two ends) and ``y (nd + 6 G)``: the joint reactions, then the
+    right-side state of each gauge node (the inputs of the output functionals).
+    ``layout = (seg_off, rigid, angle (B, M), ends, free, gauge nodes)``."""
+    seg_off, rigid, angle, ends, free, gnode = layout
+    lead, prefix, lcol, B0, T220, SP, TL, Gis, Xs, BGis, HGis, Cs, Ds, Af, Bf, firsts, Kfull, lu, piv = stored
+    (Fn, states, q_out, reaction, zout, nout, gstate, pcol, ys, cs, af, t6, t1, t2, a, c, yv, v3, rfull, rhs, xf, qv,
+     zl, zs, ze, qe, S0, zj, stn, zi, fi) = work
+    Nn = Fn.shape[2]
+    for node in range(Nn):
+        for r in range(3):
+            Fn[0, 0, node, r] = f[3 * node + r]
+    M = seg_off.shape[0] - 1
+    nd = Kfull.shape[1]
+    nf = lu.shape[1]
+    solve_loads(0, Fn, seg_off, rigid, angle[k:k + 1], ends, free, states, q_out, reaction, zout, nout, gnode, gstate,
+                1, M, nd, nf, False, True, lead[k], prefix[k], lcol[k], B0[k], T220[k], SP[k], TL[k], Gis[k], Xs[k],
+                BGis[k], HGis[k], Cs[k], Ds[k], Af[k], Bf[k], firsts[k], Kfull[k], lu[k], piv[k], pcol, ys, cs, af, t6,
+                t1, t2, a, c, yv, v3, rfull, rhs, xf, qv, zl, zs, ze, qe, S0, zj, stn, zi, fi)
+    for i in range(3 * Nn):
+        zn[i] = zout[0, i, 0]
+    for s in range(N.shape[0]):
+        N[s] = nout[0, s, 0]
+    for i in range(nd):
+        y[i] = reaction[0, 0, i]
+    for g in range(gnode.shape[0]):
+        for r in range(6):
+            y[nd + 6 * g + r] = gstate[0, g, r, 0]
