@@ -281,7 +281,7 @@ def test_incremental_march_reproduces_the_batched_run():
 def test_load_maps_in_chunks_and_riccati_sweeps_give_the_same_march(monkeypatch):
     """The time domain answers each step either from dense load-to-response maps (built in chunks
     of configurations) or from a Riccati load sweep; the three ways must agree to round-off."""
-    import tmm_core.compiled_maps as maps_module
+    import tmm_core.step_data as maps_module
     mech = alexander_lawrence(3, damping=0.02)
     crank = CrankMotion.constant_speed(400 * RPM, step_deg=4.0, revolutions=1.5)
     gauges = [ROCKER_MID, COUPLER_MID]

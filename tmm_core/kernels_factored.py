@@ -1,7 +1,7 @@
 """Compiled factorizations kept per configuration, and a time step's solve on them (numba): the
 map-free path of the compiled march (:mod:`tmm_core.kernels`).
 
-The load-to-response maps of :mod:`tmm_core.compiled_maps` cost ``n_dof + 1`` solves per
+The load-to-response maps of :mod:`tmm_core.step_data` cost ``n_dof + 1`` solves per
 configuration to build and ``O(n_dof^2)`` memory and work per step: quadratic in the segments.
 Here every configuration's factorization (:func:`tmm_core.kernels_factor.factor_configuration`:
 the members' Riccati factors, the joint stiffness and its LU factors) is stored as it is, and a
@@ -9,7 +9,7 @@ step's iteration solves its loads on it (:func:`tmm_core.kernels_static.solve_lo
 sweep, the joint solve and the back-substitution): ``O(segments)`` memory and work, linear in
 the segments. The outputs (drive torque, gauge strains) are affine in the joint reactions and the
 gauges' station states; their coefficients per configuration come from the Python side
-(:func:`tmm_core.compiled_maps.compiled_factors`).
+(:func:`tmm_core.step_data.compiled_factors`).
 
 Owns: the stored factorizations (:func:`factor_range`, :func:`factor_batch`) and the solve of
 one set of node loads on one of them (:func:`factored_solve`). Boundaries: the factorization and

@@ -24,19 +24,19 @@ from typing import Callable, Mapping, Sequence
 import numpy as np
 
 from . import kernels, structure_compiled
-from .configuration_batch import ConfigurationBatch, CrankStates, OutputLayout, StepMaps
+from .configuration_batch import ConfigurationBatch, CrankStates, OutputLayout
 from .errors import ConvergenceError, DynamicStabilityError, InputError, require_positive
 from .integrators import get_integrator
 from .ked import (Coupling, CrankMotion, KEDResult, coupling_stiffness, node_mass_arrays, quasi_static,
                   rigid_body_loads, segment_forces)
 from .matrices import field_matrix
-from .mechanism import FourBarMechanism, torque_from_terms
-from .post import Gauge, gauge_strains
+from .mechanism import FourBarMechanism
+from .post import Gauge
 from .riccati import segment_stiffness
 from .second_order import Segments
-from . import compiled_maps as maps_module
-from .structure import LoadCase, factorize, solve_factored
-from .time_step import AXIAL_FORCE_MODELS, DYNAMIC_TERMS, StepSolver, select, terms_at
+from . import step_data as maps_module
+from .structure import LoadCase, factorize
+from .time_step import AXIAL_FORCE_MODELS, DYNAMIC_TERMS, StepSolver
 
 # The dense load-to-response maps cost O(n_dof^2) per configuration to build (once per revolution
 # of a periodic run) and a mat-vec per step to apply; without them every step runs the Riccati load
@@ -294,39 +294,7 @@ class TimeDomain(StepSolver):
             return batch(maps if with_maps else None)
         if not with_maps:
             return batch(None)
-        unit = {}
-        for link in self.links:
-            n1 = link.n_nodes
-            U = np.zeros((self.n_dof, n1, 3))
-            off = self.offsets[link.name]
-            U[off:off + 3 * n1].reshape(n1, 3, n1, 3)[np.arange(n1), :, np.arange(n1), :] = np.eye(3)
-            unit[link.name] = U
-        # Unit loads plus one zero-load column (the response to gravity and other base loads).
-        unit = {k: np.concatenate([v, np.zeros((1,) + v.shape[1:])])[None] for k, v in unit.items()}
-        # Solved in chunks of configurations: the station states of every unit load take about
-        # 32 n_dof^2 bytes per configuration (0.5 GB for a revolution at 0.5 deg, 16 segments per link).
-        chunk = max(1, int(maps_module.MAP_CHUNK_BYTES // (32.0 * self.n_dof ** 2)))
-        n_out = self.outputs.size
-        axial = self.axial_force == "dynamic"
-        maps = StepMaps.empty(B, self.n_dof, n_out, len(self.segments.length) if axial else None)
-        for c0 in range(0, B, chunk):
-            sl = slice(c0, min(B, c0 + chunk))
-            sol = solve_factored(factor if (sl.start, sl.stop) == (0, B) else select(factor, sl), unit, frame="local")
-            z = np.concatenate([sol.members[l.name].state[..., 0, :3].reshape(sl.stop - sl.start, self.n_dof + 1, -1)
-                                for l in self.links], axis=-1)                 # (b, loads+1, n_dof)
-            torque = torque_from_terms(sol.reactions, *terms_at(drive, sl))   # (b, loads+1)
-            g_out = [np.stack(gauge_strains(sol.members[g.link], g), -1) for g in self.gauges]
-            outs = np.concatenate([torque[..., None]] + g_out, axis=-1) if g_out else torque[..., None]
-            maps.Z[sl] = np.swapaxes(z[:, :-1] - z[:, -1:], 1, 2)
-            maps.z0[sl] = z[:, -1]
-            maps.O[sl] = np.swapaxes(outs[:, :-1] - outs[:, -1:], 1, 2)
-            maps.o0[sl] = outs[:, -1]
-            if axial:
-                N = np.concatenate([segment_forces(sol.members[l.name]) for l in self.links], axis=-1)
-                maps.A[sl] = np.swapaxes(N[:, :-1] - N[:, -1:], 1, 2)
-                maps.a0[sl] = N[:, -1]
-            del sol
-        return batch(maps)
+        return batch(maps_module.numpy_maps(self, factor, drive))
 
     @property
     def compiled_factorization(self) -> bool:

@@ -1,9 +1,12 @@
-"""The time domain's load-to-response maps from the compiled factorization
-(:mod:`tmm_core.kernels_static`): every unit node load solved on one factorization per
-configuration, in chunks of bounded working memory.
+"""What a time step of :class:`tmm_core.TimeDomain` reads of a batch of configurations, besides
+its loads: the load-to-response maps (:class:`tmm_core.configuration_batch.StepMaps`) from the
+compiled factorization (:mod:`tmm_core.kernels_static`: every unit node load solved on one
+factorization per configuration, in chunks of bounded working memory) or from the numpy one, or
+the stored compiled factorizations with the outputs' functionals
+(:class:`tmm_core.configuration_batch.StepFactors`, :mod:`tmm_core.kernels_factored`).
 
-Owns: the compiled maps. Boundaries: the numpy maps and everything else of a configuration are
-:meth:`tmm_core.TimeDomain.configurations`.
+Owns: the step's maps and stored factorizations. Boundaries: which of them a batch gets, and
+everything else of a configuration, is :meth:`tmm_core.TimeDomain.configurations`.
 """
 from __future__ import annotations
 
@@ -11,10 +14,11 @@ import numpy as np
 
 from . import structure_compiled
 from .configuration_batch import StepFactors, StepMaps
+from .ked import segment_forces
 from .mechanism import torque_from_terms
 from .post import gauge_strains
-from .structure import MemberResult
-from .time_step import terms_at
+from .structure import MemberResult, solve_factored
+from .time_step import select, terms_at
 
 MAP_CHUNK_BYTES = 64e6       # working memory of one chunk of the map solve
 
@@ -118,3 +122,43 @@ def _outputs(td, part, P, sl, drive, reaction, gstates):
                            part.factor[:, None, lay.seg_off[i]:lay.seg_off[i + 1]])
         g_out.append(np.stack(gauge_strains(res, g), -1))
     return np.concatenate([torque[..., None]] + g_out, axis=-1) if g_out else torque[..., None]
+
+
+def numpy_maps(td, factor, drive):
+    """The load-to-response maps (:class:`StepMaps`) of a :class:`tmm_core.TimeDomain` ``td`` from
+    its numpy factorization ``factor`` of B configurations (batch (B, 1)): every unit node load
+    solved by Riccati sweeps (:func:`tmm_core.structure.solve_factored`), in chunks."""
+    B = factor.batch[0]
+    unit = {}
+    for link in td.links:
+        n1 = link.n_nodes
+        U = np.zeros((td.n_dof, n1, 3))
+        off = td.offsets[link.name]
+        U[off:off + 3 * n1].reshape(n1, 3, n1, 3)[np.arange(n1), :, np.arange(n1), :] = np.eye(3)
+        unit[link.name] = U
+    # Unit loads plus one zero-load column (the response to gravity and other base loads).
+    unit = {k: np.concatenate([v, np.zeros((1,) + v.shape[1:])])[None] for k, v in unit.items()}
+    # Solved in chunks of configurations: the station states of every unit load take about
+    # 32 n_dof^2 bytes per configuration (0.5 GB for a revolution at 0.5 deg, 16 segments per link).
+    chunk = max(1, int(MAP_CHUNK_BYTES // (32.0 * td.n_dof ** 2)))
+    n_out = td.outputs.size
+    axial = td.axial_force == "dynamic"
+    maps = StepMaps.empty(B, td.n_dof, n_out, len(td.segments.length) if axial else None)
+    for c0 in range(0, B, chunk):
+        sl = slice(c0, min(B, c0 + chunk))
+        sol = solve_factored(factor if (sl.start, sl.stop) == (0, B) else select(factor, sl), unit, frame="local")
+        z = np.concatenate([sol.members[l.name].state[..., 0, :3].reshape(sl.stop - sl.start, td.n_dof + 1, -1)
+                            for l in td.links], axis=-1)                 # (b, loads+1, n_dof)
+        torque = torque_from_terms(sol.reactions, *terms_at(drive, sl))   # (b, loads+1)
+        g_out = [np.stack(gauge_strains(sol.members[g.link], g), -1) for g in td.gauges]
+        outs = np.concatenate([torque[..., None]] + g_out, axis=-1) if g_out else torque[..., None]
+        maps.Z[sl] = np.swapaxes(z[:, :-1] - z[:, -1:], 1, 2)
+        maps.z0[sl] = z[:, -1]
+        maps.O[sl] = np.swapaxes(outs[:, :-1] - outs[:, -1:], 1, 2)
+        maps.o0[sl] = outs[:, -1]
+        if axial:
+            N = np.concatenate([segment_forces(sol.members[l.name]) for l in td.links], axis=-1)
+            maps.A[sl] = np.swapaxes(N[:, :-1] - N[:, -1:], 1, 2)
+            maps.a0[sl] = N[:, -1]
+        del sol
+    return maps
