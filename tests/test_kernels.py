@@ -94,6 +94,38 @@ def test_the_engine_uses_the_compiled_path_and_gets_the_same_answer():
     np.testing.assert_allclose(runs[1].drive_torque, runs[0].drive_torque, rtol=1e-7, atol=1e-9)
 
 
+def test_motor_driven_steps_use_the_stored_factorizations_and_agree_with_numpy():
+    """Motor-driven (the crank speed varies): the steps off the cached revolution are factorized per
+    macro step and marched on the stored factorizations (maps='factors'), not in numpy as before
+    (1 revolution of the FE rig at 373 rpm: 7.9 -> 0.64 s); same answer as the numpy path."""
+    from cosim.engines import make_engine
+    from cosim.master import CoSimulation
+    from tmm_core import step_data
+    sc = load("crank_rocker_373rpm")
+    runs, calls = [], []
+    original_init, original_factors = TimeDomain.__init__, step_data.compiled_factors
+
+    def counted(*a, **k):
+        calls.append(1)
+        return original_factors(*a, **k)
+    for compiled in (False, True):
+        def init(self, *a, _c=compiled, **k):
+            original_init(self, *a, **k)
+            self.compiled = _c and kernels.AVAILABLE
+        TimeDomain.__init__, step_data.compiled_factors = init, counted
+        try:
+            res = CoSimulation(sc, {"tmm": make_engine("tmm")}, mode="motor").run(revolutions=0.15)
+        finally:
+            TimeDomain.__init__, step_data.compiled_factors = original_init, original_factors
+        runs.append(res["tmm"].run)
+        assert res["tmm"].status == "completed"
+    assert len(calls) > 5                 # every macro step of the compiled run
+    np.testing.assert_allclose(runs[1].drive_torque, runs[0].drive_torque, rtol=1e-9, atol=1e-9 * np.max(
+        np.abs(runs[0].drive_torque)))
+    for g, (bending, _) in runs[0].gauges.items():
+        np.testing.assert_allclose(runs[1].gauges[g][0], bending, rtol=0, atol=1e-9 * np.max(np.abs(bending)))
+
+
 # -- the compiled factorization (tmm_core.kernels_static) ---------------------------------------
 def _fe_quasi_static_case(segments=8, positions=72):
     from tmm_core.ked import Coupling, coupling_stiffness, rigid_body_loads

@@ -47,8 +47,7 @@ def compiled_march():
         # looks up the names march calls.
         from . import kernels_factored
         globals()["factored_solve"] = kernels_factored.compiled_factored()[1]
-        for name in ("_history", "_advance", "_shape_products", "_affine", "_respond", "_output",
-                     "_anderson_coefficients"):
+        for name in ("_history", "_advance", "_shape_products", "_affine", "_anderson_coefficients"):
             globals()[name] = jit(globals()[name])
         _COMPILED["march"] = jit(march)
     return _COMPILED["march"]
@@ -121,27 +120,6 @@ def _affine(M, m0, k, v, out):
 def factored_solve(k, f, layout, stored, work, zn, N, y):
     """Placeholder: :func:`tmm_core.kernels_factored.factored_solve`, bound at compile time."""
     raise NotImplementedError
-
-
-def _respond(factored, axial, k, f, Z, z0, A, a0, flayout, fstored, fwork, zn, N, y):
-    """The response of configuration ``k`` to the node loads ``f``: displacements ``zn`` and, with
-    ``axial``, segment axial forces ``N`` from the maps, or, ``factored``, from a solve on the
-    stored factorization (which also gives the output inputs ``y``)."""
-    if factored:
-        factored_solve(k, f, flayout, fstored, fwork, zn, N, y)
-    else:
-        _affine(Z, z0, k, f, zn)
-        if axial:
-            _affine(A, a0, k, f, N)
-
-
-def _output(factored, k, f, O, o0, Oc, oc, y, out):
-    """The outputs of configuration ``k`` for the node loads ``f`` (maps) or the last solve's
-    ``y`` (factored)."""
-    if factored:
-        _affine(Oc, oc, k, y, out)
-    else:
-        _affine(O, o0, k, f, out)
 
 
 def _anderson_coefficients(dR, h, r, gamma, Q, R):
@@ -254,8 +232,14 @@ def march(code, params, dt, c_a, c_v, idx,
                         acc_kh += seg_K[s, p, q] * h_v[i0 + q]
                     loads[i0 + p] -= beta_node[i0 + p] * acc_kh
         if not dynamic:
-            _respond(factored, False, k, loads, Z, z0, A, a0, flayout, fstored, fwork, zn, N, y)
-            _output(factored, k, loads, O, o0, Oc, oc, y, outv)
+            # (The factored solve is called only in its branch: passing its tuples of arrays to a
+            # helper on every iteration cost the maps' march ~2 us a step.)
+            if factored:
+                factored_solve(k, loads, flayout, fstored, fwork, zn, N, y)
+                _affine(Oc, oc, k, y, outv)
+            else:
+                _affine(Z, z0, k, loads, zn)
+                _affine(O, o0, k, loads, outv)
         else:
             for s in range(ns):
                 damp[s] = seg_beta[s] * EAL[s] * (h_v[seg_end[s]] - h_v[seg_start[s]])
@@ -289,7 +273,11 @@ def march(code, params, dt, c_a, c_v, idx,
                     f[i1 + 2] -= dP * G[s, 3]
                 for i in range(n):
                     f[i] += loads[i]
-                _respond(factored, True, k, f, Z, z0, A, a0, flayout, fstored, fwork, zn, N, y)
+                if factored:
+                    factored_solve(k, f, flayout, fstored, fwork, zn, N, y)
+                else:
+                    _affine(Z, z0, k, f, zn)
+                    _affine(A, a0, k, f, N)
                 for s in range(ns):
                     Pn[s] = N[s] + damp[s] + F[s]
                 finite = True
@@ -310,7 +298,10 @@ def march(code, params, dt, c_a, c_v, idx,
                 dPr = dP_num / (dP_den + scale_P)
                 if dz < tol_z and dPr < tol_P:
                     converged = True
-                    _output(factored, k, f, O, o0, Oc, oc, y, outv)
+                    if factored:
+                        _affine(Oc, oc, k, y, outv)           # y: the last solve's, for these loads
+                    else:
+                        _affine(O, o0, k, f, outv)
                     if shortening:
                         _shape_products(seg_start, seg_end, seg_L, zn, delta, G)
                         for gi in range(gauge_seg.shape[0]):

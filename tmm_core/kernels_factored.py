@@ -41,7 +41,7 @@ def compiled_factored():
         globals()["numba_prange"] = numba.prange
         jit = numba.njit(cache=True, error_model="numpy")
         globals()["factor_range"] = jit(factor_range)
-        _COMPILED["solve"] = globals()["factored_solve"] = jit(factored_solve)
+        _COMPILED["solve"] = globals()["factored_solve"] = numba.njit(cache=True, error_model="numpy", inline="always")(factored_solve)
         _COMPILED["batch"] = numba.njit(cache=True, error_model="numpy", parallel=True)(factor_batch)
     return _COMPILED["batch"], _COMPILED["solve"]
 

@@ -329,11 +329,16 @@ def factor_prepared(prep: Prepared, P: np.ndarray, *, cond_limit: float = 1e12):
 def stored_bytes(prep: Prepared) -> float:
     """Memory of :func:`factor_prepared`'s stored factorizations of a batch [bytes]."""
     lay = prep.layout
-    B, S = prep.factor.shape
-    M = len(lay.seg_off) - 1
-    mmax = 2 * int(np.max(np.diff(lay.seg_off))) + 1
-    nd, nf = len(lay.labels), len(lay.free)
-    return 8.0 * B * (M * (2 * 4 * 36 + 6 + 4 * 9 + 1 + mmax * (16 + 36) + 2 * 9 * (mmax + 1)) + nd * nd + nf * nf + nf)
+    return prep.factor.shape[0] * stored_bytes_per_configuration(np.diff(lay.seg_off), len(lay.labels), len(lay.free))
+
+
+def stored_bytes_per_configuration(member_segments, joint_dofs: int = 0, free_dofs: int = 0) -> float:
+    """Memory of one configuration's stored factorization [bytes] (an upper bound: the factors
+    before a member's first deformable segment counted as if it were its second)."""
+    M = len(member_segments)
+    mmax = 2 * int(np.max(member_segments)) + 1
+    return 8.0 * (M * (2 * 4 * 36 + 6 + 4 * 9 + 1 + mmax * (16 + 36) + 2 * 9 * (mmax + 1))
+                  + joint_dofs ** 2 + free_dofs ** 2 + free_dofs)
 
 
 def _tension_parameter(prep, P):

@@ -48,14 +48,17 @@ from .time_step import AXIAL_FORCE_MODELS, DYNAMIC_TERMS, StepSolver
 MAP_MAX_DOF = 320
 # With the compiled factorization the alternative to the maps is the compiled march on the stored
 # factorizations (tmm_core.kernels_factored): a set-up of one factorization per configuration
-# instead of n_dof + 1 solves, a step ~2x dearer at small models and as cheap from ~150 DOFs.
-# Measured (one revolution's set-up, then per step; 2-core machine): FE rig 4 segments per link,
-# 1 deg (30 DOFs) 21 / 8 ms, 5.1 / 14.5 us; Alexander-Lawrence 4 segments (45 DOFs) 32 / 11 ms,
-# 9.0 / 21 us; FE rig 8 segments, 0.5 deg (54 DOFs) 60 / 14 ms, 9.2 / 17.9 us; Alexander-Lawrence
-# 8 segments (81 DOFs) 109 / 13 ms, 16.6 / 28.8 us; Watt six-bar 8 segments (135 DOFs) 215 / 25 ms,
-# 25.5 / 32.6 us; FE rig 32 segments (198 DOFs) 446 / 27 ms, 45 / 41 us. The maps repay their
-# set-up after ~5 revolutions at 45-54 DOFs, ~23 at 81 and ~74 at 135: they are built up to 64.
+# instead of n_dof + 1 solves, a step 2-4x dearer at small models and cheaper from ~200 DOFs.
+# Measured (set-up of one revolution maps / factors, then per step; 2-core machine): FE rig
+# 4 segments per link, 1 deg (30 DOFs) 23 / 8 ms, 2.9 / 11.0 us; Alexander-Lawrence 4 segments
+# (45 DOFs) 43 / 11 ms, 6.2 / 16.3 us; FE rig 8 segments, 0.5 deg (54) 55-66 / 15-17 ms,
+# 6.9 / 14.4 us; Alexander-Lawrence 8 segments (81) 76 / 14 ms, 14.7 / 25.0 us; FE rig 16
+# segments (102) 181 / 19 ms, 16.0 / 23.6 us; Watt six-bar 8 segments (135) 300 / 26 ms,
+# 23.8 / 29.5 us; FE rig 32 segments (198) 752 / 35 ms, 46 / 40 us. The maps repay their set-up
+# after ~8-9 revolutions at 45-54 DOFs, ~17 at 81, ~30 at 102 and ~130 at 135: built up to 64.
 FACTORS_ABOVE_DOF = 64
+#: Default memory budget of a batch's maps or stored factorizations [bytes] (``max_map_bytes``).
+MAX_STEP_DATA_BYTES = 1e9
 
 
 class TimeDomain(StepSolver):
@@ -81,17 +84,17 @@ class TimeDomain(StepSolver):
         step iteration.
     dynamic_terms : the second-order terms of the 'dynamic' step: 'shortening' (axial shortening
         from bending) and 'axial_force' (the step's own axial force in the bending equations).
-    compiled : march configurations with cached maps in the compiled kernel
-        (:mod:`tmm_core.kernels`); the numpy path is the reference and the fallback.
+    compiled : march configurations with cached maps or stored factorizations in the compiled
+        kernel (:mod:`tmm_core.kernels`); the numpy path is the reference and the fallback.
     gravity : gravity vector [m/s^2] in the mechanism plane, or None.
     gauges : gauges whose strains are recorded.
-    max_map_bytes : memory budget for the stored load-to-response maps; above it each step
-        runs the Riccati load sweep instead (same result, slower).
+    max_map_bytes : memory budget for the stored load-to-response maps or factorizations of a
+        batch; above it each step runs the numpy Riccati load sweep instead (same result, slower).
     """
 
     def __init__(self, mech: FourBarMechanism, *, integrator: str = "newmark", coupling: Coupling = Coupling(),
                  beam_column: bool = True, gravity=None, gauges: Sequence[Gauge] = (),
-                 max_map_bytes: float = 1e9, axial_force: str = "dynamic", axial_tolerance: float = 1e-8,
+                 max_map_bytes: float = MAX_STEP_DATA_BYTES, axial_force: str = "dynamic", axial_tolerance: float = 1e-8,
                  axial_iterations: int = 60, dynamic_terms: tuple = DYNAMIC_TERMS, compiled: bool = True):
         self.mech = mech
         #: March cached configurations in the compiled kernel (tmm_core.kernels) when numba is
