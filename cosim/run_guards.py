@@ -21,9 +21,15 @@ MAX_HOURS = 2.0
 #: of every engine's step are held until the run ends).
 MAX_MEMORY_BYTES = 4e9
 #: Measured wall time per internal step on one core (FE rig at 373 rpm): the transfer-matrix
-#: engine 1.5 ms with 24 mesh segments, growing as segments**1.7 (its batched factorizations);
-#: exudyn 1 ms plus 25 us per node; MuJoCo 1 ms.
+#: engine's numpy path 1.5 ms with 24 mesh segments, growing as segments**1.7 (its batched
+#: factorizations); exudyn 1 ms plus 25 us per node; MuJoCo 1 ms.
 _TMM_STEP_S, _TMM_SEGMENTS, _TMM_EXPONENT = 1.5e-3, 24, 1.7
+#: The transfer-matrix engine's compiled march (a structure of joints and members, numba, a
+#: revolution's stored factorizations within the time domain's memory budget): 12 us plus 0.5 us
+#: per segment a step (measured 18-45 us at 16-64 segments, 4-6 second-order iterations a step),
+#: and 5 ms of Python per macro step (a motor-driven step's configurations are factorized per
+#: macro step: 4.7 ms measured; prescribed runs group ~10 deg in one).
+_TMM_COMPILED_STEP_S, _TMM_COMPILED_SEGMENT_S, _TMM_MACRO_S = 1.2e-5, 5e-7, 5e-3
 _EXUDYN_STEP_S, _EXUDYN_NODE_S, _MUJOCO_STEP_S = 1e-3, 2.5e-5, 1e-3
 
 
@@ -41,7 +47,7 @@ def estimate_cost(sc: Scenario, engines, duration_s: float, macro_step_s: float)
     for e in engines:
         steps = duration_s / sc.engine_step_s(e)
         if e == "tmm":
-            size, per = segments, _TMM_STEP_S * max(1.0, segments / _TMM_SEGMENTS) ** _TMM_EXPONENT
+            size, per = segments, _tmm_step_s(sc, segments, duration_s / max(macro_step_s, 1e-300) / steps)
             nodes, what = segments + n_links, "segments"
         elif e == "exudyn":
             nodes = n_links * (sc.exudyn.elements + 1)
@@ -60,6 +66,25 @@ def estimate_cost(sc: Scenario, engines, duration_s: float, macro_step_s: float)
     out["text"] = (f"{'; '.join(parts)}: about {duration_text(total_s)} and {total_b / 1e9:.3g} GB of traces "
                    f"over {duration_s:.4g} s simulated")
     return out
+
+
+def _tmm_step_s(sc: Scenario, segments: int, macro_per_step: float) -> float:
+    """Wall time per step of the transfer-matrix engine [s]: its compiled march where the structure
+    qualifies and a revolution's stored factorizations fit the time domain's memory budget (the
+    engine's own test, :meth:`tmm_core.TimeDomain.configurations`), else the numpy path."""
+    try:
+        from tmm_core import kernels, structure_compiled, transient
+        budget = transient.MAX_STEP_DATA_BYTES
+        per_revolution = 2 * math.pi / abs(sc.drive.speed_rad_s) / sc.engine_step_s("tmm")
+        structure = sc.mechanism.structure()
+        compiled = (kernels.AVAILABLE and structure_compiled.supported(structure)
+                    and per_revolution * structure_compiled.stored_bytes_per_configuration(
+                        [m.n_segments for m in structure.members]) <= budget)
+    except Exception:                # no crank speed, no structure: the numpy path's estimate
+        compiled = False
+    if compiled:
+        return _TMM_COMPILED_STEP_S + _TMM_COMPILED_SEGMENT_S * segments + _TMM_MACRO_S * macro_per_step
+    return _TMM_STEP_S * max(1.0, segments / _TMM_SEGMENTS) ** _TMM_EXPONENT
 
 
 def check_cost(sc: Scenario, engines, duration_s: float, macro_step_s: float, max_hours: float = MAX_HOURS) -> dict:

@@ -176,6 +176,22 @@ def test_the_estimate_passes_every_shipped_scenarios_default_run_and_the_limit_c
     check_cost(sc, ["tmm"], _duration(sc, 0.25), sc.engine_step_s("tmm"), max_hours=100)   # raised: accepted
 
 
+def test_a_fine_mesh_on_the_compiled_march_is_estimated_linear_in_its_segments():
+    """The compiled march on stored factorizations costs ~12 us + 0.5 us per segment a step: 30
+    revolutions at 512 segments per link are accepted (the numpy path's model, segments**1.7,
+    gave 5 h and refused them), and the estimate grows linearly with the mesh."""
+    pytest.importorskip("numba")
+    from cosim.run_guards import _TMM_COMPILED_SEGMENT_S, _TMM_COMPILED_STEP_S
+    est = {}
+    for n in (128, 512):
+        sc = BASE.with_overrides({"solver.tmm.segments": n})
+        est[n] = check_cost(sc, ["tmm"], _duration(sc, 30), sc.engine_step_s("tmm") * 10)["tmm"]
+    per_step = {n: e["seconds"] / e["steps"] for n, e in est.items()}
+    segments = {n: e["size"] for n, e in est.items()}
+    assert per_step[512] - per_step[128] == pytest.approx(_TMM_COMPILED_SEGMENT_S * (segments[512] - segments[128]))
+    assert per_step[128] > _TMM_COMPILED_STEP_S and est[512]["seconds"] < 600
+
+
 def test_the_cli_refuses_a_hopeless_run_quickly_and_writes_nothing(tmp_path):
     path = _scenario(tmp_path / "fine.toml", "base/fe_crank_rocker")
     path.write_text(path.read_text() + '[solver.tmm]\nstep = "1e-9 deg"\n')
