@@ -10,7 +10,18 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
+
 from .kernels_dense import full6, inv3, ldl_inertia, lu_factor, mm3, segment_blocks
+
+
+def factor_scratch(nf):
+    """The scratch arrays of :func:`factor_configuration` (``nf`` free joint DOFs): ``(Kc, T6, t6,
+    tmp6, Kff, Ks, work, c5, sp, T11, T12, T21, T22, A, Bm, C, D, t1, t2)``."""
+    return (np.zeros((6, 6)), np.zeros((6, 6)), np.zeros(6), np.zeros((6, 6)), np.zeros((nf, nf)), np.zeros((nf, nf)),
+            np.zeros((max(nf, 3), max(nf, 3))), np.zeros(5), np.zeros(10), np.zeros((3, 3)), np.zeros((3, 3)),
+            np.zeros((3, 3)), np.zeros((3, 3)), np.zeros((3, 3)), np.zeros((3, 3)), np.zeros((3, 3)), np.zeros((3, 3)),
+            np.zeros(3), np.zeros(3))
 
 
 def factor_configuration(bi, inv_fact, seg_off, L, EA, EI, rigid, factor, P, qloc, Kn, angle, ends, free, count,

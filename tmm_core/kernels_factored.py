@@ -24,6 +24,7 @@ from . import kernels_factor, kernels_static
 _COMPILED = {}
 numba_prange = range      # numba.prange once compiled
 factor_configuration = kernels_factor.factor_configuration
+factor_scratch = kernels_factor.factor_scratch
 solve_loads = kernels_static.solve_loads
 
 #: The stored arrays of one configuration, in the order of the tuple the march reads.
@@ -37,6 +38,7 @@ def compiled_factored():
         import numba
         kernels_static.compiled_solve()           # compiles and binds the factorization and the load solve
         globals()["factor_configuration"] = kernels_factor.factor_configuration
+        globals()["factor_scratch"] = kernels_factor.factor_scratch
         globals()["solve_loads"] = kernels_static.solve_loads
         globals()["numba_prange"] = numba.prange
         jit = numba.njit(cache=True, error_model="numpy")
@@ -64,25 +66,7 @@ def factor_range(b_start, b_stop, inv_fact, seg_off, L, EA, EI, rigid, factor, P
     M = seg_off.shape[0] - 1
     nd = Kfull.shape[1]
     nf = lu.shape[1]
-    Kc = np.zeros((6, 6))
-    T6 = np.zeros((6, 6))
-    t6 = np.zeros(6)
-    tmp6 = np.zeros((6, 6))
-    Kff = np.zeros((nf, nf))
-    Ks = np.zeros((nf, nf))
-    work = np.zeros((max(nf, 3), max(nf, 3)))
-    c5 = np.zeros(5)
-    sp = np.zeros(10)
-    T11 = np.zeros((3, 3))
-    T12 = np.zeros((3, 3))
-    T21 = np.zeros((3, 3))
-    T22 = np.zeros((3, 3))
-    A = np.zeros((3, 3))
-    Bm = np.zeros((3, 3))
-    C = np.zeros((3, 3))
-    D = np.zeros((3, 3))
-    t1 = np.zeros(3)
-    t2 = np.zeros(3)
+    Kc, T6, t6, tmp6, Kff, Ks, work, c5, sp, T11, T12, T21, T22, A, Bm, C, D, t1, t2 = factor_scratch(nf)
     zi = np.array([0, 1, 2])
     fi = np.array([5, 4, 3])
     for bi in range(b_start, b_stop):

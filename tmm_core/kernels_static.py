@@ -50,7 +50,7 @@ import numpy as np
 
 from . import kernels, kernels_dense, kernels_factor, matrices
 from .kernels_dense import iteration_converged, lu_solve, state_change
-from .kernels_factor import factor_configuration
+from .kernels_factor import factor_configuration, factor_scratch
 
 AVAILABLE = kernels.AVAILABLE
 _COMPILED = {}
@@ -87,7 +87,9 @@ def compiled_solve():
                 if name in namespace:
                     namespace[name] = compiled
         kernels_factor.factor_configuration = jit(kernels_factor.factor_configuration)
+        kernels_factor.factor_scratch = jit(kernels_factor.factor_scratch)
         globals()["factor_configuration"] = kernels_factor.factor_configuration
+        globals()["factor_scratch"] = kernels_factor.factor_scratch
         globals()["solve_loads"] = jit(solve_loads)
         globals()["solve_range"] = jit(solve_range)
         globals()["numba_prange"] = numba.prange
@@ -172,32 +174,14 @@ def solve_range(b_start, b_stop, inv_fact, seg_off, L, EA, EI, rigid, factor, P,
     ys = np.zeros((M, mmax, 3))
     cs = np.zeros((M, mmax + 1, 3))
     af = np.zeros((M, 3))
-    Kc = np.zeros((6, 6))
-    T6 = np.zeros((6, 6))
-    t6 = np.zeros(6)
-    tmp6 = np.zeros((6, 6))
+    Kc, T6, t6, tmp6, Kff, Ks, work, c5, sp, T11, T12, T21, T22, A, Bm, C, D, t1, t2 = factor_scratch(nf)
     Kfull = np.zeros((nd, nd))
     rfull = np.zeros(nd)
-    Kff = np.zeros((nf, nf))
-    Ks = np.zeros((nf, nf))
     lu = np.zeros((nf, nf))
     piv = np.zeros(nf, dtype=np.int64)
-    work = np.zeros((max(nf, 3), max(nf, 3)))
     rhs = np.zeros(nf)
     xf = np.zeros(nf)
     qv = np.zeros(nd)
-    c5 = np.zeros(5)
-    sp = np.zeros(10)
-    T11 = np.zeros((3, 3))
-    T12 = np.zeros((3, 3))
-    T21 = np.zeros((3, 3))
-    T22 = np.zeros((3, 3))
-    A = np.zeros((3, 3))
-    Bm = np.zeros((3, 3))
-    C = np.zeros((3, 3))
-    D = np.zeros((3, 3))
-    t1 = np.zeros(3)
-    t2 = np.zeros(3)
     a = np.zeros(3)
     c = np.zeros(3)
     y = np.zeros(3)
