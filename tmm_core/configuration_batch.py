@@ -60,10 +60,6 @@ class StepFactors:
     Oc: np.ndarray
     oc: np.ndarray
 
-    @property
-    def nbytes(self) -> int:
-        return int(sum(a.nbytes for a in self.stored) + self.Oc.nbytes + self.oc.nbytes)
-
 
 @dataclass(frozen=True)
 class CrankStates:

@@ -27,9 +27,11 @@ factor_configuration = kernels_factor.factor_configuration
 factor_scratch = kernels_factor.factor_scratch
 solve_loads = kernels_static.solve_loads
 
-#: The stored arrays of one configuration, in the order of the tuple the march reads.
-STORED = ("lead", "prefix", "lcol", "B0", "T220", "SP", "TL", "Gis", "Xs", "BGis", "HGis", "Cs", "Ds", "Af",
-          "Bf", "firsts", "Kfull", "lu", "piv")
+#: The stored arrays of a batch (name: dimensions, the batch axis included), in the order of the
+#: tuple the march reads; :data:`INTEGER` ones are int64, the others float64.
+STORED = {"lead": 5, "prefix": 5, "lcol": 3, "B0": 4, "T220": 4, "SP": 4, "TL": 4, "Gis": 5, "Xs": 5, "BGis": 5,
+          "HGis": 5, "Cs": 5, "Ds": 5, "Af": 4, "Bf": 4, "firsts": 2, "Kfull": 3, "lu": 3, "piv": 2}
+INTEGER = ("firsts", "piv")
 
 
 def compiled_factored():
@@ -75,6 +77,25 @@ def factor_range(b_start, b_stop, inv_fact, seg_off, L, EA, EI, rigid, factor, P
                              SP[bi], TL[bi], Gis[bi], Xs[bi], BGis[bi], HGis[bi], Cs[bi], Ds[bi], Af[bi], Bf[bi],
                              firsts[bi], Kc, T6, t6, tmp6, Kfull[bi], Kff, Ks, lu[bi], piv[bi], work, c5, sp, T11, T12,
                              T21, T22, A, Bm, C, D, t1, t2, zi, fi)
+
+
+def march_arrays(factors, n_nodes: int, n_seg: int, n_out: int) -> tuple:
+    """``(factored, layout, stored, work, Oc, oc)``, what the compiled march reads of a
+    :class:`tmm_core.configuration_batch.StepFactors` (and the scratch arrays of its solve); for
+    ``factors`` None, placeholders of the same array types, so that one compiled march serves the
+    maps too."""
+    if factors is None:
+        layout = (np.zeros(2, np.int64), np.zeros(1, np.bool_), np.zeros((1, 1)), np.zeros((1, 6), np.int64),
+                  np.zeros(0, np.int64), np.zeros(0, np.int64))
+        stored = tuple(np.zeros((1,) * ndim, dtype=np.int64 if k in INTEGER else float) for k, ndim in STORED.items())
+        return (False, layout, stored, work_arrays(1, 1, 1, 1, 1, 1, 0), np.zeros((1, n_out, 0)),
+                np.zeros((1, n_out)))
+    arrays = dict(zip(STORED, factors.stored))
+    seg_off = factors.layout[0]
+    mmax = 2 * int(np.max(np.diff(seg_off))) + 1
+    work = work_arrays(len(seg_off) - 1, mmax, n_nodes, n_seg, arrays["Kfull"].shape[1], arrays["lu"].shape[1],
+                       len(factors.layout[5]))
+    return True, factors.layout, factors.stored, work, factors.Oc, factors.oc
 
 
 def work_arrays(M, mmax, Nn, S, nd, nf, G):

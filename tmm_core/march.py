@@ -91,8 +91,8 @@ class March:
 
     def step_many(self, cfg, indices, record_z: bool = True, record_axial: bool = False):
         """Steps through configurations ``indices`` of a batch, compiled when the batch has
-        cached maps or stored factorizations (:mod:`tmm_core.kernels`), else one by one in numpy. Returns ``(zs, outs)``:
-        displacements ``(k, n_dof)`` (None unless ``record_z``) and outputs ``(k, n_out)``; with
+        cached maps or stored factorizations (:mod:`tmm_core.kernels`), else one by one in numpy.
+        Returns ``(zs, outs)``: displacements ``(k, n_dof)`` (None unless ``record_z``) and outputs ``(k, n_out)``; with
         ``record_axial`` also the segment axial forces ``(k, n_seg)`` of the 'dynamic' step."""
         indices = np.asarray(indices, dtype=np.int64)
         td = self.td

@@ -310,7 +310,7 @@ def factor_prepared(prep: Prepared, P: np.ndarray, *, cond_limit: float = 1e12):
               "SP": (M, mmax, 10), "TL": (M, mmax, 6), "Gis": (M, mmax, 3, 3), "Xs": (M, mmax, 3, 3),
               "BGis": (M, mmax, 3, 3), "HGis": (M, mmax, 3, 3), "Cs": (M, mmax + 1, 3, 3), "Ds": (M, mmax + 1, 3, 3),
               "Af": (M, 3, 3), "Bf": (M, 3, 3), "firsts": (M,), "Kfull": (nd, nd), "lu": (nf, nf), "piv": (nf,)}
-    stored = tuple(np.zeros((B,) + shapes[k], dtype=np.int64 if k in ("firsts", "piv") else float)
+    stored = tuple(np.zeros((B,) + shapes[k], dtype=np.int64 if k in kernels_factored.INTEGER else float)
                    for k in kernels_factored.STORED)
     negative = np.zeros((B, 2), dtype=np.int64)
     pivots = np.empty((B, 2))

@@ -17,6 +17,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from . import kernels_factored
 from .errors import ConvergenceError
 from .ked import segment_forces
 from .mechanism import torque_from_terms
@@ -197,29 +198,9 @@ class StepSolver:
                           np.zeros((1, ns, n)), np.zeros((1, ns)))
             data = tuple(np.ascontiguousarray(x, dtype=float) for x in arrays + (
                 cfg.P0 if dynamic else np.zeros((1, ns)), cfg.rigid, omega))
-            data += self._factored_data(fac)
+            data += kernels_factored.march_arrays(fac, self.n_dof // 3, ns, no)
             cfg.cache["kernel"] = data
         return data
-
-    def _factored_data(self, fac):
-        """``(factored, layout, stored, work, Oc, oc)`` of the compiled march: the stored
-        factorizations and the scratch arrays of their solve, or placeholders of the same types."""
-        from . import kernels_factored
-        if fac is None:
-            # Placeholders of the same array types: one compiled march serves both paths.
-            lay = (np.zeros(2, np.int64), np.zeros(1, np.bool_), np.zeros((1, 1)), np.zeros((1, 6), np.int64),
-                   np.zeros(0, np.int64), np.zeros(0, np.int64))
-            stored = tuple(np.zeros((1,) * nd_, dtype=np.int64 if k in ("firsts", "piv") else float)
-                           for k, nd_ in zip(kernels_factored.STORED, (5, 5, 3, 4, 4, 4, 4, 5, 5, 5, 5, 5, 5, 4, 4,
-                                                                        2, 3, 3, 2)))
-            work = kernels_factored.work_arrays(1, 1, 1, 1, 1, 1, 0)
-            return False, lay, stored, work, np.zeros((1, self.outputs.size, 0)), np.zeros((1, self.outputs.size))
-        seg_off = fac.layout[0]
-        M = len(seg_off) - 1
-        mmax = 2 * int(np.max(np.diff(seg_off))) + 1
-        nd, nf, G = fac.stored[16].shape[1], fac.stored[17].shape[1], len(fac.layout[5])
-        work = kernels_factored.work_arrays(M, mmax, self.n_dof // 3, len(self.segments.length), nd, nf, G)
-        return True, fac.layout, fac.stored, work, fac.Oc, fac.oc
 
 
 def terms_at(terms, k):

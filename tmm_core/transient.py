@@ -34,7 +34,7 @@ from .mechanism import FourBarMechanism
 from .post import Gauge
 from .riccati import segment_stiffness
 from .second_order import Segments
-from . import step_data as maps_module
+from . import step_data
 from .structure import LoadCase, factorize
 from .time_step import AXIAL_FORCE_MODELS, DYNAMIC_TERMS, StepSolver
 
@@ -268,9 +268,9 @@ class TimeDomain(StepSolver):
         if prep is not None:
             P_stacked = structure_compiled.stack_segments(prep, P or {})
             if with_maps:
-                maps, negative = maps_module.compiled_maps(self, prep, P_stacked, motion)
+                maps, negative = step_data.compiled_maps(self, prep, P_stacked, motion)
             else:
-                step_factors, negative = maps_module.compiled_factors(self, prep, P_stacked, motion)
+                step_factors, negative = step_data.compiled_factors(self, prep, P_stacked, motion)
             factor = None
         else:
             factor = make_factor()
@@ -297,7 +297,7 @@ class TimeDomain(StepSolver):
             return batch(maps if with_maps else None)
         if not with_maps:
             return batch(None)
-        return batch(maps_module.numpy_maps(self, factor, drive))
+        return batch(step_data.numpy_maps(self, factor, drive))
 
     @property
     def compiled_factorization(self) -> bool:
