@@ -125,10 +125,10 @@ def factor_configuration(bi, inv_fact, seg_off, L, EA, EI, rigid, factor, P, qlo
                 segment_blocks(L[sg], EA[sg] * factor[bi, sg], EI[sg] * factor[bi, sg], P[bi, sg],
                                 qloc[bi, sg, 1], qloc[bi, sg, 0], rigid[sg], inv_fact, c5, sp, t1, t2)
                 for r in range(10):
-                    SP[mi, j, r] = sp[r]
+                    SP[mi, j // 2, r] = sp[r]
                 for r in range(3):
-                    TL[mi, j, r] = t1[r]
-                    TL[mi, j, r + 3] = t2[r]
+                    TL[mi, j // 2, r] = t1[r]
+                    TL[mi, j // 2, r + 3] = t2[r]
                 ta, e1, u22, f11, f12, f21, f22, kk, g, v22 = (sp[0], sp[1], sp[2], sp[3], sp[4], sp[5], sp[6],
                                                              sp[7], sp[8], sp[9])
                 # G = T11 + T12 D, X = T12 C, H = T21 + T22 D (sparse blocks; scalars: registers, not memory)
@@ -212,18 +212,18 @@ def factor_configuration(bi, inv_fact, seg_off, L, EA, EI, rigid, factor, P, qlo
                 c00 = c00 - r00; c01 = c01 - r01; c02 = c02 - r02; c10 = c10 - r10; c11 = c11 - r11; c12 = c12 - r12
                 b00 = bg00; b01 = bg01; b02 = bg02; b10 = bg10; b11 = bg11; b12 = bg12; b20 = bg20; b21 = bg21; b22 = bg22
                 d00 = hg00; d01 = hg01; d02 = hg02; d10 = hg10; d11 = hg11; d12 = hg12; d20 = hg20; d21 = hg21; d22 = hg22
-                Gis[mi, j, 0, 0] = i00; Gis[mi, j, 0, 1] = i01; Gis[mi, j, 0, 2] = i02
-                Gis[mi, j, 1, 0] = i10; Gis[mi, j, 1, 1] = i11; Gis[mi, j, 1, 2] = i12
-                Gis[mi, j, 2, 0] = i20; Gis[mi, j, 2, 1] = i21; Gis[mi, j, 2, 2] = i22
-                Xs[mi, j, 0, 0] = x00; Xs[mi, j, 0, 1] = x01; Xs[mi, j, 0, 2] = x02
-                Xs[mi, j, 1, 0] = x10; Xs[mi, j, 1, 1] = x11; Xs[mi, j, 1, 2] = x12
-                Xs[mi, j, 2, 0] = x20; Xs[mi, j, 2, 1] = x21; Xs[mi, j, 2, 2] = x22
-                BGis[mi, j, 0, 0] = bg00; BGis[mi, j, 0, 1] = bg01; BGis[mi, j, 0, 2] = bg02
-                BGis[mi, j, 1, 0] = bg10; BGis[mi, j, 1, 1] = bg11; BGis[mi, j, 1, 2] = bg12
-                BGis[mi, j, 2, 0] = bg20; BGis[mi, j, 2, 1] = bg21; BGis[mi, j, 2, 2] = bg22
-                HGis[mi, j, 0, 0] = hg00; HGis[mi, j, 0, 1] = hg01; HGis[mi, j, 0, 2] = hg02
-                HGis[mi, j, 1, 0] = hg10; HGis[mi, j, 1, 1] = hg11; HGis[mi, j, 1, 2] = hg12
-                HGis[mi, j, 2, 0] = hg20; HGis[mi, j, 2, 1] = hg21; HGis[mi, j, 2, 2] = hg22
+                Gis[mi, j // 2, 0, 0] = i00; Gis[mi, j // 2, 0, 1] = i01; Gis[mi, j // 2, 0, 2] = i02
+                Gis[mi, j // 2, 1, 0] = i10; Gis[mi, j // 2, 1, 1] = i11; Gis[mi, j // 2, 1, 2] = i12
+                Gis[mi, j // 2, 2, 0] = i20; Gis[mi, j // 2, 2, 1] = i21; Gis[mi, j // 2, 2, 2] = i22
+                Xs[mi, j // 2, 0, 0] = x00; Xs[mi, j // 2, 0, 1] = x01; Xs[mi, j // 2, 0, 2] = x02
+                Xs[mi, j // 2, 1, 0] = x10; Xs[mi, j // 2, 1, 1] = x11; Xs[mi, j // 2, 1, 2] = x12
+                Xs[mi, j // 2, 2, 0] = x20; Xs[mi, j // 2, 2, 1] = x21; Xs[mi, j // 2, 2, 2] = x22
+                BGis[mi, j // 2, 0, 0] = bg00; BGis[mi, j // 2, 0, 1] = bg01; BGis[mi, j // 2, 0, 2] = bg02
+                BGis[mi, j // 2, 1, 0] = bg10; BGis[mi, j // 2, 1, 1] = bg11; BGis[mi, j // 2, 1, 2] = bg12
+                BGis[mi, j // 2, 2, 0] = bg20; BGis[mi, j // 2, 2, 1] = bg21; BGis[mi, j // 2, 2, 2] = bg22
+                HGis[mi, j // 2, 0, 0] = hg00; HGis[mi, j // 2, 0, 1] = hg01; HGis[mi, j // 2, 0, 2] = hg02
+                HGis[mi, j // 2, 1, 0] = hg10; HGis[mi, j // 2, 1, 1] = hg11; HGis[mi, j // 2, 1, 2] = hg12
+                HGis[mi, j // 2, 2, 0] = hg20; HGis[mi, j // 2, 2, 1] = hg21; HGis[mi, j // 2, 2, 2] = hg22
             Cs[mi, j + 1, 0, 0] = c00; Cs[mi, j + 1, 0, 1] = c01; Cs[mi, j + 1, 0, 2] = c02
             Cs[mi, j + 1, 1, 0] = c10; Cs[mi, j + 1, 1, 1] = c11; Cs[mi, j + 1, 1, 2] = c12
             Cs[mi, j + 1, 2, 0] = c20; Cs[mi, j + 1, 2, 1] = c21; Cs[mi, j + 1, 2, 2] = c22

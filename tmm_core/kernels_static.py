@@ -152,18 +152,19 @@ def solve_range(b_start, b_stop, inv_fact, seg_off, L, EA, EI, rigid, factor, P,
     for i in range(M):
         nmax = max(nmax, seg_off[i + 1] - seg_off[i])
     mmax = 2 * nmax + 1
-    # Load-independent factors, per member.
+    # Load-independent factors, per member (a segment's blocks at its index j // 2, j = 2 i + 1 its
+    # matrix in the chain; the stations' at j).
     lead = np.zeros((M, mmax + 1, 6, 6))      # 6x6 parts of the matrices 0..first
     prefix = np.zeros((M, mmax + 1, 6, 6))    # their running products
     lcol = np.zeros((M, 6))                   # load column of the first deformable matrix
     B0 = np.zeros((M, 3, 3))
     T220 = np.zeros((M, 3, 3))
-    SP = np.zeros((M, mmax, 10))              # sparse field blocks of every segment
-    TL = np.zeros((M, mmax, 6))               # and their load columns (t1, t2)
-    Gis = np.zeros((M, mmax, 3, 3))
-    Xs = np.zeros((M, mmax, 3, 3))
-    BGis = np.zeros((M, mmax, 3, 3))
-    HGis = np.zeros((M, mmax, 3, 3))
+    SP = np.zeros((M, nmax, 10))              # sparse field blocks of every segment
+    TL = np.zeros((M, nmax, 6))               # and their load columns (t1, t2)
+    Gis = np.zeros((M, nmax, 3, 3))
+    Xs = np.zeros((M, nmax, 3, 3))
+    BGis = np.zeros((M, nmax, 3, 3))
+    HGis = np.zeros((M, nmax, 3, 3))
     Cs = np.zeros((M, mmax + 1, 3, 3))
     Ds = np.zeros((M, mmax + 1, 3, 3))
     Af = np.zeros((M, 3, 3))
@@ -297,19 +298,19 @@ def solve_loads(bi, Fn, seg_off, rigid, angle, ends, free, states, q_out, reacti
                     for r in range(3):
                         c[r] += -Fn[fb, ri, node0 + j // 2, r]
                 else:
-                    ta, f11, f12, f21, f22, g, c22 = (SP[mi, j, 0], SP[mi, j, 3], SP[mi, j, 4], SP[mi, j, 5],
-                                                      SP[mi, j, 6], SP[mi, j, 8], SP[mi, j, 9])
-                    y[0] = ta * c[0] + TL[mi, j, 0]
-                    y[1] = (f11 * c[1] + f12 * c[2]) + TL[mi, j, 1]
-                    y[2] = (f21 * c[1] + f22 * c[2]) + TL[mi, j, 2]
+                    ta, f11, f12, f21, f22, g, c22 = (SP[mi, j // 2, 0], SP[mi, j // 2, 3], SP[mi, j // 2, 4], SP[mi, j // 2, 5],
+                                                      SP[mi, j // 2, 6], SP[mi, j // 2, 8], SP[mi, j // 2, 9])
+                    y[0] = ta * c[0] + TL[mi, j // 2, 0]
+                    y[1] = (f11 * c[1] + f12 * c[2]) + TL[mi, j // 2, 1]
+                    y[2] = (f21 * c[1] + f22 * c[2]) + TL[mi, j // 2, 2]
                     for r in range(3):
-                        a[r] -= BGis[mi, j, r, 0] * y[0] + BGis[mi, j, r, 1] * y[1] + BGis[mi, j, r, 2] * y[2]
-                    v3[0] = c[0] + TL[mi, j, 3]
-                    v3[1] = c[1] + TL[mi, j, 4]
-                    v3[2] = (g * c[1] + c22 * c[2]) + TL[mi, j, 5]
+                        a[r] -= BGis[mi, j // 2, r, 0] * y[0] + BGis[mi, j // 2, r, 1] * y[1] + BGis[mi, j // 2, r, 2] * y[2]
+                    v3[0] = c[0] + TL[mi, j // 2, 3]
+                    v3[1] = c[1] + TL[mi, j // 2, 4]
+                    v3[2] = (g * c[1] + c22 * c[2]) + TL[mi, j // 2, 5]
                     for r in range(3):
-                        c[r] = v3[r] - (HGis[mi, j, r, 0] * y[0] + HGis[mi, j, r, 1] * y[1]
-                                        + HGis[mi, j, r, 2] * y[2])
+                        c[r] = v3[r] - (HGis[mi, j // 2, r, 0] * y[0] + HGis[mi, j // 2, r, 1] * y[1]
+                                        + HGis[mi, j // 2, r, 2] * y[2])
                         ys[mi, j, r] = y[r]
                 for r in range(3):
                     cs[mi, j + 1, r] = c[r]
@@ -377,10 +378,10 @@ def solve_loads(bi, Fn, seg_off, rigid, angle, ends, free, states, q_out, reacti
                         zj[j, r] = zj[j + 1, r]
                 else:
                     for r in range(3):
-                        v3[r] = zj[j + 1, r] - (Xs[mi, j, r, 0] * zs[0] + Xs[mi, j, r, 1] * zs[1]
-                                                + Xs[mi, j, r, 2] * zs[2]) - ys[mi, j, r]
+                        v3[r] = zj[j + 1, r] - (Xs[mi, j // 2, r, 0] * zs[0] + Xs[mi, j // 2, r, 1] * zs[1]
+                                                + Xs[mi, j // 2, r, 2] * zs[2]) - ys[mi, j, r]
                     for r in range(3):
-                        zj[j, r] = Gis[mi, j, r, 0] * v3[0] + Gis[mi, j, r, 1] * v3[1] + Gis[mi, j, r, 2] * v3[2]
+                        zj[j, r] = Gis[mi, j // 2, r, 0] * v3[0] + Gis[mi, j // 2, r, 1] * v3[1] + Gis[mi, j // 2, r, 2] * v3[2]
             for j in range(first + 1, m + 1):
                 node = node0 + j // 2
                 side = j % 2

@@ -306,9 +306,10 @@ def factor_prepared(prep: Prepared, P: np.ndarray, *, cond_limit: float = 1e12):
     # The chain's factors before its first deformable segment (index 2 j + 1, j its first
     # flexible segment) are kept up to that index only.
     nlead = 2 + 2 * max(int(np.argmax(~lay.rigid[lay.seg_off[i]:lay.seg_off[i + 1]])) for i in range(M))
+    nmax = (mmax - 1) // 2                        # segments of the longest member (one block each)
     shapes = {"lead": (M, nlead, 6, 6), "prefix": (M, nlead, 6, 6), "lcol": (M, 6), "B0": (M, 3, 3), "T220": (M, 3, 3),
-              "SP": (M, mmax, 10), "TL": (M, mmax, 6), "Gis": (M, mmax, 3, 3), "Xs": (M, mmax, 3, 3),
-              "BGis": (M, mmax, 3, 3), "HGis": (M, mmax, 3, 3), "Cs": (M, mmax + 1, 3, 3), "Ds": (M, mmax + 1, 3, 3),
+              "SP": (M, nmax, 10), "TL": (M, nmax, 6), "Gis": (M, nmax, 3, 3), "Xs": (M, nmax, 3, 3),
+              "BGis": (M, nmax, 3, 3), "HGis": (M, nmax, 3, 3), "Cs": (M, mmax + 1, 3, 3), "Ds": (M, mmax + 1, 3, 3),
               "Af": (M, 3, 3), "Bf": (M, 3, 3), "firsts": (M,), "Kfull": (nd, nd), "lu": (nf, nf), "piv": (nf,)}
     stored = tuple(np.zeros((B,) + shapes[k], dtype=np.int64 if k in kernels_factored.INTEGER else float)
                    for k in kernels_factored.STORED)
@@ -336,8 +337,8 @@ def stored_bytes_per_configuration(member_segments, joint_dofs: int = 0, free_do
     """Memory of one configuration's stored factorization [bytes] (an upper bound: the factors
     before a member's first deformable segment counted as if it were its second)."""
     M = len(member_segments)
-    mmax = 2 * int(np.max(member_segments)) + 1
-    return 8.0 * (M * (2 * 4 * 36 + 6 + 4 * 9 + 1 + mmax * (16 + 36) + 2 * 9 * (mmax + 1))
+    nmax = int(np.max(member_segments))
+    return 8.0 * (M * (2 * 4 * 36 + 6 + 4 * 9 + 1 + nmax * (16 + 36) + 2 * 9 * (2 * nmax + 2))
                   + joint_dofs ** 2 + free_dofs ** 2 + free_dofs)
 
 
