@@ -91,10 +91,10 @@ def march_arrays(factors, n_nodes: int, n_seg: int, n_out: int) -> tuple:
         return (False, layout, stored, work_arrays(1, 1, 1, 1, 1, 1, 0), np.zeros((1, n_out, 0)),
                 np.zeros((1, n_out)))
     arrays = dict(zip(STORED, factors.stored))
-    seg_off = factors.layout[0]
+    seg_off, _, _, _, _, gauge_nodes = factors.layout
     mmax = 2 * int(np.max(np.diff(seg_off))) + 1
     work = work_arrays(len(seg_off) - 1, mmax, n_nodes, n_seg, arrays["Kfull"].shape[1], arrays["lu"].shape[1],
-                       len(factors.layout[5]))
+                       len(gauge_nodes))
     return True, factors.layout, factors.stored, work, factors.Oc, factors.oc
 
 

@@ -17,7 +17,7 @@ from .configuration_batch import StepFactors, StepMaps
 from .ked import segment_forces
 from .mechanism import torque_from_terms
 from .post import gauge_strains
-from .structure import MemberResult, solve_factored
+from .structure import MemberResult, solve_factored, support_reactions
 from .time_step import select, terms_at
 
 MAP_CHUNK_BYTES = 64e6       # working memory of one chunk of the map solve
@@ -98,17 +98,7 @@ def _outputs(td, part, P, sl, drive, reaction, gstates):
     ``P (b, S)`` their axial forces) from R solutions given by their joint forces
     ``reaction (b, R, nd)`` and the right-side states at the gauge nodes ``gstates (b, G, 6, R)``."""
     lay = part.layout
-    index = {lab: k for k, lab in enumerate(lay.labels)}
-    reactions = {}
-    for j in td.structure.joints:
-        if j.support == "free":
-            continue
-        r = np.zeros(reaction.shape[:-1] + (3,))
-        r[..., 0] = reaction[..., index[(j.name, "x")]]
-        r[..., 1] = reaction[..., index[(j.name, "y")]]
-        if j.support == "clamped":
-            r[..., 2] = reaction[..., index[(j.name, "r")]]
-        reactions[j.name] = r
+    reactions = support_reactions(td.structure, lay.labels, reaction)
     torque = torque_from_terms(reactions, *terms_at(drive, sl))          # (b, R)
     members = {m.name: (i, m) for i, m in enumerate(td.structure.members)}
     g_out = []

@@ -443,16 +443,7 @@ def solve_factored(factor: StructureFactor, node_loads: Mapping[str, np.ndarray]
                                        mf.stiffness_factor)
 
     index = {lab: i for i, lab in enumerate(factor.labels)}
-    reactions = {}
-    for j in structure.joints:
-        if j.support == "free":
-            continue
-        r = np.zeros(reaction_full.shape[:-1] + (3,))
-        r[..., 0] = reaction_full[..., index[(j.name, "x")]]
-        r[..., 1] = reaction_full[..., index[(j.name, "y")]]
-        if j.support in ("clamped", "sliding_clamp"):
-            r[..., 2] = reaction_full[..., index[(j.name, "r")]]
-        reactions[j.name] = r
+    reactions = support_reactions(structure, factor.labels, reaction_full)
     joint_disp = {j.name: np.stack([q[..., index[(j.name, "x")]], q[..., index[(j.name, "y")]]], -1)
                   for j in structure.joints}
     springs = {}
@@ -461,6 +452,24 @@ def solve_factored(factor: StructureFactor, node_loads: Mapping[str, np.ndarray]
         springs[name] = preload + structure.spring(name).k * np.sum(rel * e, -1)
     return LinearSolution(structure, factor.case, members, reactions, factor.negative_eigenvalues, joint_disp,
                           springs)
+
+
+def support_reactions(structure, labels, reaction) -> dict:
+    """``{supported joint: (..., 3)}``, the force x, y [N] and, at a clamp, the moment [N m] (else
+    0) the supports apply, from the joint forces ``reaction (..., nd)`` of a solve whose DOFs are
+    ``labels`` ((joint, "x" | "y" | "r"), as a factorization's; numpy and compiled paths)."""
+    index = {lab: i for i, lab in enumerate(labels)}
+    out = {}
+    for j in structure.joints:
+        if j.support == "free":
+            continue
+        r = np.zeros(reaction.shape[:-1] + (3,))
+        r[..., 0] = reaction[..., index[(j.name, "x")]]
+        r[..., 1] = reaction[..., index[(j.name, "y")]]
+        if j.support in ("clamped", "sliding_clamp"):
+            r[..., 2] = reaction[..., index[(j.name, "r")]]
+        out[j.name] = r
+    return out
 
 
 def solve_linear(structure: Structure, case: LoadCase, axial_force: Mapping[str, np.ndarray] | None = None,

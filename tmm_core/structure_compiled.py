@@ -301,16 +301,11 @@ def factor_prepared(prep: Prepared, P: np.ndarray, *, cond_limit: float = 1e12):
     lay = prep.layout
     B = prep.factor.shape[0]
     M = len(lay.seg_off) - 1
-    mmax = 2 * int(np.max(np.diff(lay.seg_off))) + 1
     nd, nf = len(lay.labels), len(lay.free)
     # The chain's factors before its first deformable segment (index 2 j + 1, j its first
     # flexible segment) are kept up to that index only.
     nlead = 2 + 2 * max(int(np.argmax(~lay.rigid[lay.seg_off[i]:lay.seg_off[i + 1]])) for i in range(M))
-    nmax = (mmax - 1) // 2                        # segments of the longest member (one block each)
-    shapes = {"lead": (M, nlead, 6, 6), "prefix": (M, nlead, 6, 6), "lcol": (M, 6), "B0": (M, 3, 3), "T220": (M, 3, 3),
-              "SP": (M, nmax, 10), "TL": (M, nmax, 6), "Gis": (M, nmax, 3, 3), "Xs": (M, nmax, 3, 3),
-              "BGis": (M, nmax, 3, 3), "HGis": (M, nmax, 3, 3), "Cs": (M, mmax + 1, 3, 3), "Ds": (M, mmax + 1, 3, 3),
-              "Af": (M, 3, 3), "Bf": (M, 3, 3), "firsts": (M,), "Kfull": (nd, nd), "lu": (nf, nf), "piv": (nf,)}
+    shapes = stored_shapes(np.diff(lay.seg_off), nd, nf, nlead)
     stored = tuple(np.zeros((B,) + shapes[k], dtype=np.int64 if k in kernels_factored.INTEGER else float)
                    for k in kernels_factored.STORED)
     negative = np.zeros((B, 2), dtype=np.int64)
@@ -336,10 +331,21 @@ def stored_bytes(prep: Prepared) -> float:
 def stored_bytes_per_configuration(member_segments, joint_dofs: int = 0, free_dofs: int = 0) -> float:
     """Memory of one configuration's stored factorization [bytes] (an upper bound: the factors
     before a member's first deformable segment counted as if it were its second)."""
+    return 8.0 * sum(int(np.prod(shape)) for shape in stored_shapes(member_segments, joint_dofs, free_dofs, 4).values())
+
+
+def stored_shapes(member_segments, joint_dofs: int, free_dofs: int, nlead: int) -> dict:
+    """Shapes of one configuration's stored factorization (:data:`tmm_core.kernels_factored.STORED`):
+    ``member_segments`` of each member, ``nlead`` chain matrices kept before the first
+    deformable segment's (its index + 1)."""
     M = len(member_segments)
-    nmax = int(np.max(member_segments))
-    return 8.0 * (M * (2 * 4 * 36 + 6 + 4 * 9 + 1 + nmax * (16 + 36) + 2 * 9 * (2 * nmax + 2))
-                  + joint_dofs ** 2 + free_dofs ** 2 + free_dofs)
+    nmax = int(np.max(member_segments))         # a segment's blocks at its index
+    mmax = 2 * nmax + 1                         # the chain's matrices (node, segment, node, ...)
+    return {"lead": (M, nlead, 6, 6), "prefix": (M, nlead, 6, 6), "lcol": (M, 6), "B0": (M, 3, 3),
+            "T220": (M, 3, 3), "SP": (M, nmax, 10), "TL": (M, nmax, 6), "Gis": (M, nmax, 3, 3),
+            "Xs": (M, nmax, 3, 3), "BGis": (M, nmax, 3, 3), "HGis": (M, nmax, 3, 3), "Cs": (M, mmax + 1, 3, 3),
+            "Ds": (M, mmax + 1, 3, 3), "Af": (M, 3, 3), "Bf": (M, 3, 3), "firsts": (M,),
+            "Kfull": (joint_dofs, joint_dofs), "lu": (free_dofs, free_dofs), "piv": (free_dofs,)}
 
 
 def _tension_parameter(prep, P):
@@ -379,7 +385,7 @@ def _checked(prep, P, s, out, check_buckling, cond_limit):
 
 def linear_solution(prep: Prepared, P, states, q, reaction, negative):
     """The :class:`tmm_core.structure.LinearSolution` of a :func:`solve_prepared` result."""
-    from .structure import LinearSolution, MemberResult
+    from .structure import LinearSolution, MemberResult, support_reactions
     lay = prep.layout
     B = prep.factor.shape[0]
     out = {}
@@ -389,16 +395,7 @@ def linear_solution(prep: Prepared, P, states, q, reaction, negative):
                                    P[:, sl], np.zeros((B, m.n_segments)),
                                    prep.factor[:, sl] if prep.factor_given[m.name] else 1.0)
     index = {lab: k for k, lab in enumerate(lay.labels)}
-    reactions = {}
-    for j in prep.structure.joints:
-        if j.support == "free":
-            continue
-        r = np.zeros((B, 3))
-        r[:, 0] = reaction[:, index[(j.name, "x")]]
-        r[:, 1] = reaction[:, index[(j.name, "y")]]
-        if j.support == "clamped":
-            r[:, 2] = reaction[:, index[(j.name, "r")]]
-        reactions[j.name] = r
+    reactions = support_reactions(prep.structure, lay.labels, reaction)
     joint_disp = {j.name: np.stack([q[:, index[(j.name, "x")]], q[:, index[(j.name, "y")]]], -1)
                   for j in prep.structure.joints}
     return LinearSolution(prep.structure, prep.case, out, reactions, negative, joint_disp, {})
