@@ -138,7 +138,8 @@ def test_frames_drawn_in_one_batch_equal_the_frame_by_frame_drawing():
     frames_nodes = [{"crank": rng.normal(size=(2, 2)), "coupler": rng.normal(size=(5, 2)),
                      "rocker": rng.normal(size=(4, 2))} for _ in range(7)]
     frames_nodes[3]["rocker"][1, 0] = np.nan            # a non-finite link is left out of its frame
-    straight, deformed, counts = linkage.frames(frames_nodes, stations, 20.0)
+    stacked = {link: np.array([f[link] for f in frames_nodes]) for link in frames_nodes[0]}
+    straight, deformed, counts = linkage.block_strips(stacked, len(frames_nodes), stations, 20.0)
     expected = [linkage.frame(f, stations, 20.0) for f in frames_nodes]
     assert counts == [len(s) for s, _, _ in expected] and counts[3] == 2
     for got, want in ((straight, [a for s, _, _ in expected for a in s]),
@@ -146,9 +147,11 @@ def test_frames_drawn_in_one_batch_equal_the_frame_by_frame_drawing():
         assert len(got) == len(want)
         for g, w in zip(got, want):
             np.testing.assert_allclose(g, w, rtol=1e-13, atol=1e-15)
-    # Frames whose links differ fall back to the frame-by-frame drawing.
+    # Frames whose links differ go in blocks of their own (cosim.recording.batch.frame_blocks).
+    from cosim.recording.batch import frame_blocks
     mixed = frames_nodes[:2] + [{"crank": rng.normal(size=(2, 2))}]
-    assert linkage.frames(mixed, stations, 2.0)[2] == [3, 3, 1]
+    blocks = frame_blocks([(float(i), 0.0, f) for i, f in enumerate(mixed)])
+    assert [c for b in blocks for c in linkage.block_strips(b.nodes, len(b.t), stations, 2.0)[2]] == [3, 3, 1]
 
 
 def test_frames_are_stacked_in_blocks_and_drawn_as_frame_by_frame():
@@ -168,10 +171,10 @@ def test_frames_are_stacked_in_blocks_and_drawn_as_frame_by_frame():
     stations = {"rocker": np.linspace(0.0, 0.2, 4)}
     for block, group in zip(blocks, (frames[:3], frames[3:5], frames[5:])):
         got = linkage.block_strips(block.nodes, len(block.t), stations, 5.0)
-        want = linkage.frames([f[2] for f in group], stations, 5.0)
-        assert got[2] == want[2]
-        for g, w in zip(got[0] + got[1], want[0] + want[1]):
-            np.testing.assert_array_equal(g, w)
+        want = [linkage.frame(f[2], stations, 5.0) for f in group]
+        assert got[2] == [len(w[0]) for w in want]
+        for g, w in zip(got[0] + got[1], [a for w in want for a in w[0]] + [a for w in want for a in w[1]]):
+            np.testing.assert_allclose(g, w, rtol=1e-13, atol=1e-15)
     assert frame_blocks([]) == []
     assert len(frame_blocks(frames[:3])) == 1
 

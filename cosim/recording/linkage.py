@@ -83,37 +83,6 @@ def frame(nodes_by_link: dict, stations_by_link: dict | None, factor: float) -> 
     return straight, deformed, names
 
 
-def stack_frames(frames_nodes: list) -> dict | None:
-    """``{link: (F, n, 2)}`` of F frames' ``{link: nodes}`` with the same links and node counts
-    in every frame (an engine's frames), else None."""
-    if not frames_nodes:
-        return None
-    links = list(frames_nodes[0])
-    try:
-        stacked = {link: np.asarray([f[link] for f in frames_nodes], dtype=float) for link in links}
-    except (KeyError, ValueError):
-        return None
-    if any(len(f) != len(links) for f in frames_nodes) or any(a.ndim != 3 or a.shape[-1] != 2
-                                                               for a in stacked.values()):
-        return None
-    return stacked
-
-
-def frames(frames_nodes: list, stations_by_link: dict | None, factor: float) -> tuple:
-    """:func:`frame` of many frames at once: ``(straight strips, deformed strips, strips per
-    frame)``, the strips of all frames in order; :func:`block_strips` when the frames stack."""
-    stacked = stack_frames(frames_nodes)
-    if stacked is None:
-        straight, deformed, counts = [], [], []
-        for nodes in frames_nodes:
-            s, d, _ = frame(nodes, stations_by_link, factor)
-            straight += s
-            deformed += d
-            counts.append(len(s))
-        return straight, deformed, counts
-    return block_strips(stacked, len(frames_nodes), stations_by_link, factor)
-
-
 def block_strips(stacked: dict, n_frames: int, stations_by_link: dict | None, factor: float) -> tuple:
     """:func:`frame` of ``n_frames`` frames stacked per link (``{link: (F, n, 2)}``, e.g. a
     :class:`cosim.recording.batch.FrameBlock`'s nodes): ``(straight strips, deformed strips,
