@@ -71,10 +71,14 @@ def parse_column(column: str) -> tuple:
     return engine, gauge, quantity, unit
 
 
-def long_traces(columns: list, data: np.ndarray):
-    """The long table (pandas DataFrame, :data:`COLUMNS`) of a wide trace table (``read_traces``)."""
-    import pandas as pd
+LABELS = ("engine", "gauge", "quantity", "unit")
 
+
+def long_parts(columns: list, data: np.ndarray) -> tuple:
+    """The long table of a wide trace table (``read_traces``) as arrays: ``(numbers, labels)``
+    with ``numbers = {"time_s", "crank_angle_deg", "value"}`` (float arrays of the rows) and
+    ``labels = {"engine", ...: (codes, names)}`` (int32 codes into the list ``names``), in the
+    order of :data:`COLUMNS`: one block of rows per trace column, its valid samples."""
     if not columns or columns[0] != "time_s":
         raise ValueError(f"traces: the first column must be time_s, got {columns[:1]}")
     t = data[:, 0]
@@ -83,7 +87,7 @@ def long_traces(columns: list, data: np.ndarray):
         if c.endswith(".crank_angle_rad") and c.count(".") == 1:
             ok = np.isfinite(data[:, j])
             angles[c.split(".")[0]] = (t[ok], np.degrees(data[ok, j]))
-    frames = []
+    times, angle, value, pieces = [], [], [], []
     for j, c in enumerate(columns[1:], start=1):
         if c.endswith(".crank_angle_rad") and c.count(".") == 1:
             continue                     # it is the crank_angle_deg column of its engine
@@ -97,14 +101,31 @@ def long_traces(columns: list, data: np.ndarray):
             ang = np.interp(tt, ta, aa, left=np.nan, right=np.nan)
         else:
             ang = np.full(len(tt), np.nan)
-        frames.append(pd.DataFrame({"time_s": tt, "crank_angle_deg": ang, "engine": engine, "gauge": gauge,
-                                    "quantity": quantity, "value": data[ok, j], "unit": unit or ""}))
-    if not frames:
+        times.append(tt)
+        angle.append(ang)
+        value.append(data[ok, j])
+        pieces.append(((engine, gauge, quantity, unit or ""), len(tt)))
+    cat = (lambda arrays: np.concatenate(arrays) if arrays else np.zeros(0))
+    numbers = {"time_s": cat(times), "crank_angle_deg": cat(angle), "value": cat(value)}
+    labels = {}
+    for k, name in enumerate(LABELS):
+        names = sorted({p[0][k] for p in pieces})      # sorted, as pandas' own categories
+        code = {n: i for i, n in enumerate(names)}
+        labels[name] = (np.repeat(np.array([code[p[0][k]] for p in pieces], dtype=np.int32),
+                                  [p[1] for p in pieces]), names)
+    return numbers, labels
+
+
+def long_traces(columns: list, data: np.ndarray):
+    """The long table (pandas DataFrame, :data:`COLUMNS`; the labels categorical) of a wide trace
+    table (``read_traces``)."""
+    import pandas as pd
+
+    numbers, labels = long_parts(columns, data)
+    if not labels["engine"][1]:          # no trace column at all
         return _empty()
-    df = pd.concat(frames, ignore_index=True)
-    for c in ("engine", "gauge", "quantity", "unit"):
-        df[c] = df[c].astype("category")
-    return df
+    return pd.DataFrame({c: numbers[c] if c in numbers else pd.Categorical.from_codes(*labels[c])
+                         for c in COLUMNS})
 
 
 def _empty():
@@ -165,10 +186,13 @@ def write_parquet(folder) -> Path:
         reader = pd.read_csv(src, dtype="float64", chunksize=PARQUET_CHUNK_ROWS,
                              skipfooter=0 if complete else 1, engine="c" if complete else "python")
         for chunk in reader:
-            df = long_traces(list(chunk.columns), chunk.to_numpy())
-            for c in ("engine", "gauge", "quantity", "unit"):
-                df[c] = df[c].astype(str)
-            table = pa.Table.from_pandas(df, schema=schema, preserve_index=False)
+            # Arrow columns straight from the arrays (through pandas frames and categoricals the
+            # conversion took 0.4 s for 54,000 rows); the labels stored as plain strings.
+            numbers, labels = long_parts(list(chunk.columns), chunk.to_numpy())
+            table = pa.Table.from_arrays(
+                [pa.array(numbers[c]) if c in numbers else
+                 pa.DictionaryArray.from_arrays(labels[c][0], pa.array(labels[c][1], pa.string())).cast(pa.large_string())
+                 for c in COLUMNS], names=COLUMNS)
             if writer is None:
                 schema = table.schema
                 writer = pq.ParquetWriter(tmp, schema)

@@ -6,9 +6,14 @@ Columns are named ``<engine>.<quantity>_<unit>`` (``tmm.drive_torque_Nm``,
 model and MuJoCo at every internal step), so the rows are the union of all sample times and a
 cell is empty where a trace has no sample.
 
-The file is appended macro step by macro step, one write and flush per step, so a run that is
-interrupted or killed leaves every completed step on disk; :func:`read_traces` reads such a file
-and drops (and reports) a last line cut off by the kill.
+The file is appended in blocks of macro steps, one write and flush at most every
+:data:`FLUSH_EVERY_S` of wall time and at :meth:`TraceWriter.close`: an interrupted run (Ctrl-C,
+SIGTERM, an error: the run closes the writer) keeps every completed step, a killed one (SIGKILL)
+every step up to the last flush. (A write per macro step cost the run ~9 us a row, 0.47 s on
+0.7 s of engine time for 150 revolutions of the FE rig at 1 deg; the union of the engines' times
+and the table per block instead of per step leave the rows' formatting, ~4 us a row.)
+:func:`read_traces` reads a killed run's file and drops (and reports) a last line cut off by the
+kill.
 
 Owns: ``traces.csv``: column names with units, appending per macro step. Boundaries: no post-
 processing.
@@ -16,6 +21,7 @@ processing.
 from __future__ import annotations
 
 import csv
+import time
 from pathlib import Path
 
 import numpy as np
@@ -25,6 +31,7 @@ from .motor import MotorTrace
 MOTOR_FIELDS = ("current_A", "voltage_V", "torque_em_Nm", "drive_torque_Nm", "motor_speed_rad_s",
                 "setpoint_rad_s", "electrical_power_W", "copper_loss_W", "friction_loss_W")
 TIME_DECIMALS = 12         # engines' clocks agree to an ulp; round before taking the union
+FLUSH_EVERY_S = 0.25       # wall time between writes: what a killed run can lose at most
 
 
 def engine_columns(engine: str, out) -> list:
@@ -45,17 +52,21 @@ def motor_columns(engine: str, trace: MotorTrace) -> list:
 
 
 class TraceWriter:
-    """Appends macro steps to ``traces.csv``; the header is fixed by the first step's outputs
-    (engines that failed before it have no columns)."""
+    """Appends macro steps to ``traces.csv`` in blocks (module docstring); the header is fixed by
+    the first step's outputs (engines that failed before it have no columns)."""
 
-    def __init__(self, path: Path):
+    def __init__(self, path: Path, flush_every_s: float = FLUSH_EVERY_S):
         self.path = Path(path)
+        self.flush_every_s = flush_every_s
         self.columns = None
         self.fh = None
         self.rows = 0
+        self._pending = []           # (column, t, values) of the steps since the last write
+        self._last_write = time.monotonic()
 
     def write_step(self, outputs: dict) -> None:
-        """``outputs``: {engine: (EngineOutput, MotorTrace | None)} of one macro step."""
+        """``outputs``: {engine: (EngineOutput, MotorTrace | None)} of one macro step; on disk at the
+        next block's write (at most ``flush_every_s`` later) or at :meth:`close`."""
         series = []     # (column, t, values)
         for engine, (out, trace) in outputs.items():
             series += [(c, out.t, v) for c, v in engine_columns(engine, out)]
@@ -68,25 +79,41 @@ class TraceWriter:
             self.fh = open(self.path, "w", newline="", encoding="utf-8")
             self.fh.write(",".join(["time_s"] + self.columns) + "\n")
             self.fh.flush()
+        self._pending += series
+        if time.monotonic() - self._last_write >= self.flush_every_s:
+            self.flush()
+
+    def flush(self) -> None:
+        """Write the steps collected since the last write (one block: the union of their sample
+        times, one row each)."""
+        self._last_write = time.monotonic()
+        if not self._pending:
+            return
         index = {c: j for j, c in enumerate(self.columns)}
-        times = np.unique(np.round(np.concatenate([np.asarray(t, dtype=float) for _, t, _ in series]), TIME_DECIMALS))
+        by_column = {}
+        for c, t, v in self._pending:
+            if c in index:      # a column the first step did not have cannot happen with fixed engines
+                ts, vs = by_column.setdefault(c, ([], []))
+                ts.append(t)
+                vs.append(v)
+        self._pending = []
+        by_column = {c: (np.round(np.concatenate(ts, axis=None, dtype=float), TIME_DECIMALS),
+                         np.concatenate(vs, axis=None, dtype=float)) for c, (ts, vs) in by_column.items()}
+        times = np.unique(np.concatenate([t for t, _ in by_column.values()]))
         table = np.full((len(times), len(self.columns)), np.nan)
-        for c, t, v in series:
-            j = index.get(c)
-            if j is None:        # a column the first step did not have (cannot happen with fixed engines)
-                continue
-            rows = np.searchsorted(times, np.round(np.asarray(t, dtype=float), TIME_DECIMALS))
-            table[rows, j] = v
+        for c, (t, v) in by_column.items():
+            table[np.searchsorted(times, t), index[c]] = v
         # One %-format per row (a cell at a time was the run's largest cost, ~8 us a row); Python
         # prints every NaN as "nan", and no number contains it: those cells become empty.
         fmt = "%r" + ",%.10g" * len(self.columns) + "\n"
         text = "".join([fmt % tuple(r) for r in np.column_stack([times, table]).tolist()])
-        self.fh.write(text.replace("nan", ""))  # one write per macro step, then flush: a kill loses at most it
+        self.fh.write(text.replace("nan", ""))   # one write per block, then flush: a kill loses at most it
         self.fh.flush()
         self.rows += len(times)
 
     def close(self) -> None:
         if self.fh is not None:
+            self.flush()
             self.fh.close()
             self.fh = None
 
