@@ -163,7 +163,10 @@ def periodic_steady_state(td: TimeDomain, speed_rad_s: float, *, step_s: float |
 def _shoot(td: TimeDomain, cfg, keys, x0, N, dt, it):
     """Revolution ``it`` of Newton shooting from ``x0``: ``(xN, trajectory, outputs, residual)``."""
     try:
-        xN, trajectory, outs = _revolution(td, cfg, keys, x0, N, dt)
+        # A revolution that leaves the model's range overflows on its way to the error below, which
+        # is the report (numpy's warnings went to every sweep worker's stderr).
+        with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+            xN, trajectory, outs = _revolution(td, cfg, keys, x0, N, dt)
     except (TMMError, np.linalg.LinAlgError) as exc:     # e.g. a singular refactorization of a step
         raise ConvergenceError(f"periodic solver: Newton shooting left the range of the model at iteration "
                                f"{it} ({exc}); the response may not be periodic at this speed (march in "
