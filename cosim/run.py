@@ -30,6 +30,7 @@ engine numerics and no recording internals (cosim.recording).
 """
 from __future__ import annotations
 
+import contextlib
 import logging
 import math
 import time
@@ -46,6 +47,7 @@ from .runlog import run_folder, write_json
 from .scenario import Scenario, load, resolved
 from .interrupts import Interrupts, mark_interrupted
 from .run_guards import MAX_HOURS, check_cost, plausibility_notes
+from .samples import SampleCollector
 from .traces import TraceWriter
 
 SUMMARY_EVERY_S = 2.0
@@ -211,15 +213,28 @@ def run_scenario(scenario, options: RunOptions = RunOptions(), callback=None) ->
     written_t = [None]
     interrupts = Interrupts()
 
+    # The macro steps' samples, collected once for traces.csv and the recording, go to both in
+    # blocks (cosim.samples).
+    samples = SampleCollector()
+
+    def take_block():
+        block = samples.take()
+        if block:
+            writer.write_block(block)
+            if recorder[0] is not None:
+                recorder[0].log_samples(block)
+
     def on_step(step):
         interrupts.check()              # a signal an engine swallowed: this macro step is not written
-        writer.write_step(step.outputs)
+        samples.add(step.outputs)
         written_t[0] = step.t
         if recorder[0] is not None:
             if not stations[0]:         # the engines are reset now and know their meshes
                 recorder[0].set_stations({n: e.node_stations() for n, e in engines.items() if _has_stations(e)})
                 stations[0] = True
-            recorder[0].log_macro_step(step)
+            recorder[0].log_macro_step(step, samples=False)
+        if samples.due():
+            take_block()
         failures.update(step.failed)
         frac = step.step / step.n_steps
         if bar is not None:
@@ -236,6 +251,7 @@ def run_scenario(scenario, options: RunOptions = RunOptions(), callback=None) ->
         with interrupts:
             result = cosim.run(duration, callback=on_step, until_steady=until_steady,
                                keep_revolutions=KEEP_REVOLUTIONS)
+            take_block()                # the last macro steps
         status = result.status
         if interrupts.signal is not None:
             mark_interrupted(result, written_t[0], failures)
@@ -243,9 +259,13 @@ def run_scenario(scenario, options: RunOptions = RunOptions(), callback=None) ->
         if status == "interrupted":
             notes.append("interrupted by the user or a signal; the files hold every completed macro step")
     except KeyboardInterrupt:          # during set-up, before the master's loop
+        with contextlib.suppress(Exception):
+            take_block()
         status = "interrupted"
         notes.append("interrupted during set-up")
     except BaseException:
+        with contextlib.suppress(Exception):     # the steps computed before the error stay on disk
+            take_block()
         if recorder[0] is not None:
             recorder[0].close()
         raise

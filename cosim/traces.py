@@ -6,103 +6,74 @@ Columns are named ``<engine>.<quantity>_<unit>`` (``tmm.drive_torque_Nm``,
 model and MuJoCo at every internal step), so the rows are the union of all sample times and a
 cell is empty where a trace has no sample.
 
-The file is appended in blocks of macro steps, one write and flush at most every
-:data:`FLUSH_EVERY_S` of wall time and at :meth:`TraceWriter.close`: an interrupted run (Ctrl-C,
-SIGTERM, an error: the run closes the writer) keeps every completed step, a killed one (SIGKILL)
-every step up to the last flush. (A write per macro step cost the run ~9 us a row, 0.47 s on
-0.7 s of engine time for 150 revolutions of the FE rig at 1 deg; the union of the engines' times
-and the table per block instead of per step leave the rows' formatting, ~4 us a row.)
-:func:`read_traces` reads a killed run's file and drops (and reports) a last line cut off by the
-kill.
+The file is appended in blocks of macro steps (:mod:`cosim.samples`: one write and flush at most
+every 0.25 s of wall time, and at the run's end): an interrupted run (Ctrl-C, SIGTERM, an error:
+the run writes its last block) keeps every completed step, a killed one (SIGKILL) every step up
+to the last block. (A write per macro step cost the run ~9 us a row, 0.47 s on 0.7 s of engine
+time for 150 revolutions of the FE rig at 1 deg; the union of the engines' times and the table
+per block instead of per step leave the rows' formatting, ~3 us a row.) :func:`read_traces`
+reads a killed run's file and drops (and reports) a last line cut off by the kill.
 
-Owns: ``traces.csv``: column names with units, appending per macro step. Boundaries: no post-
-processing.
+Owns: ``traces.csv``: column names with units, appending blocks. Boundaries: no post-processing;
+the blocks are cosim.samples.
 """
 from __future__ import annotations
 
 import csv
-import time
 from pathlib import Path
 
 import numpy as np
 
-from .motor import MotorTrace
 
 MOTOR_FIELDS = ("current_A", "voltage_V", "torque_em_Nm", "drive_torque_Nm", "motor_speed_rad_s",
                 "setpoint_rad_s", "electrical_power_W", "copper_loss_W", "friction_loss_W")
 TIME_DECIMALS = 12         # engines' clocks agree to an ulp; round before taking the union
-FLUSH_EVERY_S = 0.25       # wall time between writes: what a killed run can lose at most
 
 
-def engine_columns(engine: str, out) -> list:
-    """(column, values) of one engine's EngineOutput."""
-    cols = [(f"{engine}.crank_angle_rad", out.crank_angle), (f"{engine}.crank_speed_rad_s", out.crank_speed),
-            (f"{engine}.drive_torque_Nm", out.drive_torque)]
-    for g, (bending, axial) in out.gauges.items():
-        cols += [(f"{engine}.{g}.bending_ue", np.asarray(bending) * 1e6), (f"{engine}.{g}.axial_ue",
-                                                                          np.asarray(axial) * 1e6)]
-    for name, (unit, values) in out.extras.items():
+def engine_columns(engine: str, arrays: dict) -> list:
+    """``(column, t, values)`` of one engine's block (:meth:`cosim.samples.SampleCollector.take`)."""
+    t = arrays["t"]
+    cols = [(f"{engine}.crank_angle_rad", t, arrays["angle"]), (f"{engine}.crank_speed_rad_s", t, arrays["speed"]),
+            (f"{engine}.drive_torque_Nm", t, arrays["torque"])]
+    for g, (bending, axial) in arrays["gauges"].items():
+        cols += [(f"{engine}.{g}.bending_ue", t, bending * 1e6), (f"{engine}.{g}.axial_ue", t, axial * 1e6)]
+    for name, (unit, values) in arrays["extras"].items():
         unit = unit.replace(" ", "").replace("/", "_")
-        cols.append((f"{engine}.{name if name.endswith('_' + unit) else f'{name}_{unit}'}", values))
+        cols.append((f"{engine}.{name if name.endswith('_' + unit) else f'{name}_{unit}'}", t, values))
+    motor = arrays.get("motor")
+    if motor:
+        cols += [(f"motor.{engine}.{f}", motor["t"], motor[f]) for f in MOTOR_FIELDS]
     return cols
 
 
-def motor_columns(engine: str, trace: MotorTrace) -> list:
-    return [(f"motor.{engine}.{f}", getattr(trace, f)) for f in MOTOR_FIELDS]
-
-
 class TraceWriter:
-    """Appends macro steps to ``traces.csv`` in blocks (module docstring); the header is fixed by
-    the first step's outputs (engines that failed before it have no columns)."""
+    """Appends blocks of macro steps to ``traces.csv`` (module docstring); the header is fixed by
+    the first block (engines that failed before it have no columns)."""
 
-    def __init__(self, path: Path, flush_every_s: float = FLUSH_EVERY_S):
+    def __init__(self, path: Path):
         self.path = Path(path)
-        self.flush_every_s = flush_every_s
         self.columns = None
         self.fh = None
         self.rows = 0
-        self._pending = []           # (column, t, values) of the steps since the last write
-        self._last_write = time.monotonic()
 
-    def write_step(self, outputs: dict) -> None:
-        """``outputs``: {engine: (EngineOutput, MotorTrace | None)} of one macro step; on disk at the
-        next block's write (at most ``flush_every_s`` later) or at :meth:`close`."""
-        series = []     # (column, t, values)
-        for engine, (out, trace) in outputs.items():
-            series += [(c, out.t, v) for c, v in engine_columns(engine, out)]
-            if trace is not None:
-                series += [(c, trace.t, v) for c, v in motor_columns(engine, trace)]
+    def write_block(self, block: dict) -> None:
+        """``block``: ``{engine: arrays}`` of :meth:`cosim.samples.SampleCollector.take`; one row
+        per sample time of the union of the engines', written and flushed."""
+        series = [c for engine, arrays in block.items() for c in engine_columns(engine, arrays)]
+        series = [(c, t, v) for c, t, v in series if len(t)]
         if not series:
             return
         if self.columns is None:
             self.columns = [c for c, _, _ in series]
             self.fh = open(self.path, "w", newline="", encoding="utf-8")
             self.fh.write(",".join(["time_s"] + self.columns) + "\n")
-            self.fh.flush()
-        self._pending += series
-        if time.monotonic() - self._last_write >= self.flush_every_s:
-            self.flush()
-
-    def flush(self) -> None:
-        """Write the steps collected since the last write (one block: the union of their sample
-        times, one row each)."""
-        self._last_write = time.monotonic()
-        if not self._pending:
-            return
         index = {c: j for j, c in enumerate(self.columns)}
-        by_column = {}
-        for c, t, v in self._pending:
-            if c in index:      # a column the first step did not have cannot happen with fixed engines
-                ts, vs = by_column.setdefault(c, ([], []))
-                ts.append(t)
-                vs.append(v)
-        self._pending = []
-        by_column = {c: (np.round(np.concatenate(ts, axis=None, dtype=float), TIME_DECIMALS),
-                         np.concatenate(vs, axis=None, dtype=float)) for c, (ts, vs) in by_column.items()}
-        times = np.unique(np.concatenate([t for t, _ in by_column.values()]))
+        series = [(index[c], np.round(t, TIME_DECIMALS), v) for c, t, v in series
+                  if c in index]      # a column the first block did not have cannot happen with fixed engines
+        times = np.unique(np.concatenate([t for _, t, _ in series]))
         table = np.full((len(times), len(self.columns)), np.nan)
-        for c, (t, v) in by_column.items():
-            table[np.searchsorted(times, t), index[c]] = v
+        for j, t, v in series:
+            table[np.searchsorted(times, t), j] = v
         # One %-format per row (a cell at a time was the run's largest cost, ~8 us a row); Python
         # prints every NaN as "nan", and no number contains it: those cells become empty.
         fmt = "%r" + ",%.10g" * len(self.columns) + "\n"
@@ -113,7 +84,6 @@ class TraceWriter:
 
     def close(self) -> None:
         if self.fh is not None:
-            self.flush()
             self.fh.close()
             self.fh = None
 

@@ -1,11 +1,12 @@
-"""traces.csv written in blocks (cosim.traces.TraceWriter): the file does not depend on how the
-macro steps were grouped into writes, a step is on disk once its block is written, and closing
-writes what is pending."""
+"""traces.csv written in blocks (cosim.samples.SampleCollector -> cosim.traces.TraceWriter): the
+file does not depend on how the macro steps were grouped into blocks, a block is on disk once
+written, and the block's arrays are the steps' (the recording takes the same blocks)."""
 from __future__ import annotations
 
 import numpy as np
 
 from cosim.engines.base import EngineOutput
+from cosim.samples import SampleCollector
 from cosim.traces import TraceWriter, read_traces
 
 
@@ -28,19 +29,22 @@ def _steps(n_steps=40, seed=3):
     return steps
 
 
-def _write(path, steps, flush_every_s, close=True):
-    w = TraceWriter(path, flush_every_s=flush_every_s)
+def _write(path, steps, per_step):
+    """traces.csv of ``steps``: a block per step, or one block of all."""
+    w, samples = TraceWriter(path), SampleCollector()
     for s in steps:
-        w.write_step(s)
-    if close:
-        w.close()
+        samples.add(s)
+        if per_step:
+            w.write_block(samples.take())
+    w.write_block(samples.take())
+    w.close()
     return w
 
 
 def test_blocks_give_the_same_file_as_a_write_per_step(tmp_path):
     steps = _steps()
-    _write(tmp_path / "each.csv", steps, 0.0)            # a write after every step
-    _write(tmp_path / "block.csv", steps, 1e9)           # one block, written at close
+    _write(tmp_path / "each.csv", steps, True)
+    _write(tmp_path / "block.csv", steps, False)
     assert (tmp_path / "each.csv").read_bytes() == (tmp_path / "block.csv").read_bytes()
     cols, data, note = read_traces(tmp_path / "block.csv")
     assert note is None and len(data) == 40 * 5          # the coarse times are among the fine ones
@@ -52,13 +56,20 @@ def test_blocks_give_the_same_file_as_a_write_per_step(tmp_path):
                                [s["coarse"][0].gauges["g"][0][0] * 1e6 for s in steps], rtol=1e-9)
 
 
-def test_a_step_is_on_disk_after_its_block_and_close_writes_the_rest(tmp_path):
+def test_a_block_holds_the_steps_arrays_and_is_on_disk_once_written(tmp_path):
     steps = _steps(6)
+    samples = SampleCollector(every_s=1e9, max_samples=31)
+    for s in steps:
+        samples.add(s)
+    assert samples.samples == 36 and samples.due()      # 6 x (5 + 1) samples: past max_samples
+    block = samples.take()
+    assert samples.samples == 0 and not samples.due() and samples.take() == {}
+    np.testing.assert_array_equal(block["fine"]["t"], np.concatenate([s["fine"][0].t for s in steps]))
+    np.testing.assert_array_equal(block["coarse"]["gauges"]["g"][1],
+                                  np.concatenate([s["coarse"][0].gauges["g"][1] for s in steps]))
+    assert block["fine"]["extras"]["loop_closure"][0] == "m" and block["fine"]["motor"] is None
     path = tmp_path / "t.csv"
-    w = _write(path, steps, 1e9, close=False)
-    assert len(path.read_text().splitlines()) == 1      # the header only: the block is pending
-    w.flush()
-    assert len(path.read_text().splitlines()) == 1 + 6 * 5
-    w.write_step(_steps(7)[6])
+    w = TraceWriter(path)
+    w.write_block(block)
+    assert len(path.read_text().splitlines()) == 1 + 6 * 5 and w.rows == 30     # written and flushed
     w.close()
-    assert len(path.read_text().splitlines()) == 1 + 7 * 5 and w.rows == 35

@@ -1,16 +1,18 @@
 """Collect the master's macro steps into batches for the recording: numpy only, no rerun.
 
-A run calls :meth:`StepBatcher.add` after every macro step (a few microseconds: it keeps
-references to the step's arrays, while they are in the cache: reading them out of the macro
-steps' outputs at the take cost twice as much); :meth:`StepBatcher.take` concatenates what was
-collected into one :class:`dict` per engine, the linkage frames stacked in :class:`FrameBlock`,
-which the writer sends as one chunk per entity (:mod:`cosim.recording.writer`). The linkage is
-kept at *display rate*: the last sample of a macro step, at most ``linkage_fps`` frames per simulated second (and every ``linkage_every``-th
+A run calls :meth:`StepBatcher.add` after every macro step; its samples go into a
+:class:`cosim.samples.SampleCollector` (references to the step's arrays, concatenated at the
+take), unless the run collects them once for all its consumers and hands the block to
+:meth:`StepBatcher.take` (``cosim run`` does: ``traces.csv`` takes the same block). A batch is
+``{"engines": {engine: the block's arrays + "frames"}, "events": [...]}``, the linkage frames
+stacked in :class:`FrameBlock`, which the writer sends as one chunk per entity
+(:mod:`cosim.recording.writer`). The linkage is kept at *display rate*: the last sample of a
+macro step, at most ``linkage_fps`` frames per simulated second (and every ``linkage_every``-th
 macro step), and always the run's last step. Drawing every macro step cost most of the
 recording's time and gave frames no viewer shows.
 
 Owns: macro steps collected into batches; the linkage at display rate. Boundaries: no rerun
-import.
+import; the samples are cosim.samples.
 """
 from __future__ import annotations
 
@@ -18,6 +20,8 @@ import dataclasses
 import math
 
 import numpy as np
+
+from ..samples import SampleCollector
 
 
 def check_linkage_rate(linkage_every, linkage_fps) -> None:
@@ -67,48 +71,6 @@ def _block(frames) -> FrameBlock:
                        for link in frames[0][2]})
 
 
-class _EngineBuffer:
-    """One engine's samples since the last :meth:`StepBatcher.take`."""
-
-    def __init__(self):
-        self.t, self.angle, self.speed, self.torque = [], [], [], []
-        self.gauges, self.extras, self.units = {}, {}, {}
-        self.motor, self.motor_units = {}, {}
-        self.frames = []
-
-    def add(self, out, trace) -> None:
-        self.t.append(out.t)
-        self.angle.append(out.crank_angle)
-        self.speed.append(out.crank_speed)
-        self.torque.append(out.drive_torque)
-        for g, (bending, axial) in out.gauges.items():
-            b, a = self.gauges.setdefault(g, ([], []))
-            b.append(bending)
-            a.append(axial)
-        for name, (unit, values) in out.extras.items():
-            self.extras.setdefault(name, []).append(values)
-            self.units[name] = unit
-        if trace is not None:
-            self.motor_units = getattr(type(trace), "UNITS", {})
-            for f in dataclasses.fields(trace):
-                self.motor.setdefault(f.name, []).append(getattr(trace, f.name))
-
-    def take(self) -> dict:
-        cat = _cat
-        out = {"t": cat(self.t), "angle": cat(self.angle), "speed": cat(self.speed), "torque": cat(self.torque),
-               "gauges": {g: (cat(b), cat(a)) for g, (b, a) in self.gauges.items()},
-               "extras": {n: (self.units[n], cat(v)) for n, v in self.extras.items()},
-               "motor": ({f: cat(v) for f, v in self.motor.items()} if self.motor else None),
-               "motor_units": dict(self.motor_units), "frames": frame_blocks(self.frames)}
-        self.__init__()
-        return out
-
-
-def _cat(arrays) -> np.ndarray:
-    # axis=None ravels each piece (a scalar sample too) in the one C call.
-    return np.concatenate(arrays, axis=None, dtype=float) if arrays else np.zeros(0)
-
-
 class StepBatcher:
     """Macro steps -> batches (see the module docstring)."""
 
@@ -116,30 +78,31 @@ class StepBatcher:
         check_linkage_rate(linkage_every, linkage_fps)
         self.linkage_every = linkage_every
         self.linkage_fps = linkage_fps
-        self._engines: dict[str, _EngineBuffer] = {}
+        self._samples = SampleCollector()
+        self._frames: dict[str, list] = {}
         self._events: list = []
         self._last_frame: dict[str, float] = {}
-        self.samples = 0                 # samples collected since the last take
 
-    def add(self, step) -> None:
-        """Collect one :class:`cosim.master.MacroStep` (engines with no sample are skipped)."""
+    @property
+    def samples(self) -> int:
+        """Samples collected since the last take."""
+        return self._samples.samples
+
+    def add(self, step, samples: bool = True) -> None:
+        """Collect one :class:`cosim.master.MacroStep` (engines with no sample are skipped);
+        ``samples=False``: its linkage frames and events only (the caller collects the samples and
+        hands them to :meth:`take`)."""
+        if samples:
+            self._samples.add(step.outputs)
         last = step.step == step.n_steps
         stride = (step.step - 1) % self.linkage_every == 0
         for engine, (out, trace) in step.outputs.items():
-            n = np.size(out.t)
-            if n == 0:
-                continue
-            buf = self._engines.get(engine)
-            if buf is None:
-                buf = self._engines[engine] = _EngineBuffer()
-            buf.add(out, trace)
-            self.samples += n
-            if out.nodes:
+            if out.nodes and np.size(out.t):
                 t_end = float(out.t[-1])
                 if last or (stride and self._frame_due(engine, t_end)):
                     # The macro step's last sample (a view; copied when the batch is stacked).
-                    buf.frames.append((t_end, float(out.crank_angle[-1]),
-                                       {link: np.asarray(v)[-1] for link, v in out.nodes.items()}))
+                    self._frames.setdefault(engine, []).append(
+                        (t_end, float(out.crank_angle[-1]), {link: np.asarray(v)[-1] for link, v in out.nodes.items()}))
                     self._last_frame[engine] = t_end
         for engine, message in (step.failed or {}).items():
             self._events.append((float(step.t), engine, str(message)))
@@ -149,11 +112,16 @@ class StepBatcher:
             return True
         return t - self._last_frame[engine] >= (1.0 - 1e-6) / self.linkage_fps
 
-    def take(self) -> dict | None:
+    def take(self, block: dict | None = None) -> dict | None:
         """Everything collected since the last take ({"engines": {engine: arrays}, "events": [...]}),
-        or None when nothing was."""
-        if not self._engines and not self._events:
+        or None when nothing was; ``block``: the samples, collected by the caller
+        (:meth:`cosim.samples.SampleCollector.take`), instead of this batcher's own."""
+        own = self._samples.take()
+        block = own if block is None else block
+        if not block and not self._events:
             return None
-        batch = {"engines": {e: b.take() for e, b in self._engines.items()}, "events": self._events}
-        self._engines, self._events, self.samples = {}, [], 0
+        # A frame is the last sample of a macro step whose samples are in the block.
+        engines = {e: {**arrays, "frames": frame_blocks(self._frames.pop(e, []))} for e, arrays in block.items()}
+        batch = {"engines": engines, "events": self._events}
+        self._events = []
         return batch

@@ -2,9 +2,10 @@
 
 Why a process: importing rerun and converting arrays to chunks cost a TMM run of a few seconds
 more than the TMM itself (about 0.35 s for the import and the first send alone). The child
-writes while the engines run, on another core; the run only collects references to its arrays
-(:mod:`cosim.recording.batch`) and hands a pickled batch to a pipe a few times a second (from a
-thread, so a slow child never stalls the run).
+writes while the engines run, on another core; the run only picks the linkage frames
+(:mod:`cosim.recording.batch`) and hands a pickled batch of the sample blocks it collects for
+its files anyway (:mod:`cosim.samples`) to a pipe a few times a second (from a thread, so a slow
+child never stalls the run).
 
 When the child starts: a live viewer's at once (the viewer opens while the engines set up). A
 file's at the run's first data (the engines' stations or first batch): the engines' set-up runs
@@ -81,8 +82,8 @@ class RecorderProcess(Recorder):
         self._check_open()
         self._send("stations", stations)
 
-    def _take(self):
-        batch = self.batcher.take()
+    def _take(self, block=None):
+        batch = self.batcher.take(block)
         if batch is not None:
             self._send("batch", batch)
         self._last_take = time.monotonic()

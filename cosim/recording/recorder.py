@@ -14,6 +14,7 @@ import logging
 import math
 import time
 
+from ..samples import BLOCK_EVERY_S, BLOCK_SAMPLES
 from .batch import StepBatcher, check_linkage_rate
 from .layout import part
 from .references import make_references
@@ -72,8 +73,8 @@ class Recorder:
     linkage every n-th macro step / at most this many frames per simulated second.
     """
 
-    batch_samples = 5_000               # samples collected before a batch goes to the writer
-    batch_interval_s = 0.25             # ... or this much wall time
+    batch_samples = BLOCK_SAMPLES       # samples collected before a batch goes to the writer
+    batch_interval_s = BLOCK_EVERY_S    # ... or this much wall time
 
     def __init__(self, scenario, engines: dict | None = None, mode: str = "prescribed", *, save_path=None,
                  spawn: bool = False, connect: str | None = None, viewer: ViewerOptions | None = None,
@@ -96,13 +97,23 @@ class Recorder:
         self._check_open()
         self.writer.set_stations(stations)
 
-    def log_macro_step(self, step) -> None:
-        """Collect one :class:`cosim.master.MacroStep`; hand a batch to the writer now and then."""
+    def log_macro_step(self, step, samples: bool = True) -> None:
+        """Collect one :class:`cosim.master.MacroStep`; hand a batch to the writer now and then.
+        ``samples=False``: the step's linkage frames and events only; the caller collects the
+        samples (:class:`cosim.samples.SampleCollector`, once for the run's files and the
+        recording) and hands each block to :meth:`log_samples`."""
         self._check_open()
-        self.batcher.add(step)
-        if (self.batcher.samples >= self.batch_samples
-                or time.monotonic() - self._last_take >= self.batch_interval_s):
+        self.batcher.add(step, samples)
+        if samples and (self.batcher.samples >= self.batch_samples
+                        or time.monotonic() - self._last_take >= self.batch_interval_s):
             self._take()
+
+    def log_samples(self, block: dict) -> None:
+        """A block of samples (:meth:`cosim.samples.SampleCollector.take`) of the macro steps logged
+        with ``samples=False`` since the last block: a batch goes to the writer with their frames
+        and events."""
+        self._check_open()
+        self._take(block)
 
     def log_reference(self, gauge: str, label: str, t=None, angle=None, bending_ue=None, axial_ue=None,
                       kind: str = "measurement") -> None:
@@ -155,8 +166,8 @@ class Recorder:
         self.close()
 
     # -- in-process transport (RecorderProcess overrides these three) -----------------------------
-    def _take(self):
-        self.writer.write(self.batcher.take())
+    def _take(self, block=None):
+        self.writer.write(self.batcher.take(block))
         self._last_take = time.monotonic()
 
     def _reference(self, ref):
