@@ -298,6 +298,23 @@ def test_recorder_in_a_child_process_writes_the_same(sc, tmp_path):
                                   read_scalars(here, "/tmm/strain/rocker_mid")[1])
 
 
+def test_a_files_writer_process_starts_after_its_first_data_or_at_the_hand_over(sc, tmp_path, monkeypatch):
+    """The child's start (rerun's import, ~0.5 s of CPU) slows the engines on a second vCPU: a
+    file's child starts CHILD_START_AFTER_S after the first data, at the hand-over, or when
+    CHILD_START_BYTES of messages wait; nothing is lost either way."""
+    from cosim.recording import RecorderProcess, process
+    monkeypatch.setattr(process, "CHILD_START_AFTER_S", 600.0)
+    rec, _ = record_run(sc, tmp_path / "late.rrd", cls=RecorderProcess)
+    assert not rec.writer_started
+    rec.hand_over()
+    assert rec.writer_started and rec.close() == []
+    monkeypatch.setattr(process, "CHILD_START_BYTES", 1)
+    rec, _ = record_run(sc, tmp_path / "early.rrd", cls=RecorderProcess)
+    assert rec.writer_started and rec.close() == []
+    assert read_back(tmp_path / "late.rrd") == read_back(tmp_path / "early.rrd")
+    assert read_back(tmp_path / "late.rrd")["/tmm/strain/rocker_mid"] > 0
+
+
 def test_needs_a_destination(sc):
     with pytest.raises(ValueError, match="save_path"):
         Recorder(sc, {"tmm": {}}, "prescribed")

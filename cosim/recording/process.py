@@ -8,10 +8,17 @@ its files anyway (:mod:`cosim.samples`) to a pipe a few times a second (from a t
 child never stalls the run).
 
 When the child starts: a live viewer's at once (the viewer opens while the engines set up). A
-file's at the run's first data (the engines' stations or first batch): the engines' set-up runs
-its compiled solves on every core, and a child starting beside it (Python and numpy, ~0.15 s of
-CPU) made the TMM's set-up ~60 % slower (0.041 -> 0.065 s median at 241 rpm); until then the
-messages wait in the queue. A run killed during its set-up leaves no file; it had no data.
+file's :data:`CHILD_START_AFTER_S` after the run's first data (the engines' stations or first
+batch), or when the run hands the recording over, whichever comes first (or when
+:data:`CHILD_START_BYTES` wait in the queue); until then the messages wait in the queue. The
+child's start is ~0.5 s of CPU (Python, numpy, rerun's import), and on a machine of two vCPUs it
+slows the engines beside it: started with the engines' set-up it made the TMM's set-up ~60 %
+slower (0.041 -> 0.065 s median at 241 rpm), started at the first data it made the loop of a
+30-revolution run 10-18 % slower (with the start delayed past the loop: 1 % and less, the
+recording's own batching). A short run's child now starts while the run writes its other files;
+a long run's pays the start once. A run killed (SIGKILL) within its first
+:data:`CHILD_START_AFTER_S` of data leaves no recording (``traces.csv`` holds its steps); a run
+interrupted (Ctrl-C, SIGTERM) hands its recording over as every run does.
 
 The child ignores Ctrl-C (it runs in its own session): the run closes the recording when it
 ends, interrupted or not. If the run's process dies, the child sees its input end and finishes
@@ -49,6 +56,8 @@ from .sinks import ViewerOptions
 log = logging.getLogger("cosim.recording")
 _DONE = object()
 _BEFORE_DATA = ("open", "text", "reference")    # messages that do not start a file's child
+CHILD_START_AFTER_S = 2.0     # a file's child starts this long after the run's first data (or at its end)
+CHILD_START_BYTES = 64e6      # ... or when this many bytes of messages wait for it
 WRITER_NICE = 10              # the child's scheduling priority offset (Unix nice)
 
 
@@ -106,9 +115,23 @@ class RecorderProcess(Recorder):
         self._thread.start()
 
     def _send(self, *message):
-        self._queue.put(pickle.dumps(message, protocol=pickle.HIGHEST_PROTOCOL))
+        item = pickle.dumps(message, protocol=pickle.HIGHEST_PROTOCOL)
+        self._queue.put(item)
         if self._proc is None and message[0] not in _BEFORE_DATA:
-            self._start_child()
+            now = time.monotonic()
+            self._first_data = now if self._first_data is None else self._first_data
+            self._waiting_bytes += len(item)
+            if (message[0] == "close" or now - self._first_data >= CHILD_START_AFTER_S
+                    or self._waiting_bytes >= CHILD_START_BYTES):
+                self._start_child()
+
+    @property
+    def writer_started(self) -> bool:
+        """Whether the child process has been started (see the module docstring for when)."""
+        return self._proc is not None
+
+    _first_data = None            # when the first data message was queued (monotonic clock) [s]
+    _waiting_bytes = 0            # bytes of data messages queued before the child started
 
     def _pump(self):
         """Thread: queued messages into the child's stdin (blocking here, not in the run)."""

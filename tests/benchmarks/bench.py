@@ -218,7 +218,8 @@ def main(argv=None) -> dict:
     if "overhead" in args.part_set:
         result["bench_overhead"] = part("overhead", lambda: fresh(bp.bench_overhead, args.rig_list[-1] if tiny else
                                                                   "crank_rocker_241rpm", (1,) if tiny else (1, 4, 16),
-                                                                  0.2 if tiny else 30.0))
+                                                                  0.2 if tiny else 30.0, 2 if tiny else
+                                                                  bp.OVERHEAD_PAIRS))
     if "sweep" in args.part_set:
         cap = min(8.0 if tiny else args.sweep_cap, max(left_s(), 1.0))
         result["sweep"] = part("sweep", lambda: bp.sweep_capped(cap, args.sweep_workers, 2 if tiny else 8,

@@ -82,7 +82,10 @@ def sweep_capped(cap_s: float, workers: int, segments: int = 8, rpm: str = "100:
 
 
 # -- the bench's own cost -------------------------------------------------------------------------
-def bench_overhead(rig, macro_multiples, revolutions):
+OVERHEAD_PAIRS = 9         # alternating unrecorded / recorded whole runs per macro-step setting
+
+
+def bench_overhead(rig, macro_multiples, revolutions, pairs: int = OVERHEAD_PAIRS):
     """Engine time and the master's, and whole runs without and with rerun streaming [s] and as
     fractions of the engine's time, at macro steps of ``macro_multiples`` TMM steps (1 deg)."""
     from cosim.engines import make_engine
@@ -108,16 +111,17 @@ def bench_overhead(rig, macro_multiples, revolutions):
         row = {"macro_engine_steps": m, "engine_steps_per_call": int(round(cs.macro_step_s / s.engine_step_s("tmm"))),
                "engine_s": inner[0], "master_s": total - inner[0],
                "master_fraction": (total - inner[0]) / inner[0]}
-        # Whole runs without and with the rerun recording, alternating, the fastest of five each
+        # Whole runs without and with the rerun recording, alternating, the fastest of nine each
         # (a loaded machine adds noise of the order of the fixed costs). The run's loop (the
         # master's run: engines, traces, the recording's batching) is timed apart: the recording's
         # child writes beside the loop and beside the results written after it.
-        best, loops = {}, {}
+        best, loops, pairs = {}, {}, []
         loop_time = [0.0]
         run_method = CoSimulation.run
         CoSimulation.run = timed(run_method, loop_time)
         try:
-            for _ in range(5):
+            for _ in range(pairs):
+                pair = {}
                 for viewer in ("none", "save"):
                     with tempfile.TemporaryDirectory() as tmp:
                         loop_time[0] = 0.0
@@ -129,6 +133,8 @@ def bench_overhead(rig, macro_multiples, revolutions):
                         if wall < best.get(key, (np.inf,))[0]:
                             best[key] = (wall, res.summary["engines"]["tmm"]["wall_time_s"])
                         loops[key] = min(loops.get(key, np.inf), loop_time[0])
+                        pair[key] = (wall, loop_time[0], res.summary["engines"]["tmm"]["wall_time_s"])
+                pairs.append(pair)
         finally:
             CoSimulation.run = run_method
         for key, (wall, eng_s) in best.items():
@@ -141,6 +147,15 @@ def bench_overhead(rig, macro_multiples, revolutions):
         row["streaming_fraction"] = row["streaming_s"] / best["traces_only"][1]
         row["streaming_loop_s"] = loops["stream"] - loops["traces_only"]
         row["streaming_loop_fraction"] = row["streaming_loop_s"] / best["traces_only"][1]
+        # The same from the pairs (each recorded run against the unrecorded one just before it):
+        # the median difference and its spread (the fastest-of differences above swing by a few
+        # hundredths of a second from one benchmark run to the next).
+        engine = float(np.median([p["traces_only"][2] for p in pairs]))
+        for key, col in (("paired_whole", 0), ("paired_loop", 1)):
+            d = np.array([p["stream"][col] - p["traces_only"][col] for p in pairs])
+            row[f"streaming_{key}_median_fraction"] = float(np.median(d)) / engine
+            row[f"streaming_{key}_quartiles_fraction"] = [float(q) / engine for q in np.percentile(d, [25, 75])]
+        row["pairs"] = pairs
         out[str(m)] = row
     return out
 

@@ -145,8 +145,9 @@ def overhead_rows(data: dict) -> list[str]:
         return [f"bench overhead: {o['error']}"]
     rows = ["| engine steps per macro step (per call) | engine [s] | master [s] (fraction) | whole run, traces only "
             "(fraction) | whole run, rerun streaming (fraction) | streaming alone [s] (fraction of engine) | "
-            "streaming in the run's loop [s] (fraction of engine) |",
-            "|---|---|---|---|---|---|---|"]
+            "streaming in the run's loop [s] (fraction of engine) | streaming, median of pairs: whole run / loop "
+            "(quartiles) |",
+            "|---|---|---|---|---|---|---|---|"]
     for m, r in o.items():
         per_call = f" ({r['engine_steps_per_call']})" if "engine_steps_per_call" in r else ""
         rows.append(f"| {m}{per_call} | {r['engine_s']:.3g} | {r['master_s']:.3g} "
@@ -156,7 +157,12 @@ def overhead_rows(data: dict) -> list[str]:
                     + (f"{r['streaming_s']:.3g} ({100 * r['streaming_fraction']:.0f} %) |" if "streaming_s" in r
                        else " |")
                     + (f" {r['streaming_loop_s']:.3g} ({100 * r['streaming_loop_fraction']:.0f} %) |"
-                       if "streaming_loop_s" in r else " |"))
+                       if "streaming_loop_s" in r else " |")
+                    + (" " + " / ".join(f"{100 * r[f'streaming_paired_{k}_median_fraction']:.0f} % "
+                                        f"({100 * r[f'streaming_paired_{k}_quartiles_fraction'][0]:.0f} to "
+                                        f"{100 * r[f'streaming_paired_{k}_quartiles_fraction'][1]:.0f} %)"
+                                        for k in ("whole", "loop")) + " |"
+                       if "streaming_paired_whole_median_fraction" in r else " |"))
     return rows
 
 
