@@ -2,7 +2,7 @@
 
 ``traces.csv`` is wide (one column per trace, units in the names: ``tmm.coupler_mid.bending_ue``,
 ``mujoco.drive_torque_Nm``, ``motor.tmm.current_A``; :mod:`cosim.traces`) because it is appended
-macro step by macro step and must survive a crash. For analysis it is turned into one *long*
+block by block during the run and must survive a crash. For analysis it is turned into one *long*
 table, one row per sample and trace::
 
     time_s  crank_angle_deg  engine  gauge  quantity  value  unit

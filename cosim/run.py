@@ -5,7 +5,7 @@
 * ``scenario.resolved.toml``: the scenario as run (every value in SI after units, defaults and
   derivations; every assumption with its rationale; the file as written);
 * ``traces.csv``: time column and one column per trace, units in the names
-  (:mod:`cosim.traces`), appended every macro step;
+  (:mod:`cosim.traces`), appended in blocks of macro steps (:mod:`cosim.samples`, at most every 0.25 s);
 * ``run.rrd``: the rerun recording (:mod:`cosim.recording`; written by a child process, to
   ``RunOptions.save_path`` instead if given, and streamed to a viewer as ``RunOptions.viewer``
   says, never waiting on one without a bound);
