@@ -81,6 +81,10 @@ def test_marching_ahead_gives_the_step_by_step_answer_and_rewinds_for_a_coupling
         np.testing.assert_array_equal(a, b)
     np.testing.assert_array_equal(np.concatenate([o.nodes["coupler"] for o in ahead]),
                                   np.concatenate([o.nodes["coupler"] for o in step_by_step]))
+    for field in ("t", "crank_angle", "crank_speed"):      # served from the block's own arrays
+        np.testing.assert_array_equal(np.concatenate([getattr(o, field) for o in ahead]),
+                                      np.concatenate([getattr(o, field) for o in step_by_step]))
+    assert [len(o.t) for o in ahead] == plan
     # A save in the middle of a look-ahead block rewinds the march to the steps served so far:
     # the steps after it are those of an engine that never marched ahead.
     token = engine.save()

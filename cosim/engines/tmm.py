@@ -40,19 +40,30 @@ class Revolution(NamedTuple):
 
 class LookAhead(NamedTuple):
     """Steps marched ahead of the master: steps ``first .. first + len(idx) - 1`` on the cached
-    revolution's configurations ``idx``, their outputs and deformed node positions ({link: (k,
-    n_nodes, 2)} [m]), the march state before the first (to rewind to), and the crank history
-    it followed (a ``DriveInput.prescribed``)."""
+    revolution's configurations ``idx``, their :class:`EngineOutput` (times, crank states,
+    outputs and deformed node positions ({link: (k, n_nodes, 2)} [m])), the first step whose
+    outputs are not finite (``len(idx)`` if none), the march state before the first (to rewind
+    to), and the crank history it followed (a ``DriveInput.prescribed``)."""
     first: int
     idx: np.ndarray
-    outs: np.ndarray
-    nodes: dict
+    out: EngineOutput
+    bad: int
     start: tuple
     profile: object
 
     def covers(self, ks, profile) -> bool:
         """Whether steps ``ks`` of the crank history ``profile`` are in this block."""
         return profile is self.profile and self.first <= ks[0] and ks[-1] < self.first + len(self.idx)
+
+    def rows(self, k0: int, n: int) -> EngineOutput:
+        """Steps ``k0 .. k0 + n - 1`` (views of the block's arrays: a macro step served from a
+        block costs a few slices, where building its output cost ~40 us)."""
+        a = k0 - self.first
+        b = slice(a, a + n)
+        o = self.out
+        return EngineOutput(o.t[b], o.crank_angle[b], o.crank_speed[b], o.drive_torque[b],
+                            {g: (bend[b], ax[b]) for g, (bend, ax) in o.gauges.items()},
+                            {name: v[b] for name, v in o.nodes.items()})
 
 
 class TMMEngine:
@@ -168,30 +179,35 @@ class TMMEngine:
             self.march.step_many(self.cache.batch, block.idx[:k - block.first + 1], record_z=False)
         self.k = k
 
-    def _serve(self, ks, drive):
+    def _serve(self, ks, drive) -> EngineOutput:
         """Steps ``ks`` of a prescribed crank history on the cached revolution, marched ahead in
         blocks of at least LOOKAHEAD_STEPS (a whole number of macro steps): the compiled march's
-        call (numba's dispatch of its ~40 arrays, ~50-90 us) and this engine's bookkeeping then
-        cost per block, not per macro step. Returns ``(outs, nodes)`` of ``ks``."""
+        call (numba's dispatch of its ~40 arrays, ~50-90 us), the outputs' and node positions'
+        bookkeeping and the crank history's evaluation then cost per block, not per macro step."""
         a = self._ahead
         if a is None or not a.covers(ks, drive.prescribed):
             self._rewind()
             # A whole number of macro steps of this length: the next ones then never straddle two blocks.
             kk = self.k + 1 + np.arange(len(ks) * -(-LOOKAHEAD_STEPS // len(ks)))
-            idx = self._cache_indices(kk, *(np.asarray(x, dtype=float) * np.ones(len(kk))
-                                            for x in drive.prescribed(self.t0 + kk * self._dt)))
+            t = self.t0 + kk * self._dt          # integer step count, never accumulated
+            angle, speed, accel = (np.asarray(x, dtype=float) * np.ones(len(kk)) for x in drive.prescribed(t))
+            idx = self._cache_indices(kk, angle, speed, accel)
             # Stop the block where the history leaves the cached revolution (ks itself is on it).
             miss = np.flatnonzero(idx < 0)
-            idx = idx[:miss[0]] if len(miss) and miss[0] >= len(ks) else idx
+            n = miss[0] if len(miss) and miss[0] >= len(ks) else len(kk)
+            idx = idx[:n]
             start = self._state()
             zs, outs = self.march.step_many(self.cache.batch, idx)
-            # The node positions of the whole block at once, too (per macro step they cost ~65 us
-            # of array bookkeeping, a third of a marching revolution on Alexander-Lawrence).
-            a = self._ahead = LookAhead(int(kk[0]), idx, outs, self._nodes([(self.cache.batch, idx, zs)]), start,
-                                        drive.prescribed)
-        rows = np.asarray(ks, dtype=np.int64) - a.first
+            finite = np.all(np.isfinite(outs), axis=1)
+            layout = self.td.outputs
+            out = EngineOutput(t[:n], angle[:n], speed[:n], layout.torque(outs), layout.split(outs),
+                               self._nodes([(self.cache.batch, idx, zs)]))
+            a = self._ahead = LookAhead(int(kk[0]), idx, out, int(np.argmin(finite)) if not finite.all() else n,
+                                        start, drive.prescribed)
         self.k = int(ks[-1])
-        return a.outs[rows], {name: v[rows] for name, v in a.nodes.items()}
+        if a.bad <= ks[-1] - a.first:
+            raise EngineError(f"tmm: non-finite response before t = {self.t0 + ks[-1] * self._dt:.6g} s")
+        return a.rows(int(ks[0]), len(ks))
 
     def advance(self, t_next: float, drive: DriveInput) -> EngineOutput:
         if drive.prescribed is None:
@@ -200,18 +216,18 @@ class TMMEngine:
         t_start = self.t0 + self.k * self._dt
         n = steps_in(t_start, t_next, self._dt, "tmm")
         ks = self.k + 1 + np.arange(n)
+        # Steps of the block marched ahead were matched with the cached revolution when it was made.
+        if drive.ahead and self._ahead is not None and self._ahead.covers(ks, drive.prescribed):
+            return self._serve(ks, drive)
         t = self.t0 + ks * self._dt          # integer step count, never accumulated
         angle, speed, accel = (np.asarray(x, dtype=float) * np.ones(n) for x in drive.prescribed(t))
-        # Steps of the block marched ahead were matched with the cached revolution when it was made.
-        ahead = drive.ahead and self._ahead is not None and self._ahead.covers(ks, drive.prescribed)
-        hit = None if ahead else self._cache_indices(ks, angle, speed, accel)
-        if ahead or (drive.ahead and np.all(hit >= 0)):
-            outs, nodes = self._serve(ks, drive)
-        else:
-            self._rewind()
-            runs = self._march(hit, angle, speed, accel)
-            outs = np.concatenate([r[3] for r in runs])
-            nodes = self._nodes([r[:3] for r in runs])
+        hit = self._cache_indices(ks, angle, speed, accel)
+        if drive.ahead and np.all(hit >= 0):
+            return self._serve(ks, drive)
+        self._rewind()
+        runs = self._march(hit, angle, speed, accel)
+        outs = np.concatenate([r[3] for r in runs])
+        nodes = self._nodes([r[:3] for r in runs])
         if not np.all(np.isfinite(outs)):
             raise EngineError(f"tmm: non-finite response before t = {t_next:.6g} s")
         layout = self.td.outputs
