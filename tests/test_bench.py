@@ -78,6 +78,10 @@ def test_benchmark_runs_on_a_tiny_setting(tmp_path):
     assert data["quasi_static"]["fe_crank_rocker_241rpm"]["quasi_static_compiled"]["min_s"] > 0
     assert data["floor"][0]["per_step_s"] > 0 and data["floor"][0]["floor_per_step_s"] == [3e-6, 5e-6]
     assert "finished" in data["sweep"] and data["bench_overhead"] and data["tmm_scaling"]["by_segments"]
+    # A part that raised is stored as {"error": ...}: the tiny run must not hide one.
+    overhead = data["bench_overhead"]
+    assert "error" not in overhead, overhead.get("error")
+    assert all("streaming_paired_loop_median_fraction" in row for row in overhead.values())
     assert set(data["elapsed_s"]) >= {"engines:alexander_lawrence_400rpm", "quasi_static", "floor", "scaling",
                                       "overhead", "sweep", "total"}
     assert not _finite_numbers(data)      # (the JSON writer stores NaN as null; this guards a raw dump)

@@ -115,7 +115,7 @@ def bench_overhead(rig, macro_multiples, revolutions, pairs: int = OVERHEAD_PAIR
         # (a loaded machine adds noise of the order of the fixed costs). The run's loop (the
         # master's run: engines, traces, the recording's batching) is timed apart: the recording's
         # child writes beside the loop and beside the results written after it.
-        best, loops, pairs = {}, {}, []
+        best, loops, paired = {}, {}, []
         loop_time = [0.0]
         run_method = CoSimulation.run
         CoSimulation.run = timed(run_method, loop_time)
@@ -134,7 +134,7 @@ def bench_overhead(rig, macro_multiples, revolutions, pairs: int = OVERHEAD_PAIR
                             best[key] = (wall, res.summary["engines"]["tmm"]["wall_time_s"])
                         loops[key] = min(loops.get(key, np.inf), loop_time[0])
                         pair[key] = (wall, loop_time[0], res.summary["engines"]["tmm"]["wall_time_s"])
-                pairs.append(pair)
+                paired.append(pair)
         finally:
             CoSimulation.run = run_method
         for key, (wall, eng_s) in best.items():
@@ -150,12 +150,12 @@ def bench_overhead(rig, macro_multiples, revolutions, pairs: int = OVERHEAD_PAIR
         # The same from the pairs (each recorded run against the unrecorded one just before it):
         # the median difference and its spread (the fastest-of differences above swing by a few
         # hundredths of a second from one benchmark run to the next).
-        engine = float(np.median([p["traces_only"][2] for p in pairs]))
+        engine = float(np.median([p["traces_only"][2] for p in paired]))
         for key, col in (("paired_whole", 0), ("paired_loop", 1)):
-            d = np.array([p["stream"][col] - p["traces_only"][col] for p in pairs])
+            d = np.array([p["stream"][col] - p["traces_only"][col] for p in paired])
             row[f"streaming_{key}_median_fraction"] = float(np.median(d)) / engine
             row[f"streaming_{key}_quartiles_fraction"] = [float(q) / engine for q in np.percentile(d, [25, 75])]
-        row["pairs"] = pairs
+        row["pairs"] = paired
         out[str(m)] = row
     return out
 
