@@ -90,9 +90,12 @@ class SampleCollector:
             buf.add(out, trace)
             self.samples += n
 
-    def due(self) -> bool:
-        """A block is due: :data:`BLOCK_SAMPLES` samples or :data:`BLOCK_EVERY_S` since the last."""
-        return self.samples >= self.max_samples or time.monotonic() - self._last_take >= self.every_s
+    def due(self, max_samples: int | None = None, every_s: float | None = None) -> bool:
+        """A block is due: ``max_samples`` samples collected or ``every_s`` [s] of wall time since
+        the last take (default: this collector's)."""
+        max_samples = self.max_samples if max_samples is None else max_samples
+        every_s = self.every_s if every_s is None else every_s
+        return self.samples >= max_samples or time.monotonic() - self._last_take >= every_s
 
     def take(self) -> dict:
         """Everything collected since the last take, ``{engine: arrays}`` (empty when nothing was)."""

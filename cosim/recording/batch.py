@@ -88,6 +88,10 @@ class StepBatcher:
         """Samples collected since the last take."""
         return self._samples.samples
 
+    def due(self, max_samples: int | None = None, every_s: float | None = None) -> bool:
+        """A batch is due (:meth:`cosim.samples.SampleCollector.due`)."""
+        return self._samples.due(max_samples, every_s)
+
     def add(self, step, samples: bool = True) -> None:
         """Collect one :class:`cosim.master.MacroStep` (engines with no sample are skipped);
         ``samples=False``: its linkage frames and events only (the caller collects the samples and

@@ -75,7 +75,7 @@ class RecorderProcess(Recorder):
                                               exaggeration, linkage_every, linkage_fps)
         self.save_path, self.viewer = save_path, viewer
         self.batcher = StepBatcher(linkage_every, linkage_fps)
-        self._record_colors, self._last_take, self._closed = {}, time.monotonic(), False
+        self._record_colors, self._closed = {}, False
         self._broken = None
         self._proc: subprocess.Popen | None = None
         self._queue: queue.Queue = queue.Queue()
@@ -95,7 +95,6 @@ class RecorderProcess(Recorder):
         batch = self.batcher.take(block)
         if batch is not None:
             self._send("batch", batch)
-        self._last_take = time.monotonic()
 
     def _reference(self, ref):
         self._send("reference", ref)

@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import logging
 import math
-import time
 
 from ..samples import BLOCK_EVERY_S, BLOCK_SAMPLES
 from .batch import StepBatcher, check_linkage_rate
@@ -88,7 +87,6 @@ class Recorder:
         self.batcher = StepBatcher(linkage_every, linkage_fps)
         self.writer = StreamWriter(spec, save_path, viewer, exaggeration, application_id, stations=engines)
         self._record_colors: dict = {}
-        self._last_take = time.monotonic()
         self._closed = False
 
     # -- public API --------------------------------------------------------------------------------
@@ -104,8 +102,7 @@ class Recorder:
         recording) and hands each block to :meth:`log_samples`."""
         self._check_open()
         self.batcher.add(step, samples)
-        if samples and (self.batcher.samples >= self.batch_samples
-                        or time.monotonic() - self._last_take >= self.batch_interval_s):
+        if samples and self.batcher.due(self.batch_samples, self.batch_interval_s):
             self._take()
 
     def log_samples(self, block: dict) -> None:
@@ -168,7 +165,6 @@ class Recorder:
     # -- in-process transport (RecorderProcess overrides these three) -----------------------------
     def _take(self, block=None):
         self.writer.write(self.batcher.take(block))
-        self._last_take = time.monotonic()
 
     def _reference(self, ref):
         self.writer.reference(ref)
