@@ -6,7 +6,7 @@ Modules (none imports rerun at package import; ``cosim run`` keeps rerun in a ch
 ==================  ====================================================================
 ``layout``          entity names, series names, colours, timeline values (pure)
 ``spec``            what the recording needs of a scenario, as plain data
-``batch``           macro steps -> batches (run side: collects array references)
+``batch``           macro steps -> batches (run side: linkage frames at display rate; samples from cosim.samples)
 ``linkage``         the linkage drawing from the engines' nodes, its automatic factor (pure)
 ``references``      records checked and named for drawing (pure)
 ``blueprint``       the run's default layout, a pure function of the spec
