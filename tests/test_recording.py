@@ -5,6 +5,7 @@ counts per macro step, motor traces, records and text.
 """
 import dataclasses
 import math
+import time
 
 import numpy as np
 import pytest
@@ -311,7 +312,15 @@ def test_a_files_writer_process_starts_after_its_first_data_or_at_the_hand_over(
     monkeypatch.setattr(process, "CHILD_START_BYTES", 1)
     rec, _ = record_run(sc, tmp_path / "early.rrd", cls=RecorderProcess)
     assert rec.writer_started and rec.close() == []
-    assert read_back(tmp_path / "late.rrd") == read_back(tmp_path / "early.rrd")
+    # The timer starts it without a further message (a long macro step).
+    monkeypatch.setattr(process, "CHILD_START_BYTES", 64e6)
+    monkeypatch.setattr(process, "CHILD_START_AFTER_S", 0.2)
+    rec, _ = record_run(sc, tmp_path / "timer.rrd", cls=RecorderProcess)
+    deadline = time.monotonic() + 30
+    while not rec.writer_started and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert rec.writer_started and rec.close() == []
+    assert read_back(tmp_path / "late.rrd") == read_back(tmp_path / "early.rrd") == read_back(tmp_path / "timer.rrd")
     assert read_back(tmp_path / "late.rrd")["/tmm/strain/rocker_mid"] > 0
 
 

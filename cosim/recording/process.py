@@ -80,6 +80,7 @@ class RecorderProcess(Recorder):
         self._proc: subprocess.Popen | None = None
         self._queue: queue.Queue = queue.Queue()
         self._thread = threading.Thread(target=self._pump, name="recording-pipe", daemon=True)
+        self._starting = threading.Lock()
         if viewer.viewer != "save":
             self._start_child()
         self._send("open", dict(spec=self.spec, save_path=None if save_path is None else str(save_path),
@@ -103,25 +104,32 @@ class RecorderProcess(Recorder):
         self._send("text", path, text)
 
     def _start_child(self):
-        root = str(Path(__file__).resolve().parents[2])            # so the child imports this cosim
-        env = dict(os.environ, PYTHONPATH=os.pathsep.join(filter(None, [root, os.environ.get("PYTHONPATH")])))
-        level = logging.getLogger("cosim").getEffectiveLevel()
-        # -P: not the working directory first on the child's path (another cosim there would be
-        # imported instead of this one).
-        self._proc = subprocess.Popen([sys.executable, "-P", "-m", "cosim.recording.process", str(level)],
-                                      stdin=subprocess.PIPE, stdout=subprocess.PIPE, env=env,
-                                      start_new_session=True)
-        self._thread.start()
+        # Once, from the run's thread or the start timer's, whichever comes first.
+        with self._starting:
+            if self._proc is not None:
+                return
+            root = str(Path(__file__).resolve().parents[2])            # so the child imports this cosim
+            env = dict(os.environ, PYTHONPATH=os.pathsep.join(filter(None, [root, os.environ.get("PYTHONPATH")])))
+            level = logging.getLogger("cosim").getEffectiveLevel()
+            # -P: not the working directory first on the child's path (another cosim there would be
+            # imported instead of this one).
+            self._proc = subprocess.Popen([sys.executable, "-P", "-m", "cosim.recording.process", str(level)],
+                                          stdin=subprocess.PIPE, stdout=subprocess.PIPE, env=env,
+                                          start_new_session=True)
+            self._thread.start()
 
     def _send(self, *message):
         item = pickle.dumps(message, protocol=pickle.HIGHEST_PROTOCOL)
         self._queue.put(item)
         if self._proc is None and message[0] not in _BEFORE_DATA:
-            now = time.monotonic()
-            self._first_data = now if self._first_data is None else self._first_data
+            if self._timer is None:
+                # CHILD_START_AFTER_S after the first data even if no message follows (a long
+                # macro step): a run killed later leaves its recording.
+                self._timer = threading.Timer(CHILD_START_AFTER_S, self._start_child)
+                self._timer.daemon = True
+                self._timer.start()
             self._waiting_bytes += len(item)
-            if (message[0] == "close" or now - self._first_data >= CHILD_START_AFTER_S
-                    or self._waiting_bytes >= CHILD_START_BYTES):
+            if message[0] == "close" or self._waiting_bytes >= CHILD_START_BYTES:
                 self._start_child()
 
     @property
@@ -129,7 +137,7 @@ class RecorderProcess(Recorder):
         """Whether the child process has been started (see the module docstring for when)."""
         return self._proc is not None
 
-    _first_data = None            # when the first data message was queued (monotonic clock) [s]
+    _timer = None                 # starts the child CHILD_START_AFTER_S after the first data
     _waiting_bytes = 0            # bytes of data messages queued before the child started
 
     def _pump(self):
@@ -156,6 +164,8 @@ class RecorderProcess(Recorder):
         super().hand_over()
         self._take()
         self._send("close")
+        if self._timer is not None:
+            self._timer.cancel()
         self._queue.put(_DONE)
 
     def close(self) -> list:
