@@ -123,45 +123,46 @@ def factored_solve(k, f, layout, stored, work, zn, N, y):
 
 
 def _anderson_coefficients(dR, h, r, gamma, Q, R):
-    """Least-squares coefficients ``gamma[:h]`` of ``dR[:, :h] gamma = r`` by modified
-    Gram-Schmidt QR (h <= 4 columns). A column whose remaining norm is below 1e-12 of the
+    """Least-squares coefficients ``gamma[:h]`` of ``dR[:h].T gamma = r`` by modified
+    Gram-Schmidt QR (h <= 4 columns; ``dR`` and ``Q`` hold a history column per row, so that the
+    inner loops run over contiguous memory). A column whose remaining norm is below 1e-12 of the
     largest column's (a rank-deficient history) gets a zero coefficient. The numpy path uses the
     same arithmetic (:func:`tmm_core.time_step.anderson_coefficients`): a LAPACK least-squares
     call cost more than the rest of a step here."""
-    nx = dR.shape[0]
+    nx = dR.shape[1]
     big = 0.0
     for c in range(h):
         norm = 0.0
         for i in range(nx):
-            Q[i, c] = dR[i, c]
-            norm += dR[i, c] * dR[i, c]
+            Q[c, i] = dR[c, i]
+            norm += dR[c, i] * dR[c, i]
         big = max(big, np.sqrt(norm))
     for c in range(h):
         for p in range(c):
             dot = 0.0
             for i in range(nx):
-                dot += Q[i, p] * Q[i, c]
+                dot += Q[p, i] * Q[c, i]
             R[p, c] = dot
             for i in range(nx):
-                Q[i, c] -= dot * Q[i, p]
+                Q[c, i] -= dot * Q[p, i]
         norm = 0.0
         for i in range(nx):
-            norm += Q[i, c] * Q[i, c]
+            norm += Q[c, i] * Q[c, i]
         norm = np.sqrt(norm)
         R[c, c] = norm
         if norm > 1e-12 * big:
             for i in range(nx):
-                Q[i, c] /= norm
+                Q[c, i] /= norm
         else:
             for i in range(nx):
-                Q[i, c] = 0.0
+                Q[c, i] = 0.0
     for c in range(h - 1, -1, -1):
         if R[c, c] <= 1e-12 * big:
             gamma[c] = 0.0
             continue
         acc = 0.0
         for i in range(nx):
-            acc += Q[i, c] * r[i]
+            acc += Q[c, i] * r[i]
         for p in range(c + 1, h):
             acc -= R[c, p] * gamma[p]
         gamma[c] = acc / R[c, c]
@@ -204,9 +205,10 @@ def march(code, params, dt, c_a, c_v, idx,
     r = np.empty(nx)
     prev_r = np.empty(nx)
     prev_g = np.empty(nx)
-    dR = np.zeros((nx, depth))
-    dG = np.zeros((nx, depth))
-    Q = np.empty((nx, depth))
+    dR = np.zeros((depth, nx))       # history columns as rows: contiguous inner loops
+    dG = np.zeros((depth, nx))
+    Q = np.empty((depth, nx))
+    mix = np.empty(nx)
     R = np.empty((depth, depth))
     gamma = np.empty(depth)
     to_len = seg_L / seg_EA
@@ -321,8 +323,8 @@ def march(code, params, dt, c_a, c_v, idx,
                     col = filled % depth
                     filled += 1
                     for i in range(nx):
-                        dR[i, col] = r[i] - prev_r[i]
-                        dG[i, col] = gx[i] - prev_g[i]
+                        dR[col, i] = r[i] - prev_r[i]
+                        dG[col, i] = gx[i] - prev_g[i]
                     hist = min(hist + 1, depth)
                 for i in range(nx):
                     prev_r[i] = r[i]
@@ -335,10 +337,12 @@ def march(code, params, dt, c_a, c_v, idx,
                             hist = 0            # an overflowing history: start the mixing afresh
                             filled = 0
                     for i in range(nx):
-                        s_ = 0.0
-                        for c in range(hist):
-                            s_ += dG[i, c] * gamma[c]
-                        x[i] = gx[i] - s_
+                        mix[i] = 0.0
+                    for c in range(hist):
+                        for i in range(nx):
+                            mix[i] += dG[c, i] * gamma[c]
+                    for i in range(nx):
+                        x[i] = gx[i] - mix[i]
             if not converged:
                 return j
             for s in range(ns):
