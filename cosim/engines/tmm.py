@@ -146,10 +146,15 @@ class TMMEngine:
 
     def initial_output(self) -> EngineOutput:
         """The state at reset: drive torque and gauge strains of the start (quasi-static or rest)."""
-        out = self.march.out[None, :]
+        return self._output(np.array([self.t0]), np.array([self._angle0]), np.array([self._speed0]),
+                            self.march.out[None, :].copy(), {})
+
+    def _output(self, t, angle, speed, outs, nodes) -> EngineOutput:
+        """The :class:`EngineOutput` of steps at times ``t`` [s] with crank ``angle`` [rad] and
+        ``speed`` [rad/s], output rows ``outs`` (drive torque and gauges by the model's layout)
+        and deformed ``nodes``."""
         layout = self.td.outputs
-        return EngineOutput(np.array([self.t0]), np.array([self._angle0]), np.array([self._speed0]),
-                            layout.torque(out).copy(), layout.split(out))
+        return EngineOutput(t, angle, speed, layout.torque(outs), layout.split(outs), nodes)
 
     def save(self):
         """Snapshot for a coupling iteration (the march state is replaced, never mutated, per step)."""
@@ -199,9 +204,7 @@ class TMMEngine:
             start = self._state()
             zs, outs = self.march.step_many(self.cache.batch, idx)
             finite = np.all(np.isfinite(outs), axis=1)
-            layout = self.td.outputs
-            out = EngineOutput(t[:n], angle[:n], speed[:n], layout.torque(outs), layout.split(outs),
-                               self._nodes([(self.cache.batch, idx, zs)]))
+            out = self._output(t[:n], angle[:n], speed[:n], outs, self._nodes([(self.cache.batch, idx, zs)]))
             a = self._ahead = LookAhead(int(kk[0]), idx, out, int(np.argmin(finite)) if not finite.all() else n,
                                         start, drive.prescribed)
         self.k = int(ks[-1])
@@ -230,8 +233,7 @@ class TMMEngine:
         nodes = self._nodes([r[:3] for r in runs])
         if not np.all(np.isfinite(outs)):
             raise EngineError(f"tmm: non-finite response before t = {t_next:.6g} s")
-        layout = self.td.outputs
-        return EngineOutput(t, angle, speed, layout.torque(outs), layout.split(outs), nodes)
+        return self._output(t, angle, speed, outs, nodes)
 
     def _march(self, hit, angle, speed, accel):
         """Steps one by one in blocks: runs of consecutive steps on the same configuration batch
