@@ -115,7 +115,7 @@ def bench_overhead(rig, macro_multiples, revolutions, pairs: int = OVERHEAD_PAIR
         # (a loaded machine adds noise of the order of the fixed costs). The run's loop (the
         # master's run: engines, traces, the recording's batching) is timed apart: the recording's
         # child writes beside the loop and beside the results written after it.
-        best, loops, paired = {}, {}, []
+        paired = []             # per pair {key: (whole run, loop, engine) [s]}
         loop_time = [0.0]
         run_method = CoSimulation.run
         CoSimulation.run = timed(run_method, loop_time)
@@ -130,13 +130,13 @@ def bench_overhead(rig, macro_multiples, revolutions, pairs: int = OVERHEAD_PAIR
                                                          out=Path(tmp) / "r", viewer=viewer, progress=False))
                         wall = time.perf_counter() - tic
                         key = "stream" if viewer == "save" else "traces_only"
-                        if wall < best.get(key, (np.inf,))[0]:
-                            best[key] = (wall, res.summary["engines"]["tmm"]["wall_time_s"])
-                        loops[key] = min(loops.get(key, np.inf), loop_time[0])
                         pair[key] = (wall, loop_time[0], res.summary["engines"]["tmm"]["wall_time_s"])
                 paired.append(pair)
         finally:
             CoSimulation.run = run_method
+        # The fastest whole run of each kind (with its engine time) and the fastest loop.
+        best = {key: min((p[key][0], p[key][2]) for p in paired) for key in ("traces_only", "stream")}
+        loops = {key: min(p[key][1] for p in paired) for key in ("traces_only", "stream")}
         for key, (wall, eng_s) in best.items():
             row[f"run_{key}_s"] = wall
             row[f"overhead_{key}_fraction"] = (wall - eng_s) / eng_s
