@@ -39,7 +39,7 @@ class March:
             d0, v0, a0 = (np.asarray(initial[k], dtype=float) for k in ("d", "v", "a"))
             previous = initial.get("previous", (d0, d0))
         elif start == "quasi_static":
-            d0, v0, a0, previous = td.quasi_static_start(angle, speed, accel, dt)
+            d0, v0, a0, previous, out = td.quasi_static_start(angle, speed, accel, dt)
         else:
             # Consistent initial acceleration from rest: M a0 = F(t0) (Newmark and generalized-alpha
             # are only first order otherwise; Houbolt does not use it).
@@ -48,10 +48,12 @@ class March:
         self.state = integ.initial(d0, v0, a0, previous)
         # Outputs of step 0: the quasi-static state for a quasi-static start; from rest the links
         # are undeformed (zero strain) and the drive torque is the rigid-body one.
-        qs0 = quasi_static(td.mech, a1, speed, accel, beam_column=td.beam_column, gravity=td.gravity, gauges=td.gauges)
-        out = np.concatenate([qs0.drive_torque] + [np.r_[b, a] for b, a in qs0.gauges.values()])
-        if start == "rest" and initial is None:
-            out[1:] = 0.0
+        if start != "quasi_static" or initial is not None:
+            qs0 = quasi_static(td.mech, a1, speed, accel, beam_column=td.beam_column, gravity=td.gravity,
+                               gauges=td.gauges)
+            out = np.concatenate([qs0.drive_torque] + [np.r_[b, a] for b, a in qs0.gauges.values()])
+            if start == "rest" and initial is None:
+                out[1:] = 0.0
         self.out, self.z = out, d0
         self.n_out = len(out)
         self.decay = np.ones(6 * td.n_seg)
