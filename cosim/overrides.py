@@ -25,8 +25,9 @@ class OverrideError(ValueError):
     """A key path does not lead anywhere in the scenario file."""
 
 
-def set_key(raw: dict, key: str, value) -> None:
-    """Set the key path ``key`` (``a.b[0].c``) in the TOML tree ``raw`` in place."""
+def set_key(raw: dict, key: str, value, *, write: bool = True) -> None:
+    """Set the key path ``key`` (``a.b[0].c``) in the TOML tree ``raw`` in place; ``write=False``
+    only checks that it could be set (``raw`` unchanged: no copy of the tree to validate a key)."""
     node = raw
     parts = key.split(".")
     for i, part in enumerate(parts):
@@ -37,13 +38,16 @@ def set_key(raw: dict, key: str, value) -> None:
             if not isinstance(node, dict) or not isinstance(node.get(name), list) or j >= len(node[name]):
                 raise OverrideError(f"key '{key}': there is no list item {part}")
             if last:
-                node[name][j] = value
+                if write:
+                    node[name][j] = value
                 return
             node = node[name][j]
             continue
         if not isinstance(node, dict):
             raise OverrideError(f"key '{key}': '{'.'.join(parts[:i])}' is not a table")
         if last:
+            if not write:
+                return
             if value is None:
                 node.pop(part, None)
             elif isinstance(node.get(part), dict) and "value" in node[part]:
@@ -53,7 +57,11 @@ def set_key(raw: dict, key: str, value) -> None:
             return
         if part not in node:
             if i <= 1:
-                node[part] = {}          # a table the file does not have yet (e.g. solver.exudyn)
+                # A table the file does not have yet (e.g. solver.exudyn).
+                if not write:
+                    node = {}
+                    continue
+                node[part] = {}
             else:
                 raise OverrideError(f"key '{key}': there is no table '{'.'.join(parts[:i + 1])}'")
         node = node[part]

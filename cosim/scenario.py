@@ -60,7 +60,6 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-import copy
 import math
 import re
 import tomllib
@@ -400,7 +399,7 @@ def _check_uncertainty(r: Reader, data, path: str, top: dict) -> None:
             if not isinstance(k, str) or k.startswith(("model.", "measurement.")):
                 continue
             try:               # a scenario key must lead somewhere in the file (a typo would vary nothing)
-                set_key(copy.deepcopy(top), k, 0)
+                set_key(top, k, 0, write=False)
             except OverrideError as exc:
                 raise r.fail(f"uncertainty.parameters.{name}.keys", str(exc), k) from None
     if params:

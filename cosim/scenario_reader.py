@@ -8,6 +8,7 @@ linkage and motor-design readers use the same Reader.
 """
 from __future__ import annotations
 
+import functools
 import math
 
 import pint
@@ -27,6 +28,33 @@ MAX_MAGNITUDE, MIN_MAGNITUDE = 1e20, 1e-30
 MAX_SEGMENTS = 10_000
 #: A modal damping ratio at or above critical (100 %) is refused.
 MAX_DAMPING_RATIO = 1.0
+
+
+@functools.lru_cache(maxsize=256)
+def _needs_unit(unit: str) -> bool:
+    """Whether a value in ``unit`` must be written with a unit. An angle is dimensionless to pint,
+    but a bare number is no angle: "90" is refused, not 90 rad."""
+    return unit == "rad" or not UREG.Quantity(1, unit).dimensionless
+
+
+@functools.lru_cache(maxsize=4096)
+def _converted(raw: str, unit: str) -> tuple:
+    """``("ok", value in unit)`` or ``(reason, detail)`` for a value written as text. Kept per
+    (text, unit): every variant of a sweep or a sampling study reads the same few hundred texts,
+    and pint's parsing and conversion were most of a scenario's load time."""
+    try:
+        parsed = parse_quantity(raw)
+    except ValueError:
+        return "not_quantity", None
+    target = UREG.Quantity(1, unit)
+    if (parsed.dimensionless and not target.dimensionless) or (_needs_unit(unit) and parsed.unitless):
+        return "no_unit", None
+    try:
+        return "ok", float(parsed.to(unit).magnitude)
+    except pint.DimensionalityError:
+        return "wrong_dimension", (str(target.dimensionality), str(parsed.dimensionality))
+    except (OverflowError, ZeroDivisionError, TypeError, ValueError):
+        return "not_convertible", None
 
 
 class Reader:
@@ -79,8 +107,7 @@ class Reader:
         raw = self.unwrap(value, key)
         if isinstance(raw, bool):
             raise self.fail(key, f"must be a quantity in {unit}", raw)
-        # An angle is dimensionless to pint, but a bare number is no angle: "90" is refused, not 90 rad.
-        needs_unit = unit == "rad" or not UREG.Quantity(1, unit).dimensionless
+        needs_unit = _needs_unit(unit)
         if isinstance(raw, (int, float)):
             if not needs_unit:
                 q = float(raw)
@@ -93,21 +120,16 @@ class Reader:
             if not has_number(raw):
                 # pint reads a bare unit ("rpm", "psi") as one of it: a number is required.
                 raise self.fail(key, f"has no number; write a number and a unit, e.g. '1 {example_unit(unit)}'", raw)
-            try:
-                parsed = parse_quantity(raw)
-            except ValueError:
-                raise self.fail(key, "is not a quantity with a unit", raw) from None
-            target = UREG.Quantity(1, unit)
-            if (parsed.dimensionless and not target.dimensionless) or (needs_unit and parsed.unitless):
+            code, q = _converted(raw, unit)
+            if code == "not_quantity":
+                raise self.fail(key, "is not a quantity with a unit", raw)
+            if code == "no_unit":
                 raise self.fail(key, f"has no unit; write it with one, e.g. '{raw} {example_unit(unit)}'", raw)
-            try:
-                q = float(parsed.to(unit).magnitude)
-            except pint.DimensionalityError:
-                raise self.fail(key, f"has the wrong dimension: expected {target.dimensionality}, got "
-                                     f"{parsed.dimensionality}", raw) from None
-            except (OverflowError, ZeroDivisionError, TypeError, ValueError):
+            if code == "wrong_dimension":
+                raise self.fail(key, f"has the wrong dimension: expected {q[0]}, got {q[1]}", raw)
+            if code == "not_convertible":
                 raise self.fail(key, "is not a number with a unit that can be converted (too large, or not a "
-                                     "number)", raw) from None
+                                     "number)", raw)
         else:
             raise self.fail(key, f"must be a quantity in {unit}", raw)
         if not math.isfinite(q):

@@ -7,6 +7,7 @@ a bare ``"rpm"`` as one rpm), and the conversion factors the scripts and tests u
 """
 from __future__ import annotations
 
+import functools
 import math
 import re
 
@@ -31,8 +32,14 @@ def has_number(text: str) -> bool:
 
 def quantity(text) -> pint.Quantity:
     """``"7 in"``, ``"5.292 slug/ft^3"`` or ``"(10.3e6 psi) * 100"`` as a pint quantity; a bare unit
-    or text without a number raises :class:`UnitError`."""
-    raw = str(text)
+    or text without a number raises :class:`UnitError`. Parses are kept (a scenario's few hundred
+    values are the same text in every variant of a sweep or a sampling study: pint's parser was
+    most of a scenario's load time); the quantity returned is shared, so never change it in place."""
+    return _parsed(str(text))
+
+
+@functools.lru_cache(maxsize=4096)
+def _parsed(raw: str) -> pint.Quantity:
     if not has_number(raw):
         raise UnitError(f"{raw!r} has no number")
     try:

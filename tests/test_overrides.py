@@ -49,3 +49,35 @@ def test_load_returns_a_loaded_scenario_of_any_kind_as_it_is():
     for name in ("crank_rocker_373rpm", "shin_multiloop_small"):
         variant = load(name).with_overrides({"scenario.description": "variant"})
         assert load(variant) is variant
+
+
+@pytest.mark.parametrize("key", ["drive.speed", "links.coupler.point_masses[0].weight", "solver.exudyn.elements",
+                                 "links.nolink.length", "links.coupler.point_masses[5].weight", "drive.speed.x.y",
+                                 "links.coupler.damping.ratio.x"])
+def test_checking_a_key_path_leaves_the_tree_alone_and_agrees_with_setting_it(key):
+    """set_key(write=False) (the loader's check of [uncertainty] keys) refuses exactly what setting
+    the key refuses, and changes nothing."""
+    import copy
+    from cosim.overrides import OverrideError, set_key
+    raw = load("crank_rocker_373rpm").raw
+    before = copy.deepcopy(raw)
+    outcomes = []
+    for write in (False, True):
+        try:
+            set_key(copy.deepcopy(raw) if write else raw, key, 0, write=write)
+            outcomes.append(None)
+        except OverrideError as exc:
+            outcomes.append(str(exc))
+    assert outcomes[0] == outcomes[1]
+    assert raw == before
+
+
+def test_a_value_read_twice_gives_the_same_number_and_the_same_refusal():
+    """Unit parsing is kept per text (cosim.scenario_reader): a second read converts the same way
+    and refuses the same way, naming the key."""
+    a = load("crank_rocker_373rpm").with_overrides({"drive.speed": "301 rpm"})
+    b = load("crank_rocker_373rpm").with_overrides({"drive.speed": "301 rpm"})
+    assert a.drive.speed_rad_s == b.drive.speed_rad_s == pytest.approx(301 * 3.141592653589793 / 30)
+    for _ in range(2):
+        with pytest.raises(ScenarioError, match="drive.speed.*wrong dimension"):
+            load("crank_rocker_373rpm").with_overrides({"drive.speed": "3 kg"})
