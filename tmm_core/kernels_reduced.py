@@ -12,13 +12,19 @@ LAPACK calls on 69 x 69 matrices. Here a step costs its arithmetic (FE rig, r = 
 Newton matrix about 50 us (its LU 20 us, the second-order Jacobian 3 x 7 us), a chord iteration
 about 12 us, ``S`` and its product into the monodromy 30 us.
 
-Newton: a revolution with the monodromy refactorizes at every iteration, as the numpy path does
-(``S`` comes from the last Newton matrix). Otherwise (``chord``) an iteration reuses the last
-factorization while the updates shrink by ``CHORD_CONTRACTION`` or faster, and a step starts on
-the factorization it kept from the previous revolution (once the shooting has nearly converged
-most steps need none). A chord iteration stops on an update below ``tol`` whose error estimate
-(contraction times update) is 1000x below it, a Newton iteration on an update below ``tol``: either
-way the stage equations are solved to their round-off floor (about 1e-12 of the accelerations).
+Newton (``chord``, the nonlinear model): an iteration reuses the last factorization while the
+updates shrink by ``CHORD_CONTRACTION`` or faster, and a step starts on the factorization it kept
+from the previous revolution (once the shooting has nearly converged most steps need none). A
+chord iteration stops on an update below ``tol`` whose error estimate (contraction times update)
+is 1000x below it, a Newton iteration on an update below ``tol``: either way the stage equations
+are solved to their round-off floor (about 1e-12 of the accelerations). In a revolution with the
+monodromy a step that converged on an old factorization makes one more iteration on a fresh one
+at its converged stage values, so that ``S`` comes from the Newton matrix of the solution (the
+numpy path refactorizes at every iteration; the monodromies agree to 1e-11, the test). Measured
+(FE rig, r = 23): that revolution 74-88 -> 63-82 ms at 241-400 rpm (about one factorization a
+step instead of two to three). Not kept: starting the first nonlinear revolution on the linear
+revolution's factorizations (241 rpm 46 -> 40 ms, but 300-400 rpm 47-50 -> 51-60 ms: the
+second-order terms make the linear matrices a slow chord there).
 
 The second-order term works in node space: ``q = T eta``, ``q' = T eta' + T' eta``, the segment
 forces and their node loads ``g``, ``N = T^T g``; its Jacobian is ``L^T R + T^T Z`` (rank-one
@@ -370,7 +376,7 @@ def revolution(x0, nonlinear, want_jac, want_out, have_guess, chord, chord_start
                     acc[i, j] = guess[st, i, j]
                 else:
                     acc[i, j] = accs[st - 1, 2, j]
-        use_chord = chord and nonlinear and not want_jac
+        use_chord = chord and nonlinear
         J = LUs[st]
         piv = pivs[st]
         refresh = not (use_chord and stored[st])
@@ -413,13 +419,21 @@ def revolution(x0, nonlinear, want_jac, want_out, have_guess, chord, chord_start
             elif prev < 0.0:
                 # First iteration on a stored factorization: no contraction rate yet.
                 if dmax == 0.0:
-                    converged = True
-                    break
+                    if not want_jac:
+                        converged = True
+                        break
+                    refresh = True
             else:
                 theta = dmax / prev
                 if dmax <= limit and theta * dmax <= 1e-3 * limit:
-                    converged = True
-                    break
+                    if not want_jac:
+                        converged = True
+                        break
+                    # The step's Jacobian S needs the Newton matrix: one more iteration on a
+                    # fresh one at the converged stage values (its update is at round-off).
+                    refresh = True
+                    prev = dmax
+                    continue
                 if theta > 1.0:
                     # Diverging on an old matrix: step back before refactorizing.
                     for i in range(3):
