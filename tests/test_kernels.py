@@ -241,6 +241,49 @@ def test_compiled_configuration_maps_equal_numpy(scenario):
     assert cfgs[1].factor().batch == cfgs[0].factor().batch
 
 
+@pytest.mark.parametrize("scenario", ["crank_rocker_373rpm", "alexander_lawrence_400rpm"])
+def test_vectorized_map_solve_equals_the_per_load_set_solve(scenario, monkeypatch):
+    """The maps' load solve (tmm_core.kernels_maps: every unit load of a configuration at once,
+    vectorized across them, compact outputs) against the per-load-set solve
+    (kernels_static.solve_loads, taken when every station state is asked for) on the same prepared
+    batch: node displacements, segment axial forces, joint displacements and forces, and the
+    right-side state of every node (the gauges' output, here at all nodes: the stations before and
+    after each member's first deformable segment). The same arithmetic in the same order: 1e-12 is
+    a margin (measured: equal)."""
+    from tmm_core import structure_compiled
+    sc = load(scenario).with_overrides({"solver.tmm.segments": 4})
+    s = sc.tmm
+    td = TimeDomain(sc.mechanism, integrator=s.integrator, coupling=s.coupling, gravity=sc.gravity, gauges=sc.gauges,
+                    axial_force=s.axial_force, compiled=True)
+    assert td.axial_force == "dynamic" and td.gauges
+    calls = []
+    solve = structure_compiled.solve_prepared
+
+    def captured(prep, P, **kw):
+        if kw.get("node_loads") is not None:
+            calls.append((prep, np.array(P), kw))
+        return solve(prep, P, **kw)
+
+    monkeypatch.setattr(structure_compiled, "solve_prepared", captured)
+    th = np.radians(np.arange(0.0, 360.0, 20.0))
+    td.configurations(th, np.full(len(th), sc.drive.speed_rad_s), np.zeros(len(th)), 1e-4, maps=True)
+    assert len(calls) == 1
+    prep, P, kw = calls[0]
+    lay = prep.layout
+    Nn = prep.Kn.shape[1]
+    (z, N, g), q, reaction, _ = solve(prep, P, **dict(kw, compact_nodes=list(range(Nn))))
+    states, q1, reaction1, _ = solve(prep, P, **dict(kw, compact_nodes=None))       # (B, R, Nn, 2, 6)
+    assert z.shape[2] == kw["node_loads"].shape[1] == td.n_dof + 1
+    left = np.arange(int(lay.seg_off[-1])) + np.repeat(np.arange(len(lay.seg_off) - 1), np.diff(lay.seg_off))
+    N1 = np.where(lay.rigid, 0.0, 0.5 * (states[:, :, left, 1, 5] + states[:, :, left + 1, 0, 5]))
+    pairs = {"z": (z, np.moveaxis(states[:, :, :, 0, :3].reshape(len(P), z.shape[2], -1), 1, 2)),
+             "N": (N, np.moveaxis(N1, 1, 2)), "gauge states": (g, np.moveaxis(states[:, :, :, 1, :], 1, -1)),
+             "q": (q, q1), "reaction": (reaction, reaction1)}
+    for key, (new, ref) in pairs.items():
+        assert new.shape == ref.shape, key
+        assert np.max(np.abs(new - ref)) <= 1e-12 * np.max(np.abs(ref)), key
+
+
 def test_iteration_stopping_rule_on_a_geometric_sequence():
     """Changes falling by r = 1e-3 a solve: the rule stops where the implied error
     (change * r / (1 - r)) is below tol, which needs three changes; a change below tol stops

@@ -27,8 +27,10 @@ callers use the numpy path otherwise. Kernels are compiled on first use and cach
 
 Modules: this one holds the kernel (:func:`solve_batch`, :func:`solve_range` and its load-solve
 phase :func:`solve_loads`); :mod:`tmm_core.kernels_factor` the factorization phase,
-:mod:`tmm_core.kernels_dense` the small dense helpers, :mod:`tmm_core.structure_compiled` the
-Python driver (layout, checks, the compiled ``solve_linear`` and ``solve_static``).
+:mod:`tmm_core.kernels_maps` the load solve of many load sets with compact outputs (the maps,
+vectorized across the load sets: 3x faster there), :mod:`tmm_core.kernels_dense` the small dense
+helpers, :mod:`tmm_core.structure_compiled` the Python driver (layout, checks, the compiled
+``solve_linear`` and ``solve_static``).
 
 The beam-column iteration runs in the kernel too, one configuration at a time to its own
 tolerance (the loop of :func:`tmm_core.statics.solve_static`): one parallel region for the
@@ -48,9 +50,10 @@ import os
 
 import numpy as np
 
-from . import kernels, kernels_dense, kernels_factor, matrices
+from . import kernels, kernels_dense, kernels_factor, kernels_maps, matrices
 from .kernels_dense import iteration_converged, lu_solve, state_change
 from .kernels_factor import factor_configuration, factor_scratch
+from .kernels_maps import maps_scratch, solve_loads_many
 
 AVAILABLE = kernels.AVAILABLE
 _COMPILED = {}
@@ -71,7 +74,8 @@ INV_FACT = np.array(matrices.INV_FACT)        # the Stumpff series' 1/k! (the nu
 # The helpers compiled and bound into the modules of the kernels (numba resolves global names
 # when it compiles a function, so the compiled objects must be where the kernels look them up).
 # numba's disk cache checks only the defining file of each function: after editing
-# kernels_dense.py or kernels_factor.py, clear the __pycache__ *.nbi/*.nbc of this package.
+# kernels_dense.py, kernels_factor.py or kernels_maps.py, clear the __pycache__ *.nbi/*.nbc of
+# this package.
 _DENSE = ("stumpff", "inv3", "mm3", "ldl_inertia", "lu_factor", "lu_solve", "segment_blocks", "full6", "state_change",
           "iteration_converged")
 
@@ -90,6 +94,10 @@ def compiled_solve():
         kernels_factor.factor_scratch = jit(kernels_factor.factor_scratch)
         globals()["factor_configuration"] = kernels_factor.factor_configuration
         globals()["factor_scratch"] = kernels_factor.factor_scratch
+        for name in ("sweep_member", "copy_sweep", "maps_scratch", "solve_loads_many"):
+            setattr(kernels_maps, name, jit(getattr(kernels_maps, name)))
+        globals()["maps_scratch"] = kernels_maps.maps_scratch
+        globals()["solve_loads_many"] = kernels_maps.solve_loads_many
         globals()["solve_loads"] = jit(solve_loads)
         globals()["solve_range"] = jit(solve_range)
         globals()["numba_prange"] = numba.prange
@@ -196,6 +204,10 @@ def solve_range(b_start, b_stop, inv_fact, seg_off, L, EA, EI, rigid, factor, P,
     zi = np.array([0, 1, 2])
     fi = np.array([5, 4, 3])
     stn = np.zeros((Kn.shape[1], 2, 6))
+    # Many load sets with compact outputs (the maps): the load solve vectorized across them.
+    many = compact and R > 1 and not full
+    R_many = R if many else 0
+    scratch = maps_scratch(M, mmax, nd, nf, Kn.shape[1], R_many)
 
     tol, max_iter, recount = iteration
     cnt = count.copy()
@@ -221,10 +233,15 @@ def solve_range(b_start, b_stop, inv_fact, seg_off, L, EA, EI, rigid, factor, P,
                                         Kff, Ks, lu, piv, work, c5, sp, T11, T12, T21, T22, A, Bm, C, D, t1, t2, zi,
                                         fi):
                 break
-            solve_loads(bi, Fn, seg_off, rigid, angle, ends, free, states, q_out, reaction, zout, nout, gnode, gstate,
-                        R, M, nd, nf, full, compact, lead, prefix, lcol, B0, T220, SP, TL, Gis, Xs, BGis, HGis, Cs, Ds,
-                        Af, Bf, firsts, Kfull, lu, piv, pcol, ys, cs, af, t6, t1, t2, a, c, y, v3, rfull, rhs, xf, qv,
-                        zl, zs, ze, qe, S0, zj, stn, zi, fi)
+            if many:
+                solve_loads_many(bi, Fn, seg_off, rigid, angle, ends, free, q_out, reaction, zout, nout, gnode, gstate,
+                                 R, M, nd, nf, lead, prefix, lcol, B0, T220, SP, TL, Gis, Xs, BGis, HGis, Cs, Ds, Af,
+                                 Bf, firsts, Kfull, lu, piv, scratch)
+            else:
+                solve_loads(bi, Fn, seg_off, rigid, angle, ends, free, states, q_out, reaction, zout, nout, gnode,
+                            gstate, R, M, nd, nf, full, compact, lead, prefix, lcol, B0, T220, SP, TL, Gis, Xs, BGis,
+                            HGis, Cs, Ds, Af, Bf, firsts, Kfull, lu, piv, pcol, ys, cs, af, t6, t1, t2, a, c, y, v3,
+                            rfull, rhs, xf, qv, zl, zs, ze, qe, S0, zj, stn, zi, fi)
             if max_iter <= 1:
                 break
             iterations[bi] = it
@@ -257,7 +274,10 @@ def solve_loads(bi, Fn, seg_off, rigid, angle, ends, free, states, q_out, reacti
                 S0, zj, stn, zi, fi):
     """Solve the factorized configuration ``bi`` (:func:`tmm_core.kernels_factor.factor_configuration`)
     for every load set: the load sweep (:func:`tmm_core.riccati.sweep_loads`), the joint solve and the
-    back-substitution to the station states (outputs as :func:`solve_range`)."""
+    back-substitution to the station states (outputs as :func:`solve_range`). One load set at a
+    time: the one-load-set callers (a time step on the stored factorizations, the quasi-static
+    solves); many load sets with compact outputs go to
+    :func:`tmm_core.kernels_maps.solve_loads_many`."""
     # -- every load set: load sweep (tmm_core.riccati.sweep_loads), joint solve, states ------
     fb = bi if Fn.shape[0] > 1 else 0
     for ri in range(R):
