@@ -18,6 +18,7 @@ loads of each crank state).
 """
 from __future__ import annotations
 
+import functools
 import math
 from typing import Callable, Mapping, Sequence
 
@@ -167,10 +168,8 @@ class TimeDomain(StepSolver):
 
     # -- material history operators -------------------------------------------------------
     def _build_segment_operators(self):
-        """Sparse operators on the node vector: gather of segment end displacements, the block
-        diagonal of segment stiffnesses (material, at the material's E), and per-segment data."""
-        import scipy.sparse as sp          # here: importing it costs 0.2 s that most users never need
-
+        """Segment stiffness blocks (material, at its E) and viscoelastic moduli; the sparse
+        operators (:attr:`gather`, :attr:`seg_K`, :attr:`K_local`) when first read (~2 ms a set-up)."""
         rows, blocks, visco_E1 = [], [], []
         for link in self.links:
             m = link.member("s", "e")
@@ -182,15 +181,29 @@ class TimeDomain(StepSolver):
                 sls = link.viscoelastic if link.flexible[j] else None
                 visco_E1.append(0.0 if sls is None else sls.maxwell_modulus_Pa / link.material.E_Pa)
         self.n_seg = len(blocks)
-        cols = np.concatenate(rows)
-        self.gather = sp.csr_matrix((np.ones(len(cols)), (np.arange(len(cols)), cols)), shape=(len(cols), self.n_dof))
-        self.seg_K = sp.block_diag(blocks, format="csr")
+        self._segment_cols = np.concatenate(rows)
         self.seg_blocks = np.ascontiguousarray(np.array(blocks))     # (n_seg, 6, 6), for the compiled step
         # Maxwell modulus / reference modulus per segment entry (0 for elastic segments).
         self.seg_E1 = np.repeat(np.array(visco_E1), 6)
-        # Material stiffness in local frames, assembled member by member (no joint coupling needed:
-        # the history loads are computed per member and applied at its own nodes).
-        self.K_local = (self.gather.T @ self.seg_K @ self.gather).tocsr()
+
+    @functools.cached_property
+    def gather(self):
+        """Sparse gather (6 n_seg, n_dof) of every segment's end displacements from the node vector."""
+        import scipy.sparse as sp          # here: importing it costs 0.2 s that most users never need
+        cols = self._segment_cols
+        return sp.csr_matrix((np.ones(len(cols)), (np.arange(len(cols)), cols)), shape=(len(cols), self.n_dof))
+
+    @functools.cached_property
+    def seg_K(self):
+        """Block diagonal (6 n_seg, 6 n_seg) of the segment stiffnesses (sparse)."""
+        import scipy.sparse as sp
+        return sp.block_diag(list(self.seg_blocks), format="csr")
+
+    @functools.cached_property
+    def K_local(self):
+        """Material stiffness in local frames (n_dof, n_dof), member by member (no joint coupling:
+        the history loads are computed per member and applied at its own nodes)."""
+        return (self.gather.T @ self.seg_K @ self.gather).tocsr()
 
     def link_factor(self, c_v: float, dt: float):
         """Effective-modulus factor of every segment ``{link: (n,)}`` and, per link, the
