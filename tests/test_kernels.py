@@ -217,7 +217,7 @@ def test_inertia_count_of_a_pinned_pinned_column_changes_exactly_at_the_euler_lo
     structure_compiled.solve_linear(column, case, {"col": np.full((1, segments), -0.999 * euler)})
 
 
-@pytest.mark.parametrize("scenario", ["crank_rocker_373rpm", "alexander_lawrence_400rpm"])
+@pytest.mark.parametrize("scenario", ["crank_rocker_373rpm", "alexander_lawrence_400rpm", "watt_sixbar_600rpm"])
 def test_compiled_configuration_maps_equal_numpy(scenario):
     """TimeDomain.configurations: the load-to-response maps (displacements, drive torque, gauges,
     segment axial forces) from the compiled factorization against the numpy factorization and
@@ -241,7 +241,7 @@ def test_compiled_configuration_maps_equal_numpy(scenario):
     assert cfgs[1].factor().batch == cfgs[0].factor().batch
 
 
-@pytest.mark.parametrize("scenario", ["crank_rocker_373rpm", "alexander_lawrence_400rpm"])
+@pytest.mark.parametrize("scenario", ["crank_rocker_373rpm", "alexander_lawrence_400rpm", "watt_sixbar_600rpm"])
 def test_vectorized_map_solve_equals_the_per_load_set_solve(scenario, monkeypatch):
     """The maps' load solve (tmm_core.kernels_maps: every unit load of a configuration at once,
     vectorized across them, compact outputs) against the per-load-set solve
