@@ -326,13 +326,15 @@ class ReducedModel:
         n_g = len(td.gauges)
         O0 = np.zeros((len(T), 1 + 2 * n_g))
         Oe, Ov, Oa = (np.zeros((len(T), 1 + 2 * n_g, T.shape[-1])) for _ in range(3))
+        # Batched products (matmul per stage point): numpy's einsum of these shapes was 2.5-7x
+        # slower (~4.5 ms of a sweep point at r = 23, 1080 stage points).
+        row = lambda g, X: np.matmul(g[:, None, :], X)[:, 0]   # noqa: E731  (P, n) . (P, n, r) -> (P, r)
         O0[:, 0] = np.einsum("pn,pn->p", w, self.f) + self.torque_offset
-        Oe[:, 0] = np.einsum("pn,pnr->pr", g_pos, T) + np.einsum("pn,pnr->pr", g_vel, Td) + \
-            np.einsum("pn,pnr->pr", g_acc, Tdd)
-        Ov[:, 0] = np.einsum("pn,pnr->pr", g_vel, T) + 2.0 * np.einsum("pn,pnr->pr", g_acc, Td)
-        Oa[:, 0] = np.einsum("pn,pnr->pr", g_acc, T)
+        Oe[:, 0] = row(g_pos, T) + row(g_vel, Td) + row(g_acc, Tdd)
+        Ov[:, 0] = row(g_vel, T) + 2.0 * row(g_acc, Td)
+        Oa[:, 0] = row(g_acc, T)
         if n_g:
-            Oe[:, 1:] = np.einsum("gkn,pnr->pgkr", self.basis.gauge_maps, T).reshape(len(T), 2 * n_g, -1)
+            Oe[:, 1:] = np.matmul(self.basis.gauge_maps.reshape(2 * n_g, -1)[None], T)
         return O0, Oe, Ov, Oa
 
     def outputs(self, p, eta, v, acc, nonlinear):
