@@ -192,6 +192,43 @@ def test_beam_column_iteration_that_cannot_meet_its_tolerance_fails_alike_in_bot
     assert runs[0].iterations == runs[1].iterations <= 8
 
 
+@pytest.mark.parametrize("speed, max_iter, error", [(1.0, 200, None), (1.0, 3, "did not converge in 3"),
+                                                    (40.0, 200, "buckling load")])
+def test_one_call_beam_column_iteration_equals_the_two_call_one(monkeypatch, speed, max_iter, error):
+    """The compiled iteration of a batch in one call (linear solve, its checks, the change scales
+    and the iteration: kernels_static.iterate_batch, taken with more than one thread) against
+    the linear solve and the iteration in two calls with the scales from numpy: the same
+    results bit for bit, and the same error where the iteration or the linear solve fails
+    (``speed`` x the rig's: 40x is above the first natural frequency, negative stiffness; 3
+    solves are too few for the tolerance)."""
+    from tmm_core import TMMError, structure_compiled
+    from tmm_core.ked import Coupling, coupling_stiffness, rigid_body_loads
+    sc, mech, _ = _fe_quasi_static_case()
+    motion = mech.motion(np.radians(np.linspace(0.0, 360.0, 72, endpoint=False)), speed * sc.drive.speed_rad_s, 0.0)
+    case = mech.load_case(motion, rigid_body_loads(mech, motion, sc.gravity), None,
+                          coupling_stiffness(mech, motion, Coupling(False, True, True), mass_damping=0.0))
+    runs, calls = [], []
+    run = structure_compiled._run
+    monkeypatch.setattr(structure_compiled, "_run", lambda *a, **k: calls.append(k.get("cond_limit")) or run(*a, **k))
+    for chunks in (2, 1):
+        monkeypatch.setattr(structure_compiled, "_thread_chunks", lambda B, solves, n=chunks: min(B, n))
+        try:
+            runs.append(structure_compiled.solve_static(mech.structure(), case, beam_column=True, tol=1e-10,
+                                                        max_iter=max_iter, count_inertia=True))
+        except TMMError as exc:
+            runs.append(exc)
+    assert calls[0] is not None and calls[-1] is None       # one call, then the two
+    if error is not None:
+        assert type(runs[0]) is type(runs[1]) and str(runs[0]) == str(runs[1]) and error in str(runs[0])
+        return
+    assert runs[0].iterations == runs[1].iterations and runs[0].last_change == runs[1].last_change
+    for name, r in runs[1].members.items():
+        np.testing.assert_array_equal(runs[0].members[name].state, r.state)
+        np.testing.assert_array_equal(runs[0].members[name].axial_force, r.axial_force)
+    for joint, R in runs[1].reactions.items():
+        np.testing.assert_array_equal(runs[0].reactions[joint], R)
+
+
 @pytest.mark.parametrize("segments", [1, 4])
 def test_inertia_count_of_a_pinned_pinned_column_changes_exactly_at_the_euler_load(segments):
     """Wittrick-Williams count from the factorization's pivots (no eigenvalue problem): a

@@ -134,6 +134,54 @@ def state_change(new, old, w, scales):
     return max(dd / scales[0] if scales[0] > 0.0 else 0.0, df / scales[1] if scales[1] > 0.0 else 0.0)
 
 
+def iteration_start(start, P, seg_off, L, EI, factor, rigid, negative, pivots, status, weights, scales, cond_limit,
+                    check_buckling):
+    """Between the linear solve of a batch (station states ``start (B, Nn, 2, 6)``) and its
+    beam-column iteration, in the compiled call that does both
+    (:func:`tmm_core.kernels_static.iterate_batch`). True if the linear solve passes the checks
+    of :func:`tmm_core.structure_compiled._checked` (``status`` 0, pivot ratio below
+    ``cond_limit``, with ``check_buckling`` no negative pivot), its states are finite and the
+    tension parameters ``P L^2 / EI`` of the initial axial forces stay below 700^2 (cosh
+    overflow); then ``scales (2,)`` holds the batch's change scales (as
+    :func:`tmm_core.statics.change_scales`: the largest weighted |displacement| and |force|)
+    and ``P (B, S)`` the initial axial forces [N] (mean of each segment's two end values, 0 for
+    rigid segments). False otherwise: the caller repeats the checks in Python, which raise."""
+    B = start.shape[0]
+    for b in range(B):
+        if status[b] != 0 or not (pivots[b, 0] > 0.0 and pivots[b, 1] / pivots[b, 0] < cond_limit):
+            return False
+        if check_buckling and negative[b, 0] + negative[b, 1] > 0:
+            return False
+    # Max is exact: the largest |entry| of each column times its weight is the float value
+    # that numpy's reduction in statics.change_scales gives.
+    big = np.zeros(6)
+    for b in range(B):
+        for i in range(start.shape[1]):
+            for side in range(2):
+                for k in range(6):
+                    x = abs(start[b, i, side, k])
+                    if not x < math.inf:
+                        return False
+                    if x > big[k]:
+                        big[k] = x
+    d = 0.0
+    f = 0.0
+    for k in range(3):
+        d = max(d, big[k] * weights[k])
+        f = max(f, big[k + 3] * weights[k + 3])
+    scales[0] = d
+    scales[1] = f
+    for b in range(B):
+        for mi in range(seg_off.shape[0] - 1):
+            for sg in range(seg_off[mi], seg_off[mi + 1]):
+                node = sg + mi
+                p = 0.0 if rigid[sg] else 0.5 * (start[b, node, 1, 5] + start[b, node + 1, 0, 5])
+                P[b, sg] = p
+                if p * (L[sg] * L[sg]) / (EI[sg] * factor[b, sg]) > 490000.0:
+                    return False
+    return True
+
+
 def iteration_converged(c1, c2, c3, n, tol):
     """The stopping rule of the successive linear solutions, on the last three relative changes
     ``c1, c2, c3`` (``c3`` the last; ``n`` changes so far): see

@@ -205,23 +205,36 @@ def iterate_prepared(prep: Prepared, *, tol: float, max_iter: int, check_bucklin
                      cond_limit: float = 1e12, count_inertia: bool | None = None):
     """The beam-column iteration of every configuration of a :class:`Prepared` batch (the loop
     of :func:`tmm_core.statics.solve_static`, each configuration to its own tolerance): the
-    linear solve, then the iteration in one compiled call. Returns ``(P (B, S) the last axial
+    linear solve and the iteration in one compiled call with more than one thread
+    (:func:`tmm_core.kernels_static.iterate_batch`), else (and where the linear solve fails a
+    check, to raise) one call each, the change scales from numpy. Returns ``(P (B, S) the last axial
     forces, (states, q, reaction, inertia count) of the last solve as :func:`solve_prepared`,
     solves made (B,), last relative change (B,))``. Raises :class:`ConvergenceError` where a
     configuration has a non-finite iterate or does not converge in ``max_iter`` solves."""
     from .statics import change_weights, change_scales
     lay = prep.layout
-    P = np.zeros(prep.factor.shape)
-    linear = solve_prepared(prep, P, check_buckling=check_buckling, cond_limit=cond_limit, count_inertia=count_inertia)
-    start = linear[0]
     weights = change_weights(max(m.length for m in prep.structure.members))
-    scales = np.array(change_scales([start], weights))
-    left = np.arange(int(lay.seg_off[-1])) + np.repeat(np.arange(len(lay.seg_off) - 1), np.diff(lay.seg_off))
-    P = np.where(lay.rigid, 0.0, 0.5 * (start[:, left, 1, 5] + start[:, left + 1, 0, 5]))
     recount = count_inertia is None and check_buckling
-    _tension_parameter(prep, P)
-    out = _run(prep, P, check_buckling, count_inertia, None, None, (float(tol), int(max_iter), recount),
-               weights, start, scales)
+    iteration = (float(tol), int(max_iter), recount)
+    B = prep.factor.shape[0]
+    P = np.zeros(prep.factor.shape)
+    out = None
+    # The linear solve and the iteration in one compiled call (parallel: one Python call, no
+    # numpy in between). It declines (None) if a check of the linear solve fails, and is not
+    # tried where a clamped-clamped buckling count would enter that check (s = 0 at P = 0
+    # unless a stiffness is 0: see buckling.clamped_clamped_buckling_count).
+    if _thread_chunks(B, B) > 1 and np.min(_tension_parameter(prep, P), initial=0.0) > -4.0 * np.pi**2:
+        out = _run(prep, P, check_buckling, count_inertia, None, None, iteration, weights, cond_limit=cond_limit)
+    if out is None:
+        P = np.zeros(prep.factor.shape)
+        linear = solve_prepared(prep, P, check_buckling=check_buckling, cond_limit=cond_limit,
+                                count_inertia=count_inertia)
+        start = linear[0]
+        scales = np.array(change_scales([start], weights))
+        left = np.arange(int(lay.seg_off[-1])) + np.repeat(np.arange(len(lay.seg_off) - 1), np.diff(lay.seg_off))
+        P = np.where(lay.rigid, 0.0, 0.5 * (start[:, left, 1, 5] + start[:, left + 1, 0, 5]))
+        _tension_parameter(prep, P)
+        out = _run(prep, P, check_buckling, count_inertia, None, None, iteration, weights, start, scales)
     status, iterations, last_change = out[5], out[6], out[7]
     for code, what in ((3, "produced non-finite values"), (4, f"did not converge in {max_iter} iterations")):
         if np.any(status == code):
@@ -233,10 +246,12 @@ def iterate_prepared(prep: Prepared, *, tol: float, max_iter: int, check_bucklin
 
 
 def _run(prep, P, check_buckling, count_inertia, node_loads, compact_nodes, iteration, weights=np.ones(6),
-         start=None, scales=np.ones(2)):
+         start=None, scales=np.ones(2), cond_limit=None):
     """The compiled call: ``(states, q, reaction, negative, pivots, status, iterations,
     last_change)``; ``P`` is updated in place by an iteration (checked by the caller:
-    :func:`_tension_parameter`)."""
+    :func:`_tension_parameter`). With ``cond_limit`` (and ``P`` zero, more than one thread):
+    the linear solve, its checks and the iteration in one call
+    (:func:`tmm_core.kernels_static.iterate_batch`), None if a check fails."""
     lay = prep.layout
     B, S = prep.factor.shape
     if count_inertia is None:
@@ -263,12 +278,19 @@ def _run(prep, P, check_buckling, count_inertia, node_loads, compact_nodes, iter
     iterations, last_change = np.ones(B, dtype=np.int64), np.zeros(B)
     solve = kernels_static.compiled_solve()
     chunks = _thread_chunks(B, B * Fn.shape[1])
+    linear_states = None if cond_limit is None else np.empty((B, 1, Nn, 2, 6))
+    if linear_states is not None:       # written by the call (not the default's shared array)
+        start, scales = linear_states[:, 0], np.zeros(2)
     args = (kernels_static.INV_FACT, lay.seg_off, lay.L, lay.EA, lay.EI, lay.rigid, prep.factor, P, prep.qloc, prep.Kn,
             Fn, prep.angle, lay.ends, lay.free, count, states, q, reaction, negative, pivots, status, zout, nout,
             gnode, gstate, iteration, np.asarray(weights, dtype=float),
             np.empty((B, 0, 2, 6)) if start is None else np.ascontiguousarray(start), np.asarray(scales, dtype=float),
             iterations, last_change)
-    if chunks == 1:
+    if linear_states is not None:
+        buckling = bool(check_buckling)
+        if not kernels_static.compiled_iterate()(*args, linear_states, float(cond_limit), buckling, chunks):
+            return None
+    elif chunks == 1:
         kernels_static.solve_range(0, B, *args)      # no parallel region: its start costs ~0.4 ms
     else:
         solve(*args, chunks)
