@@ -17,14 +17,8 @@ updates shrink by ``CHORD_CONTRACTION`` or faster, and a step starts on the fact
 from the previous revolution (once the shooting has nearly converged most steps need none). A
 chord iteration stops on an update below ``tol`` whose error estimate (contraction times update)
 is 1000x below it, a Newton iteration on an update below ``tol``: either way the stage equations
-are solved to their round-off floor (about 1e-12 of the accelerations). In a revolution with the
-monodromy a step that converged on an old factorization makes one more iteration on a fresh one
-at its converged stage values, so that ``S`` comes from the Newton matrix of the solution (the
-numpy path refactorizes at every iteration; the monodromies agree to 1e-11, the test). Measured
-(FE rig, r = 23): that revolution 74-88 -> 63-82 ms at 241-400 rpm (about one factorization a
-step instead of two to three). Not kept: starting the first nonlinear revolution on the linear
-revolution's factorizations (241 rpm 46 -> 40 ms, but 300-400 rpm 47-50 -> 51-60 ms: the
-second-order terms make the linear matrices a slow chord there).
+are solved to their round-off floor (about 1e-12 of the accelerations). With the monodromy a step
+converged on an old factorization iterates once on a fresh one (``S`` from the solution's matrix).
 
 The second-order term works in node space: ``q = T eta``, ``q' = T eta' + T' eta``, the segment
 forces and their node loads ``g``, ``N = T^T g``; its Jacobian is ``L^T R + T^T Z`` (rank-one

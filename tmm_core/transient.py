@@ -201,8 +201,7 @@ class TimeDomain(StepSolver):
 
     @functools.cached_property
     def K_local(self):
-        """Material stiffness in local frames (n_dof, n_dof), member by member (no joint coupling:
-        the history loads are computed per member and applied at its own nodes)."""
+        """Material stiffness in local frames (n_dof, n_dof), member by member (no joint coupling)."""
         return (self.gather.T @ self.seg_K @ self.gather).tocsr()
 
     def link_factor(self, c_v: float, dt: float):
