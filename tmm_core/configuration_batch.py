@@ -25,22 +25,30 @@ class StepMaps:
     ``Z`` (B, n_dof, n_dof), ``z0`` (B, n_dof): node displacements [m] and rotations [rad];
     ``O`` (B, n_out, n_dof), ``o0`` (B, n_out): the outputs (:class:`OutputLayout`);
     ``A`` (B, n_seg, n_dof), ``a0`` (B, n_seg): segment axial forces [N, tension +] (second-order
-    step only, else None). The arrays are filled in chunks after construction."""
+    step only, else None).
 
-    Z: np.ndarray
-    z0: np.ndarray
-    O: np.ndarray
-    o0: np.ndarray
-    A: np.ndarray | None = None
-    a0: np.ndarray | None = None
+    Each map is stored augmented, ``Zx = [Z | z0]`` (B, n_dof, n_dof + 1), likewise ``Ox`` and
+    ``Ax``; ``Z``, ``z0`` ... are views of them. The compiled factorization writes its solutions
+    into ``Zx`` and ``Ax`` in place and the compiled march reads them so (one contiguous array a
+    map: a revolution's maps are tens of MB, and a second copy of them cost more in first-touch
+    page faults than the solves). The arrays are filled in chunks after construction."""
+
+    Zx: np.ndarray
+    Ox: np.ndarray
+    Ax: np.ndarray | None = None
 
     @classmethod
     def empty(cls, batch: int, n_dof: int, n_out: int, n_seg: int | None = None) -> "StepMaps":
         """Uninitialised maps (``n_seg`` given: with the axial-force maps)."""
-        axial = n_seg is not None
-        return cls(np.empty((batch, n_dof, n_dof)), np.empty((batch, n_dof)), np.empty((batch, n_out, n_dof)),
-                   np.empty((batch, n_out)), np.empty((batch, n_seg, n_dof)) if axial else None,
-                   np.empty((batch, n_seg)) if axial else None)
+        return cls(np.empty((batch, n_dof, n_dof + 1)), np.empty((batch, n_out, n_dof + 1)),
+                   None if n_seg is None else np.empty((batch, n_seg, n_dof + 1)))
+
+    Z = property(lambda self: self.Zx[..., :-1])
+    z0 = property(lambda self: self.Zx[..., -1])
+    O = property(lambda self: self.Ox[..., :-1])
+    o0 = property(lambda self: self.Ox[..., -1])
+    A = property(lambda self: None if self.Ax is None else self.Ax[..., :-1])
+    a0 = property(lambda self: None if self.Ax is None else self.Ax[..., -1])
 
 
 @dataclass(frozen=True)
@@ -53,12 +61,14 @@ class StepFactors:
     structure; ``stored``: the arrays of :data:`tmm_core.kernels_factored.STORED`, batch axis
     first; the outputs (:class:`OutputLayout`) are ``Oc[k] @ y + oc[k]`` with ``y`` the joint
     reactions [N, N m] and the gauge nodes' right-side states of a solve: ``Oc`` (B, n_out, ny),
-    ``oc`` (B, n_out)."""
+    ``oc`` (B, n_out), stored augmented as :class:`StepMaps`' maps: ``Ocx = [Oc | oc]``."""
 
     layout: tuple
     stored: tuple
-    Oc: np.ndarray
-    oc: np.ndarray
+    Ocx: np.ndarray
+
+    Oc = property(lambda self: self.Ocx[..., :-1])
+    oc = property(lambda self: self.Ocx[..., -1])
 
 
 @dataclass(frozen=True)

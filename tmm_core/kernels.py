@@ -107,13 +107,14 @@ def _shape_products(start, end, L, z, delta, G):
         delta[s] = 0.5 * (dw * g0 + t0 * g1 + t1 * g3)
 
 
-def _affine(M, m0, k, v, out):
-    """``out = m0[k] + M[k] @ v``: one affine map of the batch at configuration ``k`` (the step's
-    displacement, output and axial-force maps)."""
+def _affine(Mx, k, v, out):
+    """``out = Mx[k, :, :n] @ v + Mx[k, :, n]`` (``n = len(v)``): one augmented affine map of the
+    batch (:class:`tmm_core.configuration_batch.StepMaps`) at configuration ``k``."""
+    n = v.shape[0]
     for i in range(out.shape[0]):
-        s_ = m0[k, i]
-        for q in range(v.shape[0]):
-            s_ += M[k, i, q] * v[q]
+        s_ = Mx[k, i, n]
+        for q in range(n):
+            s_ += Mx[k, i, q] * v[q]
         out[i] = s_
 
 
@@ -169,22 +170,22 @@ def _anderson_coefficients(dR, h, r, gamma, Q, R):
 
 
 def march(code, params, dt, c_a, c_v, idx,
-          Z, z0, O, o0, A, a0, P0, rigid, omega, factored, flayout, fstored, fwork, Oc, oc,
+          Zx, Ox, Ax, P0, rigid, omega, factored, flayout, fstored, fwork, Ocx,
           m, aM, beta_node, seg_start, seg_end, seg_L, seg_EA, seg_beta, seg_K, gauge_seg,
           coriolis, has_kv, dynamic, shortening, own_force, tol_z, tol_P, max_iterations, depth,
           d, v, a, acc, d1, d2, P, out_hist, z_hist, P_hist, iterations):
     """March the steps whose configuration indices are ``idx`` (into the map batch), updating
     the state ``d, v, a, acc, d1, d2`` and the segment axial forces ``P`` in place and writing
     the outputs of each step into ``out_hist`` / ``z_hist`` / ``P_hist`` (rows; an array with no
-    rows is not written) and its iteration count. The responses come from the maps ``Z, z0, O,
-    o0, A, a0`` or, with ``factored``, from solves on the stored factorizations
-    (:func:`tmm_core.kernels_factored.factored_solve`: ``flayout, fstored, fwork``; the outputs
-    ``Oc @ y + oc``).
+    rows is not written) and its iteration count. The responses come from the augmented maps
+    ``Zx, Ox, Ax`` (:class:`tmm_core.configuration_batch.StepMaps`) or, with ``factored``, from
+    solves on the stored factorizations (:func:`tmm_core.kernels_factored.factored_solve`:
+    ``flayout, fstored, fwork``; the outputs ``Ocx`` applied to ``y``).
     Returns the number of steps done (``len(idx)`` unless a step failed: then the state is that
     of the step before it)."""
     n = d.shape[0]
     ns = seg_L.shape[0]
-    no = O.shape[1]
+    no = Ox.shape[1]
     nx = n + ns
     h_a = np.empty(n)
     h_v = np.empty(n)
@@ -199,7 +200,7 @@ def march(code, params, dt, c_a, c_v, idx,
     G = np.empty((ns, 4))
     damp = np.empty(ns)
     outv = np.empty(no)
-    y = np.empty(Oc.shape[2])
+    y = np.empty(Ocx.shape[2] - 1)
     x = np.empty(nx)
     gx = np.empty(nx)
     r = np.empty(nx)
@@ -238,10 +239,10 @@ def march(code, params, dt, c_a, c_v, idx,
             # helper on every iteration cost the maps' march ~2 us a step.)
             if factored:
                 factored_solve(k, loads, flayout, fstored, fwork, zn, N, y)
-                _affine(Oc, oc, k, y, outv)
+                _affine(Ocx, k, y, outv)
             else:
-                _affine(Z, z0, k, loads, zn)
-                _affine(O, o0, k, loads, outv)
+                _affine(Zx, k, loads, zn)
+                _affine(Ox, k, loads, outv)
         else:
             for s in range(ns):
                 damp[s] = seg_beta[s] * EAL[s] * (h_v[seg_end[s]] - h_v[seg_start[s]])
@@ -278,8 +279,8 @@ def march(code, params, dt, c_a, c_v, idx,
                 if factored:
                     factored_solve(k, f, flayout, fstored, fwork, zn, N, y)
                 else:
-                    _affine(Z, z0, k, f, zn)
-                    _affine(A, a0, k, f, N)
+                    _affine(Zx, k, f, zn)
+                    _affine(Ax, k, f, N)
                 for s in range(ns):
                     Pn[s] = N[s] + damp[s] + F[s]
                 finite = True
@@ -301,9 +302,9 @@ def march(code, params, dt, c_a, c_v, idx,
                 if dz < tol_z and dPr < tol_P:
                     converged = True
                     if factored:
-                        _affine(Oc, oc, k, y, outv)           # y: the last solve's, for these loads
+                        _affine(Ocx, k, y, outv)           # y: the last solve's, for these loads
                     else:
-                        _affine(O, o0, k, f, outv)
+                        _affine(Ox, k, f, outv)
                     if shortening:
                         _shape_products(seg_start, seg_end, seg_L, zn, delta, G)
                         for gi in range(gauge_seg.shape[0]):

@@ -74,11 +74,12 @@ def integrator_coefficients(integrator, dt: float):
     return slots, Hc, Gc, ez
 
 
-def push(S, Hc, Gc, ez, idx, forced, Z, z0, A, P0, rigid, omega, m, aM, beta_node,
+def push(S, Hc, Gc, ez, idx, forced, Zx, Ax, P0, rigid, omega, m, aM, beta_node,
          seg_start, seg_end, seg_L, seg_EA, seg_beta, seg_K, coriolis, has_kv, dynamic, c_v, zs, vs, Ps):
     """March the states ``S`` (K slots, n_dof, M columns) in place through the steps at
-    configurations ``idx`` of a map batch: the linear step (``dynamic`` False: loads through the
-    displacement map ``Z``) or the second-order step linearized about the trajectory ``zs, vs,
+    configurations ``idx`` of a map batch (augmented maps ``Zx``, ``Ax``:
+    :class:`tmm_core.configuration_batch.StepMaps`): the linear step (``dynamic`` False: loads
+    through the displacement map) or the second-order step linearized about the trajectory ``zs, vs,
     Ps`` (displacements [m, rad], velocities and segment axial forces [N] per step). The first
     ``forced`` columns also get the configuration's rigid-body loads and the maps' constant parts
     (the affine response of the linear step); the others are homogeneous (unit states).
@@ -90,7 +91,7 @@ def push(S, Hc, Gc, ez, idx, forced, Z, z0, A, P0, rigid, omega, m, aM, beta_nod
     nx = n + ns
     h_a = np.empty((n, M))
     h_v = np.empty((n, M))
-    L = np.empty((n, M))
+    L = np.zeros((n + 1, M))         # row n stays zero: Zx[k] @ L leaves out the constant column
     D = np.empty((ns, M))
     q_ = np.empty(M)
     Snew = np.empty((K, n, M))
@@ -111,7 +112,7 @@ def push(S, Hc, Gc, ez, idx, forced, Z, z0, A, P0, rigid, omega, m, aM, beta_nod
     Fz = np.empty((ns, 4))           # dF/dz of the shortening force at the segment's 4 dofs
     J = np.empty((nx, nx))
     B = np.zeros((nx, nx))           # [[Z, 0], [A, I]], rows scaled like J's
-    W1 = np.empty((n, n))            # the load block of W
+    W1 = np.zeros((n, n + 1))        # the load block of W (and a zero column, as L's zero row)
     W2 = np.empty((n, ns))           # the axial-force block of W
     for j in range(idx.shape[0]):
         k = idx[j]
@@ -179,10 +180,10 @@ def push(S, Hc, Gc, ez, idx, forced, Z, z0, A, P0, rigid, omega, m, aM, beta_nod
                     J[i, q] = 0.0
             for i in range(nx):
                 if i < n:
-                    row = Z[k, i]
+                    row = Zx[k, i]
                     rs = 1.0
                 else:
-                    row = A[k, i - n]
+                    row = Ax[k, i - n]
                     rs = 1.0 / EAL[i - n]
                 for s in range(ns):
                     t = row[seg_start[s]] - row[seg_end[s]]
@@ -212,11 +213,11 @@ def push(S, Hc, Gc, ez, idx, forced, Z, z0, A, P0, rigid, omega, m, aM, beta_nod
                     W2[i, s] = W[i, n + s]
             z = np.dot(W1, L) + np.dot(W2, D)
         else:
-            z = np.dot(Z[k], L)
+            z = np.dot(Zx[k], L)
             for i in range(n):
-                acc = z0[k, i]
+                acc = Zx[k, i, n]
                 for q in range(n):
-                    acc += Z[k, i, q] * rigid[k, q]
+                    acc += Zx[k, i, q] * rigid[k, q]
                 for r in range(forced):
                     z[i, r] += acc
         # Integrator update, the same linear map for every degree of freedom.
@@ -269,11 +270,11 @@ def _inputs(td, cfg, dt):
     """The step data :func:`push` reads, from the batch's compiled-march arrays."""
     if cfg.maps is None:
         raise ValueError("the compiled periodic solve needs the configurations' load-to-response maps")
-    Z, z0, _, _, A, _, P0, rigid, omega = td.kernel_data(cfg)[:9]
+    Zx, _, Ax, P0, rigid, omega = td.kernel_data(cfg)[:6]
     seg = td.segments
     slots, Hc, Gc, ez = integrator_coefficients(td.integrator, dt)
     _, c_v = td.integrator.coefficients(dt)
-    data = (Z, z0, A, P0, rigid, omega, td.m_vec, td.aM_vec, td.beta_node, seg.start, seg.end, seg.length, seg.EA,
+    data = (Zx, Ax, P0, rigid, omega, td.m_vec, td.aM_vec, td.beta_node, seg.start, seg.end, seg.length, seg.EA,
             seg.beta, td.seg_blocks, td.coupling.coriolis, td.has_kv)
     return slots, (Hc, Gc, ez), data, c_v
 

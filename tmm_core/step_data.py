@@ -44,17 +44,21 @@ def compiled_maps(td, prep, P, motion):
         part = structure_compiled.Prepared(prep.structure, prep.case, lay, prep.angle[sl],
                                        {k: v[sl] for k, v in prep.origin.items()}, prep.factor[sl],
                                        prep.factor_given, prep.qloc[sl], prep.Kn[sl], prep.Fn[sl])
+        # The responses to the unit loads and to the zero load (the last column), written into
+        # the augmented maps (z: (b, n_dof, loads+1), N: (b, n_seg, loads+1)), then made relative.
         (z, N, gstates), _, reaction, neg = structure_compiled.solve_prepared(
-            part, P[sl], check_buckling=False, count_inertia=True, node_loads=unit, compact_nodes=gauge_at)
-        negative[sl] = neg                                      # z: (b, n_dof, loads+1), N: (b, n_seg, loads+1)
-        outs = _outputs(td, part, P[sl], sl, drive, reaction, gstates)
-        np.subtract(z[:, :, :-1], z[:, :, -1:], out=maps.Z[sl])
-        maps.z0[sl] = z[:, :, -1]
-        maps.O[sl] = np.swapaxes(outs[:, :-1] - outs[:, -1:], 1, 2)
-        maps.o0[sl] = outs[:, -1]
+            part, P[sl], check_buckling=False, count_inertia=True, node_loads=unit, compact_nodes=gauge_at,
+            compact_out=(maps.Zx[sl], maps.Ax[sl] if axial else None))
+        negative[sl] = neg
+        z[:, :, :-1] -= z[:, :, -1:]
+        # The outputs: their affine functionals of the joint forces and gauge states, applied.
+        y = np.concatenate([np.swapaxes(reaction, 1, 2), gstates.reshape(len(neg), -1, n + 1)], axis=1)
+        y[:, :, :-1] -= y[:, :, -1:]
+        Ocx = output_functionals(td, part, P[sl], sl, drive, len(lay.labels), len(gauge_at))
+        np.matmul(Ocx[:, :, :-1], y, out=maps.Ox[sl])
+        maps.Ox[sl, :, -1] += Ocx[:, :, -1]
         if axial:
-            np.subtract(N[:, :, :-1], N[:, :, -1:], out=maps.A[sl])
-            maps.a0[sl] = N[:, :, -1]
+            N[:, :, :-1] -= N[:, :, -1:]
         del z, N, gstates
     return maps, negative
 
@@ -68,16 +72,27 @@ def compiled_factors(td, prep, P, motion):
     lay = prep.layout
     stored, negative = structure_compiled.factor_prepared(prep, P)
     gauge_at = gauge_nodes(td, lay)
-    nd, G = len(lay.labels), len(gauge_at)
-    ny = nd + 6 * G
-    Y = np.vstack([np.eye(ny), np.zeros((1, ny))])                         # unit inputs and a zero column
-    reaction = np.broadcast_to(Y[:, :nd], (B, ny + 1, nd))
-    gstates = np.broadcast_to(np.moveaxis(Y[:, nd:].reshape(ny + 1, G, 6), 0, -1), (B, G, 6, ny + 1))
-    outs = _outputs(td, prep, P, slice(0, B), td.mech.drive_torque_terms(motion, td.gravity), reaction, gstates)
+    Ocx = output_functionals(td, prep, P, slice(0, B), td.mech.drive_torque_terms(motion, td.gravity),
+                             len(lay.labels), len(gauge_at))
     layout = (lay.seg_off, lay.rigid, np.ascontiguousarray(prep.angle), lay.ends, lay.free,
               np.asarray(gauge_at, dtype=np.int64))
-    return StepFactors(layout, stored, np.ascontiguousarray(np.swapaxes(outs[:, :-1] - outs[:, -1:], 1, 2)),
-                       np.ascontiguousarray(outs[:, -1])), negative
+    return StepFactors(layout, stored, Ocx), negative
+
+
+def output_functionals(td, part, P, sl, drive, nd, G):
+    """The outputs (:class:`tmm_core.configuration_batch.OutputLayout`) of the configurations
+    ``sl`` of a batch as affine functionals of a solution's ``y``, its joint forces ``(nd,)``
+    [N, N m] then the right-side states ``(G, 6)`` at the gauge nodes: augmented ``(b, n_out,
+    ny + 1)`` (``outputs = Ocx[:, :, :-1] @ y + Ocx[:, :, -1]``), from the outputs of the unit
+    inputs and of zero (``part``, ``P`` as :func:`_outputs`)."""
+    b = len(P)
+    ny = nd + 6 * G
+    Y = np.vstack([np.eye(ny), np.zeros((1, ny))])                         # unit inputs and a zero column
+    reaction = np.broadcast_to(Y[:, :nd], (b, ny + 1, nd))
+    gstates = np.broadcast_to(np.moveaxis(Y[:, nd:].reshape(ny + 1, G, 6), 0, -1), (b, G, 6, ny + 1))
+    Ocx = np.swapaxes(_outputs(td, part, P, sl, drive, reaction, gstates), 1, 2).copy()   # (b, n_out, ny + 1)
+    Ocx[:, :, :-1] -= Ocx[:, :, -1:]
+    return Ocx
 
 
 def gauge_nodes(td, lay) -> list:

@@ -184,7 +184,7 @@ def prepare(structure, case, stiffness_factor: Mapping[str, np.ndarray] | None =
 
 def solve_prepared(prep: Prepared, P: np.ndarray, *, check_buckling: bool = True, cond_limit: float = 1e12,
                    count_inertia: bool | None = None, node_loads: np.ndarray | None = None,
-                   compact_nodes: np.ndarray | None = None):
+                   compact_nodes: np.ndarray | None = None, compact_out: tuple | None = None):
     """One compiled solve of a :class:`Prepared` batch at the stacked segment axial forces
     ``P (B, S)``: ``(states (B, Nn, 2, 6), joint displacements (B, nd), joint forces (B, nd),
     inertia count (B,))``. ``node_loads (B or 1, R, Nn, 3)`` (local frame) instead of the case's
@@ -192,12 +192,15 @@ def solve_prepared(prep: Prepared, P: np.ndarray, *, check_buckling: bool = True
     the load-set axis after the batch axis. ``compact_nodes``: return, instead of every station
     state, ``(node displacements (B, 3 Nn, R), segment axial forces (B, S, R), right-side states
     at these nodes (B, G, 6, R))`` in the place of the states (much less memory; the load set
-    last, as the columns of a map). Raises :class:`SingularStructureError` and, with ``check_buckling``,
-    :class:`BucklingError` (:mod:`tmm_core.kernels_static`)."""
+    last, as the columns of a map). ``compact_out``: C-contiguous arrays ``(B, 3 Nn, R)`` and
+    ``(B, S, R)`` (or None) the node displacements and axial forces are written into (e.g. the
+    caller's maps: no second copy). Raises :class:`SingularStructureError` and, with
+    ``check_buckling``, :class:`BucklingError` (:mod:`tmm_core.kernels_static`)."""
     # A writable copy: the kernel is compiled for writable arrays (an iteration updates P).
     P = np.array(np.broadcast_to(np.asarray(P, dtype=float), prep.factor.shape))
     s = _tension_parameter(prep, P)
-    out = _run(prep, P, check_buckling, count_inertia, node_loads, compact_nodes, (0.0, 1, False))
+    out = _run(prep, P, check_buckling, count_inertia, node_loads, compact_nodes, (0.0, 1, False),
+               compact_out=compact_out)
     return _checked(prep, P, s, out, check_buckling, cond_limit)
 
 
@@ -246,7 +249,7 @@ def iterate_prepared(prep: Prepared, *, tol: float, max_iter: int, check_bucklin
 
 
 def _run(prep, P, check_buckling, count_inertia, node_loads, compact_nodes, iteration, weights=np.ones(6),
-         start=None, scales=np.ones(2), cond_limit=None):
+         start=None, scales=np.ones(2), cond_limit=None, compact_out=None):
     """The compiled call: ``(states, q, reaction, negative, pivots, status, iterations,
     last_change)``; ``P`` is updated in place by an iteration (checked by the caller:
     :func:`_tension_parameter`). With ``cond_limit`` (and ``P`` zero, more than one thread):
@@ -269,7 +272,9 @@ def _run(prep, P, check_buckling, count_inertia, node_loads, compact_nodes, iter
     else:
         states = np.empty((B, 0, Nn, 2, 6))
         gnode = np.asarray(compact_nodes, dtype=np.int64)
-        zout, nout, gstate = np.empty((B, 3 * Nn, R)), np.empty((B, S, R)), np.empty((B, len(gnode), 6, R))
+        zout, nout = (None, None) if compact_out is None else compact_out
+        zout, nout = _output_array(zout, (B, 3 * Nn, R)), _output_array(nout, (B, S, R))
+        gstate = np.empty((B, len(gnode), 6, R))
     q = np.empty((B, R, nd))
     reaction = np.empty((B, R, nd))
     negative = np.zeros((B, 2), dtype=np.int64)
@@ -299,6 +304,17 @@ def _run(prep, P, check_buckling, count_inertia, node_loads, compact_nodes, iter
     elif node_loads is None:
         states, q, reaction = states[:, 0], q[:, 0], reaction[:, 0]
     return states, q, reaction, negative, pivots, status, iterations, last_change
+
+
+def _output_array(given, shape):
+    """``given`` checked as an output array of the compiled solve (C-contiguous float64 of
+    ``shape``), or a new one if None."""
+    if given is None:
+        return np.empty(shape)
+    if given.shape != shape or given.dtype != np.float64 or not given.flags.c_contiguous:
+        raise ValueError(f"compiled solve: an output array must be C-contiguous float64 {shape}, got "
+                         f"{given.dtype} {given.shape} (contiguous {given.flags.c_contiguous})")
+    return given
 
 
 def _thread_chunks(B: int, solves: int) -> int:

@@ -190,12 +190,11 @@ class StepSolver:
             omega = np.concatenate([np.repeat(np.asarray(motion.link(l.name).omega, float).reshape(B, 1), 3 * l.n_nodes,
                                               axis=1) for l in self.links], axis=1) if self.coupling.coriolis else \
                 np.zeros((1, self.n_dof))
+            # The augmented maps (StepMaps), or placeholders of the same array types.
             if maps is not None:
-                arrays = (maps.Z, maps.z0, maps.O, maps.o0, maps.A if dynamic else np.zeros((1, ns, n)),
-                          maps.a0 if dynamic else np.zeros((1, ns)))
+                arrays = (maps.Zx, maps.Ox, maps.Ax if dynamic else np.zeros((1, ns, n + 1)))
             else:
-                arrays = (np.zeros((1, n, n)), np.zeros((1, n)), np.zeros((1, no, n)), np.zeros((1, no)),
-                          np.zeros((1, ns, n)), np.zeros((1, ns)))
+                arrays = (np.zeros((1, n, n + 1)), np.zeros((1, no, n + 1)), np.zeros((1, ns, n + 1)))
             data = tuple(np.ascontiguousarray(x, dtype=float) for x in arrays + (
                 cfg.P0 if dynamic else np.zeros((1, ns)), cfg.rigid, omega))
             data += kernels_factored.march_arrays(fac, self.n_dof // 3, ns, no)
