@@ -114,3 +114,42 @@ def test_a_prescribed_run_advances_about_ten_degrees_per_macro_step_and_a_motor_
     _, single = _engine_run(sc, [1] * n, ahead=False)
     g = sc.gauges[0].name
     np.testing.assert_array_equal(res["tmm"].run.gauges[g][0], _stack(single, g)[0])
+
+
+def test_the_maps_are_stored_augmented_and_their_parts_are_views():
+    sc = load(FE)
+    td = sc.time_domain()
+    cfg = td.configurations(np.radians([10.0, 200.0]), np.full(2, sc.drive.speed_rad_s), np.zeros(2), 1e-4)
+    m = cfg.maps
+    n = td.n_dof
+    assert m.Zx.shape == (2, n, n + 1) and m.Zx.flags.c_contiguous and m.Ax.shape[2] == n + 1
+    for part, whole, col in ((m.Z, m.Zx, slice(0, n)), (m.z0, m.Zx, n), (m.O, m.Ox, slice(0, n)), (m.a0, m.Ax, n)):
+        assert np.shares_memory(part, whole)
+        np.testing.assert_array_equal(part, whole[..., col])
+
+
+@pytest.mark.parametrize("rig", [FE, "watt_sixbar_600rpm"])
+def test_the_linear_axial_force_estimate_equals_the_numpy_linear_quasi_static_solution(rig):
+    # Reference: the numpy statics (tmm_core.statics), not the compiled solve under test.
+    from tmm_core.ked import Coupling, linear_axial_forces, quasi_static, segment_forces
+    sc = load(rig)
+    td = sc.time_domain()
+    th = np.radians(np.arange(0.0, 360.0, 15.0))
+    w, a = np.full(th.shape, sc.drive.speed_rad_s), np.zeros(th.shape)
+    ref = quasi_static(td.mech, th, w, a, beam_column=False, coupling=Coupling(), gravity=td.gravity, compiled=False)
+    got = linear_axial_forces(td.mech, td.mech.motion(th, w, a), td.gravity)
+    assert set(got) == set(ref.solution.members)
+    for name, r in ref.solution.members.items():
+        P = segment_forces(r)
+        np.testing.assert_allclose(got[name], P, rtol=0, atol=1e-10 * np.max(np.abs(P)))   # rounding of two solvers
+
+
+def test_an_output_array_of_the_wrong_shape_is_refused():
+    from tmm_core import structure_compiled
+    from tmm_core.ked import rigid_body_loads
+    td = load(FE).time_domain()
+    motion = td.mech.motion(np.radians([0.0, 90.0]), np.full(2, 25.0), np.zeros(2))
+    prep = structure_compiled.prepare(td.structure, td.mech.load_case(motion, rigid_body_loads(td.mech, motion)))
+    with pytest.raises(ValueError, match="C-contiguous float64"):
+        structure_compiled.solve_prepared(prep, np.zeros(prep.factor.shape), compact_nodes=[],
+                                          compact_out=(np.empty((2, 3)), None))

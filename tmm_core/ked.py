@@ -242,6 +242,20 @@ def quasi_static(mech: FourBarMechanism, crank_angle, crank_speed, crank_acceler
     return QuasiStaticResult(motion, sol, torque, out)
 
 
+def linear_axial_forces(mech: FourBarMechanism, motion: FourBarMotion, gravity=None) -> dict:
+    """Segment axial forces [N, tension +] ``{link: (B, n)}`` of the linear kineto-elastostatic
+    solution at the B configurations of ``motion`` (rigid-body loads, no coupling terms): those of
+    ``quasi_static(..., beam_column=False)``, from the compiled solve's axial forces alone (no
+    station states, torque or gauges: the time step's estimate of a revolution). Needs the
+    compiled factorization (:func:`tmm_core.structure_compiled.supported`)."""
+    structure = mech.structure()
+    prep = structure_compiled.prepare(structure, mech.load_case(motion, rigid_body_loads(mech, motion, gravity)))
+    (_, N, _), *_ = structure_compiled.solve_prepared(prep, np.zeros(prep.factor.shape), check_buckling=False,
+                                                      compact_nodes=np.zeros(0, np.int64))
+    off = prep.layout.seg_off
+    return {m.name: N[:, off[i]:off[i + 1], 0] for i, m in enumerate(structure.members)}
+
+
 def segment_forces(result) -> np.ndarray:
     """Axial force [N] of every segment of a member result (constant within a segment: the loads
     act at the nodes), ``(..., n)``."""

@@ -12,9 +12,8 @@ constant-speed run re-uses the maps of one revolution and marches them in the co
 (:mod:`tmm_core.kernels`); other crank histories are processed in chunks.
 
 Public: :class:`TimeDomain` (``configurations``, ``step_loads``, ``solve_step``, ``begin``,
-``run``). Owns the building of the configuration batches
-(:class:`tmm_core.configuration_batch.ConfigurationBatch`: the factor, the maps and the rigid-body
-loads of each crank state).
+``run``). Owns the building of the configuration batches (:class:`tmm_core.ConfigurationBatch`:
+the factor, the maps and the rigid-body loads of each crank state).
 """
 from __future__ import annotations
 
@@ -28,8 +27,8 @@ from . import kernels, structure_compiled
 from .configuration_batch import ConfigurationBatch, CrankStates, OutputLayout
 from .errors import ConvergenceError, DynamicStabilityError, InputError, require_positive
 from .integrators import get_integrator
-from .ked import (Coupling, CrankMotion, KEDResult, coupling_stiffness, node_mass_arrays, quasi_static,
-                  rigid_body_loads, segment_forces)
+from .ked import (Coupling, CrankMotion, KEDResult, coupling_stiffness, linear_axial_forces, node_mass_arrays,
+                  quasi_static, rigid_body_loads, segment_forces)
 from .matrices import field_matrix
 from .mechanism import FourBarMechanism
 from .post import Gauge
@@ -168,8 +167,7 @@ class TimeDomain(StepSolver):
 
     # -- material history operators -------------------------------------------------------
     def _build_segment_operators(self):
-        """Segment stiffness blocks (material, at its E) and viscoelastic moduli; the sparse
-        operators (:attr:`gather`, :attr:`seg_K`, :attr:`K_local`) when first read (~2 ms a set-up)."""
+        """Segment stiffness blocks and viscoelastic moduli; sparse operators when first read."""
         rows, blocks, visco_E1 = [], [], []
         for link in self.links:
             m = link.member("s", "e")
@@ -228,8 +226,8 @@ class TimeDomain(StepSolver):
         MAP_MAX_DOF without), "factors" (the compiled factorizations kept instead of maps:
         :class:`tmm_core.configuration_batch.StepFactors`) or False (the numpy factorization, built
         when a step asks for it). Beyond max_map_bytes neither maps nor factors are kept.
-        ``axial_force``: stacked segment
-        forces ``(B, n_seg)`` [N] for the field matrices instead of the quasi-static estimate."""
+        ``axial_force``: stacked segment forces ``(B, n_seg)`` [N] for the field matrices instead
+        of the quasi-static estimate."""
         mech = self.mech
         motion = mech.motion(angle, speed, accel)
         c_a, c_v = self.integrator.coefficients(dt)
@@ -239,14 +237,16 @@ class TimeDomain(StepSolver):
         if axial_force is not None:
             cuts = np.cumsum([l.total_segments for l in self.links])[:-1]
             P = dict(zip([l.name for l in self.links], np.split(np.asarray(axial_force, dtype=float), cuts, axis=-1)))
+        elif self.axial_force == "dynamic" and self.compiled_factorization:
+            # The dynamic step iterates from the linear (rigid-body) estimate, which exists beyond
+            # the static Euler load too (the linear quasi_static below, its axial forces alone).
+            P = linear_axial_forces(mech, motion, self.gravity)
         elif self.axial_force != "none":
-            # The axial forces only enter the field matrices: 1e-8 relative is ample. The dynamic
-            # step iterates from the linear (rigid-body) estimate, which exists beyond the static
-            # Euler load too; the quasi-static model uses the beam-column one.
+            # The axial forces only enter the field matrices (1e-8 relative is ample); the
+            # quasi-static model uses the beam-column estimate, whose segment forces are the ones
+            # in its field matrices.
             qs = quasi_static(mech, angle, speed, accel, beam_column=self.axial_force == "quasi_static",
                               coupling=Coupling(), gravity=self.gravity, tol=1e-8)
-            # The segment forces of the solution (for the beam-column solve they equal the ones in
-            # its field matrices; a linear solve has none there).
             P = {k: segment_forces(r) for k, r in qs.solution.members.items()}
         # Batch (B, 1): the second axis carries the unit loads. Gravity acts through the lumped
         # node masses (rigid_body_loads), like every other inertial load.
