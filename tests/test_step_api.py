@@ -153,3 +153,19 @@ def test_an_output_array_of_the_wrong_shape_is_refused():
     with pytest.raises(ValueError, match="C-contiguous float64"):
         structure_compiled.solve_prepared(prep, np.zeros(prep.factor.shape), compact_nodes=[],
                                           compact_out=(np.empty((2, 3)), None))
+
+
+def test_the_maps_are_built_without_huge_page_advice_and_the_advice_is_restored():
+    from tmm_core.step_data import without_huge_page_advice
+    core = getattr(np, "_core", None) or np.core
+    get = getattr(core.multiarray, "_get_madvise_hugepage", None)
+    if get is None:
+        pytest.skip("this numpy has no huge-page switch")
+    before = get()
+    with without_huge_page_advice():
+        assert get() is False
+    assert get() == before
+    with pytest.raises(RuntimeError):
+        with without_huge_page_advice():
+            raise RuntimeError("inside")
+    assert get() == before

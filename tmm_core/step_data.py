@@ -10,6 +10,8 @@ everything else of a configuration, is :meth:`tmm_core.TimeDomain.configurations
 """
 from __future__ import annotations
 
+import contextlib
+
 import numpy as np
 
 from . import structure_compiled
@@ -25,8 +27,35 @@ MAP_CHUNK_BYTES = 64e6       # working memory of one chunk of the map solve
 
 def compiled_maps(td, prep, P, motion):
     """The load-to-response maps of a :class:`tmm_core.TimeDomain` ``td`` (as the numpy path of
-    :meth:`tmm_core.TimeDomain.configurations`: a :class:`StepMaps`) from one compiled factorization per configuration solved for every
-    unit load; returns the maps and the inertia count ``(B,)``."""
+    :meth:`tmm_core.TimeDomain.configurations`: a :class:`StepMaps`) from one compiled
+    factorization per configuration solved for every unit load; returns the maps and the inertia
+    count ``(B,)``. Its arrays get no huge-page advice (:func:`without_huge_page_advice`)."""
+    with without_huge_page_advice():
+        return _compiled_maps(td, prep, P, motion)
+
+
+@contextlib.contextmanager
+def without_huge_page_advice():
+    """numpy's transparent-huge-page advice (MADV_HUGEPAGE on arrays of 4 MB and more) off for
+    the arrays allocated inside, restored after. Where the kernel's THP defrag setting is
+    'madvise' (common), a fault in such an array compacts memory synchronously when no huge page
+    is free (numpy issue 31590): after other processes had run, the maps' solve of the FE rig at
+    373 rpm took 30-35 ms instead of 11-15 in about a third of fresh processes, its set-up 54 ms
+    median against 40 ms without the advice (the set-up's arrays are written once, by two
+    threads). A no-op where numpy has no such switch."""
+    core = getattr(np, "_core", None) or np.core
+    toggle = getattr(core.multiarray, "_set_madvise_hugepage", None)
+    if toggle is None:
+        yield
+        return
+    previous = toggle(False)
+    try:
+        yield
+    finally:
+        toggle(previous)
+
+
+def _compiled_maps(td, prep, P, motion):
     B = len(P)
     n = td.n_dof
     # Unit loads (stacked node vector order = the compiled node order) plus a zero column.
