@@ -151,11 +151,12 @@ class _Channel:
         self.motor_extrema = {}
         self.motor = Motor(scenario.motor, integrates_crank=engine.kinematic) if mode == "motor" else None
         self.J_r = None     # interface Jacobian, set at start
-        self.t0, self.angle0 = 0.0, 0.0
+        self.t0, self.angle0, self.t_end = 0.0, 0.0, None
 
     # -- start -----------------------------------------------------------------------------------
-    def start(self, t0: float, angle: float, speed: float) -> None:
-        self.t0, self.angle0 = t0, angle
+    def start(self, t0: float, angle: float, speed: float, t_end: float | None = None) -> None:
+        """Reset the engine at ``t0`` [s]; ``t_end`` [s]: the run's last time, if known."""
+        self.t0, self.angle0, self.t_end = t0, angle, t_end
         extra = {}
         if self.motor is not None and not self.engine.kinematic:
             extra["drive_inertia_kg_m2"] = self.motor.crank_side_inertia_kg_m2
@@ -187,7 +188,7 @@ class _Channel:
     # -- one macro step ---------------------------------------------------------------------------
     def step(self, t_a: float, t_b: float):
         if self.motor is None:
-            out = self.engine.advance(t_b, DriveInput(prescribed=self.profile, ahead=True))
+            out = self.engine.advance(t_b, DriveInput(prescribed=self.profile, ahead=True, until=self.t_end))
             self.outputs.append(out)
             self.passes.append(1)
             self._release()
@@ -434,7 +435,7 @@ class CoSimulation:
                                            None if keep_revolutions is None else 2 * math.pi * keep_revolutions)
             tic = time.perf_counter()
             try:
-                ch.start(t0, angle0, start_speed)
+                ch.start(t0, angle0, start_speed, t_end=t0 + n_steps * H)
                 status[name] = "running"
             except (EngineError, TMMError) as exc:
                 status[name], errors[name] = "failed", str(exc)

@@ -169,3 +169,22 @@ def test_the_maps_are_built_without_huge_page_advice_and_the_advice_is_restored(
         with without_huge_page_advice():
             raise RuntimeError("inside")
     assert get() == before
+
+
+def test_a_prescribed_run_marches_no_step_past_its_end(monkeypatch):
+    # The engine marches ahead in blocks; told the run's end (DriveInput.until), its last block
+    # stops there. Same samples as stepping one step at a time (the test above), fewer steps.
+    from tmm_core import march as march_module
+    sc = load(FE)
+    marched = []
+    cls = next(c for c in vars(march_module).values() if isinstance(c, type) and hasattr(c, "step_many"))
+    original = cls.step_many
+
+    def counting(self, cfg, indices, *args, **kwargs):
+        marched.append(len(indices))
+        return original(self, cfg, indices, *args, **kwargs)
+    monkeypatch.setattr(cls, "step_many", counting)
+    res = CoSimulation(sc, ("tmm",), mode="prescribed").run(revolutions=1.3)
+    assert sum(marched) == len(res["tmm"].run.t)
+    with pytest.raises(ValueError, match="until"):
+        DriveInput(prescribed=constant_speed_profile(1.0, 0.0, 0.0), until=1.0)

@@ -48,18 +48,23 @@ class DriveInput:
 
     ``torque`` [N m] is a constant over the step or a function of time. ``ahead``: the
     prescribed profile is the crank's whole history, valid beyond this macro step too (a
-    prescribed-speed run; not a motor's extrapolation), so an engine may compute ahead.
+    prescribed-speed run; not a motor's extrapolation), so an engine may compute ahead;
+    ``until`` [s]: with ``ahead``, the last time the run will ask for (its end; None: not
+    known), beyond which computing ahead is wasted.
     """
 
     prescribed: CrankProfile | None = None
     torque: float | Callable | None = None
     ahead: bool = False
+    until: float | None = None
 
     def __post_init__(self):
         if (self.prescribed is None) == (self.torque is None):
             raise ValueError("DriveInput needs exactly one of 'prescribed' and 'torque'")
         if self.ahead and self.prescribed is None:
             raise ValueError("DriveInput: 'ahead' needs a prescribed crank history")
+        if self.until is not None and not self.ahead:
+            raise ValueError("DriveInput: 'until' is the end of a history given 'ahead'")
 
     def torque_at(self, t):
         return self.torque(t) if callable(self.torque) else np.full(np.shape(t), float(self.torque))

@@ -186,14 +186,20 @@ class TMMEngine:
 
     def _serve(self, ks, drive) -> EngineOutput:
         """Steps ``ks`` of a prescribed crank history on the cached revolution, marched ahead in
-        blocks of at least LOOKAHEAD_STEPS (a whole number of macro steps): the compiled march's
+        blocks of LOOKAHEAD_STEPS or more (a whole number of macro steps; none past the run's
+        end, ``drive.until``, when the drive gives it): the compiled march's
         call (numba's dispatch of its ~40 arrays, ~50-90 us), the outputs' and node positions'
         bookkeeping and the crank history's evaluation then cost per block, not per macro step."""
         a = self._ahead
         if a is None or not a.covers(ks, drive.prescribed):
             self._rewind()
-            # A whole number of macro steps of this length: the next ones then never straddle two blocks.
-            kk = self.k + 1 + np.arange(len(ks) * -(-LOOKAHEAD_STEPS // len(ks)))
+            # A whole number of macro steps of this length: the next ones then never straddle two
+            # blocks; none past the run's end (the last block of a 3-revolution run at 1 deg was
+            # 220 of its 1300 steps).
+            n_ahead = len(ks) * -(-LOOKAHEAD_STEPS // len(ks))
+            if drive.until is not None:
+                n_ahead = max(len(ks), min(n_ahead, int(round((drive.until - self.t0) / self._dt)) - self.k))
+            kk = self.k + 1 + np.arange(n_ahead)
             t = self.t0 + kk * self._dt          # integer step count, never accumulated
             angle, speed, accel = (np.asarray(x, dtype=float) * np.ones(len(kk)) for x in drive.prescribed(t))
             idx = self._cache_indices(kk, angle, speed, accel)
