@@ -59,16 +59,13 @@ class StepFactors:
 
     ``layout``: ``(seg_off, rigid, angle (B, M) [rad], ends, free, gauge nodes)`` of the compiled
     structure; ``stored``: the arrays of :data:`tmm_core.kernels_factored.STORED`, batch axis
-    first; the outputs (:class:`OutputLayout`) are ``Oc[k] @ y + oc[k]`` with ``y`` the joint
-    reactions [N, N m] and the gauge nodes' right-side states of a solve: ``Oc`` (B, n_out, ny),
-    ``oc`` (B, n_out), stored augmented as :class:`StepMaps`' maps: ``Ocx = [Oc | oc]``."""
+    first; ``Ocx`` (B, n_out, ny + 1): the outputs (:class:`OutputLayout`) as an augmented affine
+    map (as :class:`StepMaps`' maps), ``Ocx[k, :, :-1] @ y + Ocx[k, :, -1]`` with ``y`` the joint
+    reactions [N, N m] and the gauge nodes' right-side states of a solve."""
 
     layout: tuple
     stored: tuple
     Ocx: np.ndarray
-
-    Oc = property(lambda self: self.Ocx[..., :-1])
-    oc = property(lambda self: self.Ocx[..., -1])
 
 
 @dataclass(frozen=True)

@@ -198,7 +198,8 @@ class TMMEngine:
             # 220 of its 1300 steps).
             n_ahead = len(ks) * -(-LOOKAHEAD_STEPS // len(ks))
             if drive.until is not None:
-                n_ahead = max(len(ks), min(n_ahead, int(round((drive.until - self.t0) / self._dt)) - self.k))
+                left = steps_in(self.t0 + self.k * self._dt, drive.until, self._dt, "tmm")
+                n_ahead = max(len(ks), min(n_ahead, left))
             kk = self.k + 1 + np.arange(n_ahead)
             t = self.t0 + kk * self._dt          # integer step count, never accumulated
             angle, speed, accel = (np.asarray(x, dtype=float) * np.ones(len(kk)) for x in drive.prescribed(t))
