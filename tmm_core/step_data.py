@@ -110,18 +110,40 @@ def compiled_factors(td, prep, P, motion):
 
 def output_functionals(td, part, P, sl, drive, nd, G):
     """The outputs (:class:`tmm_core.configuration_batch.OutputLayout`) of the configurations
-    ``sl`` of a batch as affine functionals of a solution's ``y``, its joint forces ``(nd,)``
-    [N, N m] then the right-side states ``(G, 6)`` at the gauge nodes: augmented ``(b, n_out,
-    ny + 1)`` (``outputs = Ocx[:, :, :-1] @ y + Ocx[:, :, -1]``), from the outputs of the unit
-    inputs and of zero (``part``, ``P`` as :func:`_outputs`)."""
+    ``sl`` of a batch (``part``: their :class:`structure_compiled.Prepared`, ``P (b, S)`` their
+    axial forces) as affine functionals of a solution's ``y``, its joint forces ``(nd,)`` [N, N m]
+    then the right-side states ``(G, 6)`` at the gauge nodes: augmented ``(b, n_out, ny + 1)``
+    (``outputs = Ocx[:, :, :-1] @ y + Ocx[:, :, -1]``). The drive torque reads only the joint
+    forces and gauge k only its own state, so each is evaluated on its own unit inputs and zero
+    (nd + 1, and 7 a gauge) and the other coefficients are zero: evaluating every output on all
+    ny + 1 inputs cost the Watt six-bar's set-up ~7 ms of its ~30 at 360 configurations."""
     b = len(P)
-    ny = nd + 6 * G
-    Y = np.vstack([np.eye(ny), np.zeros((1, ny))])                         # unit inputs and a zero column
-    reaction = np.broadcast_to(Y[:, :nd], (b, ny + 1, nd))
-    gstates = np.broadcast_to(np.moveaxis(Y[:, nd:].reshape(ny + 1, G, 6), 0, -1), (b, G, 6, ny + 1))
-    Ocx = np.swapaxes(_outputs(td, part, P, sl, drive, reaction, gstates), 1, 2).copy()   # (b, n_out, ny + 1)
-    Ocx[:, :, :-1] -= Ocx[:, :, -1:]
+    lay = part.layout
+    Ocx = np.zeros((b, td.outputs.size, nd + 6 * G + 1))
+    rows = np.moveaxis(Ocx, 1, -1)                                       # a view, (b, ny + 1, n_out)
+    unit = np.vstack([np.eye(nd), np.zeros((1, nd))])                 # nd unit joint forces and zero
+    reactions = support_reactions(td.structure, lay.labels, np.broadcast_to(unit, (b, nd + 1, nd)))
+    _affine_rows(td.outputs.torque(rows), slice(0, nd), torque_from_terms(reactions, *terms_at(drive, sl)))
+    members = {m.name: (i, m) for i, m in enumerate(td.structure.members)}
+    unit = np.vstack([np.eye(6), np.zeros((1, 6))])                     # a gauge state's 6 units and zero
+    for k, g in enumerate(td.gauges):
+        i, m = members[g.link]
+        # gauge_strains reads only the state of node j, right side: a broadcast view elsewhere.
+        state = np.broadcast_to(unit[None, :, None, None, :], (b, 7, m.n_segments + 1, 2, 6))
+        seg = slice(lay.seg_off[i], lay.seg_off[i + 1])
+        res = MemberResult(m, part.angle[:, i, None], part.origin[m.name][:, None], state, P[:, None, seg],
+                           np.zeros((1, 1, m.n_segments)), part.factor[:, None, seg])
+        cols = slice(nd + 6 * k, nd + 6 * k + 6)
+        for pick, strain in zip((td.outputs.bending, td.outputs.axial), gauge_strains(res, g)):
+            _affine_rows(pick(rows, k), cols, strain)
     return Ocx
+
+
+def _affine_rows(out, cols, values):
+    """Write one output's affine functional into ``out (b, ny + 1)``: its coefficients on the
+    inputs ``cols`` from ``values (b, k + 1)``, the output of each unit input then of zero."""
+    out[:, cols] = values[:, :-1] - values[:, -1:]
+    out[:, -1] = values[:, -1]
 
 
 def gauge_nodes(td, lay) -> list:
@@ -134,28 +156,6 @@ def gauge_nodes(td, lay) -> list:
         j = int(np.clip(np.searchsorted(m.stations, g.position_m, side="right") - 1, 0, m.n_segments - 1))
         out.append(int(lay.node_off[i]) + j)
     return out
-
-
-def _outputs(td, part, P, sl, drive, reaction, gstates):
-    """Output rows ``(b, R, n_out)`` (:class:`tmm_core.configuration_batch.OutputLayout`) of the
-    configurations ``sl`` of a batch (``part``: their :class:`structure_compiled.Prepared`,
-    ``P (b, S)`` their axial forces) from R solutions given by their joint forces
-    ``reaction (b, R, nd)`` and the right-side states at the gauge nodes ``gstates (b, G, 6, R)``."""
-    lay = part.layout
-    reactions = support_reactions(td.structure, lay.labels, reaction)
-    torque = torque_from_terms(reactions, *terms_at(drive, sl))          # (b, R)
-    members = {m.name: (i, m) for i, m in enumerate(td.structure.members)}
-    g_out = []
-    for k, g in enumerate(td.gauges):
-        i, m = members[g.link]
-        # Only the state gauge_strains reads (node j, right side) is real: a broadcast view.
-        gs = np.moveaxis(gstates[:, k], 1, -1)                                    # (b, R, 6)
-        state = np.broadcast_to(gs[:, :, None, None, :], gs.shape[:2] + (m.n_segments + 1, 2, 6))
-        res = MemberResult(m, part.angle[:, i, None], part.origin[m.name][:, None], state,
-                           P[:, None, lay.seg_off[i]:lay.seg_off[i + 1]], np.zeros((1, 1, m.n_segments)),
-                           part.factor[:, None, lay.seg_off[i]:lay.seg_off[i + 1]])
-        g_out.append(np.stack(gauge_strains(res, g), -1))
-    return np.concatenate([torque[..., None]] + g_out, axis=-1) if g_out else torque[..., None]
 
 
 def numpy_maps(td, factor, drive):
