@@ -79,17 +79,26 @@ def _compiled_maps(td, prep, P, motion):
             part, P[sl], check_buckling=False, count_inertia=True, node_loads=unit, compact_nodes=gauge_at,
             compact_out=(maps.Zx[sl], maps.Ax[sl] if axial else None))
         negative[sl] = neg
-        z[:, :, :-1] -= z[:, :, -1:]
+        _relative(z)
         # The outputs: their affine functionals of the joint forces and gauge states, applied.
         y = np.concatenate([np.swapaxes(reaction, 1, 2), gstates.reshape(len(neg), -1, n + 1)], axis=1)
-        y[:, :, :-1] -= y[:, :, -1:]
+        _relative(y)
         Ocx = output_functionals(td, part, P[sl], sl, drive, len(lay.labels), len(gauge_at))
         np.matmul(Ocx[:, :, :-1], y, out=maps.Ox[sl])
         maps.Ox[sl, :, -1] += Ocx[:, :, -1]
         if axial:
-            N[:, :, :-1] -= N[:, :, -1:]
+            _relative(N)
         del z, N, gstates
     return maps, negative
+
+
+def _relative(x):
+    """Responses ``x (b, m, loads + 1)`` to the unit loads made relative to the last column's, the
+    response to zero load, in place. The time domain's cases carry no loads of their own (the
+    step applies them through the maps), so that column is zero and the subtraction is skipped:
+    ~1.3 ms of Alexander-Lawrence's set-up (360 configurations), a no-op in value."""
+    if np.any(x[:, :, -1]):
+        x[:, :, :-1] -= x[:, :, -1:]
 
 
 def compiled_factors(td, prep, P, motion):
