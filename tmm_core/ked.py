@@ -47,6 +47,7 @@ from .kinematics import FourBarMotion
 from .mechanism import FourBarMechanism
 from .post import Gauge, gauge_strains
 from .statics import solve_static
+from .structure_types import LoadCase
 
 GRAVITY = 9.80665
 
@@ -242,14 +243,19 @@ def quasi_static(mech: FourBarMechanism, crank_angle, crank_speed, crank_acceler
     return QuasiStaticResult(motion, sol, torque, out)
 
 
-def linear_axial_forces(mech: FourBarMechanism, motion: FourBarMotion, gravity=None) -> dict:
+def linear_axial_forces(mech: FourBarMechanism, motion: FourBarMotion, gravity=None, local_loads=None) -> dict:
     """Segment axial forces [N, tension +] ``{link: (B, n)}`` of the linear kineto-elastostatic
     solution at the B configurations of ``motion`` (rigid-body loads, no coupling terms): those of
     ``quasi_static(..., beam_column=False)``, from the compiled solve's axial forces alone (no
-    station states, torque or gauges: the time step's estimate of a revolution). Needs the
-    compiled factorization (:func:`tmm_core.structure_compiled.supported`)."""
+    station states, torque or gauges: the time step's estimate of a revolution). ``local_loads``:
+    the rigid-body loads in each link's frame when the caller has them
+    (``rigid_body_loads(..., frame="local")``, as the time step does; ~1 ms a revolution not
+    recomputed). Needs the compiled factorization (:func:`tmm_core.structure_compiled.supported`)."""
     structure = mech.structure()
-    prep = structure_compiled.prepare(structure, mech.load_case(motion, rigid_body_loads(mech, motion, gravity)))
+    if local_loads is None:
+        local_loads = rigid_body_loads(mech, motion, gravity, frame="local")
+    case = LoadCase(mech.joint_positions(motion), dict(local_loads), {}, {}, frame="local")
+    prep = structure_compiled.prepare(structure, case)
     (_, N, _), *_ = structure_compiled.solve_prepared(prep, np.zeros(prep.factor.shape), check_buckling=False,
                                                       compact_nodes=np.zeros(0, np.int64))
     off = prep.layout.seg_off

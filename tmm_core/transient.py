@@ -233,6 +233,7 @@ class TimeDomain(StepSolver):
         c_a, c_v = self.integrator.coefficients(dt)
         Kn = coupling_stiffness(mech, motion, self.coupling, c_a, c_v)
         factors, _ = self.link_factor(c_v, dt)
+        loads_local = rigid_body_loads(mech, motion, self.gravity, frame="local")
         P = None
         if axial_force is not None:
             cuts = np.cumsum([l.total_segments for l in self.links])[:-1]
@@ -240,7 +241,7 @@ class TimeDomain(StepSolver):
         elif self.axial_force == "dynamic" and self.compiled_factorization:
             # The dynamic step iterates from the linear (rigid-body) estimate, which exists beyond
             # the static Euler load too (the linear quasi_static below, its axial forces alone).
-            P = linear_axial_forces(mech, motion, self.gravity)
+            P = linear_axial_forces(mech, motion, self.gravity, loads_local)
         elif self.axial_force != "none":
             # The axial forces only enter the field matrices (1e-8 relative is ample); the
             # quasi-static model uses the beam-column estimate, whose segment forces are the ones
@@ -295,7 +296,6 @@ class TimeDomain(StepSolver):
                 f"not positive definite at crank angle {math.degrees(float(angle[np.argmax(indefinite)])):.6g} deg: "
                 "the links buckle even with their inertia; the transfer-matrix model cannot continue (a smaller step "
                 "adds inertia)")
-        loads_local = rigid_body_loads(mech, motion, self.gravity, frame="local")
         drive = mech.drive_torque_terms(motion, self.gravity)
         P0 = None if P is None else np.concatenate([P[l.name] for l in self.links], axis=-1)
         crank = CrankStates(np.asarray(angle, float), np.asarray(speed, float), np.asarray(accel, float))
