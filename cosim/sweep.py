@@ -8,8 +8,8 @@ so a sweep that outgrows one machine needs an address, not new code.
 
 Output folder ``logs/<scenario>-sweep-<timestamp>/``: ``sweep.csv`` (one row per speed, engine
 and gauge), ``summary.json`` and ``sweep.rrd`` (peaks, Floquet multipliers and natural frequencies
-against speed as 2D charts, :mod:`cosim.recording.summaries`). Rows are appended as points
-finish, so an interrupted sweep keeps what it computed.
+against speed as 2D charts, :mod:`cosim.recording.summaries`). The files are rewritten as points
+finish (at most once a second, and at the end), so an interrupted sweep keeps what it computed.
 
 Owns: speed sweeps (periodic or marched) and their folder. Boundaries: the recording's charts are
 cosim.recording.summaries.
@@ -97,6 +97,10 @@ def sweep_point(raw: dict, path: str, rpm: float, engines: tuple, revolutions: f
 #: process that solves many speeds (``many``) builds them.
 _REDUCED: dict = {}
 MANY_SPEEDS = 10           # speeds per worker from which a sweep keeps the stage coefficients
+#: While points finish, the sweep's files are rewritten at most this often [s] (and always at the
+#: end, also when interrupted): rewriting them after every point cost the main process 1.3 s of
+#: an 81-point sweep (the summary grows with every point), on cores the workers need.
+SAVE_EVERY_S = 1.0
 
 
 def _reduced_parts(sc, td, options, many: bool):
@@ -235,6 +239,7 @@ def run_sweep(scenario: str, rpm, engines=("tmm",), revolutions: float | None = 
             many = len(rpms) >= MANY_SPEEDS * (workers or os.cpu_count() or 1)
             futures = {ex.submit(sweep_point, sc.raw, str(sc.path or sc.name), float(r), tuple(engines), revs,
                                  method, many): float(r) for r in rpms}
+            saved = -math.inf
             for fut in as_completed(futures):
                 try:
                     point = fut.result()
@@ -243,10 +248,9 @@ def run_sweep(scenario: str, rpm, engines=("tmm",), revolutions: float | None = 
                              "did_not_run": True}
                 points.append(point)
                 rows += _rows(point)
-                summary["points"] = sorted(points, key=lambda p: p["rpm"])
-                write_json(folder / "summary.json", summary)
-                if rows:
-                    write_csv(folder / "sweep.csv", sorted(rows, key=lambda r: (r["rpm"], r["engine"], r["gauge"])))
+                if time.perf_counter() - saved >= SAVE_EVERY_S:
+                    _save(folder, summary, points, rows)
+                    saved = time.perf_counter()
                 if bar is not None:
                     bar.update(1)
         # A point whose engine found no solution (e.g. a link past its buckling load) is a result;
@@ -257,6 +261,7 @@ def run_sweep(scenario: str, rpm, engines=("tmm",), revolutions: float | None = 
     except KeyboardInterrupt:
         summary["status"] = "interrupted"
     finally:
+        _save(folder, summary, points, rows)        # whatever finished, also when interrupted
         if bar is not None:
             bar.close()
     summary["wall_time_s"] = time.perf_counter() - tic
@@ -289,6 +294,14 @@ def run_sweep(scenario: str, rpm, engines=("tmm",), revolutions: float | None = 
         _record(folder / "sweep.rrd", sc.name, summary["points"], fmap, (float(rpms.min()), float(rpms.max())),
                 record_peaks)
     return folder, summary
+
+
+def _save(folder: Path, summary: dict, points: list, rows: list) -> None:
+    """The finished points into ``summary.json`` and ``sweep.csv`` (sorted by speed)."""
+    summary["points"] = sorted(points, key=lambda p: p["rpm"])
+    write_json(folder / "summary.json", summary)
+    if rows:
+        write_csv(folder / "sweep.csv", sorted(rows, key=lambda r: (r["rpm"], r["engine"], r["gauge"])))
 
 
 def _record(path: Path, name: str, points: list, fmap=None, rpm_range=None, record_peaks=()) -> None:

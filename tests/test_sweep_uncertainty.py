@@ -178,3 +178,37 @@ def test_sweep_points_share_one_reduced_basis_and_get_the_same_answer():
         assert np.max(np.abs(many.gauges[g][0] - b)) <= 1e-9 * np.max(np.abs(b)), g
     sweep_module.periodic_solution(sc.with_overrides({"solver.tmm.segments": 4}))
     assert len(sweep_module._REDUCED) == 2
+
+
+def test_an_interrupted_sweep_writes_the_points_it_finished(tmp_path, monkeypatch):
+    """The sweep's files are rewritten at most every SAVE_EVERY_S while points finish; a sweep
+    stopped by Ctrl-C between two saves still writes every finished point (here the save
+    interval is longer than the sweep, so only the final save can write them)."""
+    import contextlib
+    from concurrent.futures import Future
+    from cosim import sweep as sweep_module
+
+    def fake_point(raw, path, rpm, *args):
+        return {"rpm": rpm, "engines": {"tmm": {"status": "completed", "error": None,
+                                                "gauges": {"g": {"bending_max_ue": rpm, "bending_min_ue": -rpm}}}},
+                "wall_time_s": 0.0}
+
+    class Immediate:
+        def submit(self, fn, *args):
+            fut = Future()
+            fut.set_result(fake_point(*args))
+            return fut
+
+    def two_then_ctrl_c(futures):
+        yield from list(futures)[:2]
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(sweep_module, "executor", lambda *a: contextlib.nullcontext(Immediate()))
+    monkeypatch.setattr(sweep_module, "as_completed", two_then_ctrl_c)
+    monkeypatch.setattr(sweep_module, "SAVE_EVERY_S", 1e9)
+    folder, summary = run_sweep(str(_light(tmp_path)), "100,150,200", ("tmm",), out=tmp_path / "out",
+                                progress=False, record=False, resonance=False)
+    written = json.loads((folder / "summary.json").read_text())
+    assert written["status"] == "interrupted"
+    assert [p["rpm"] for p in written["points"]] == [100.0, 150.0]
+    assert (folder / "sweep.csv").read_text().count("\n") == 3         # header and two rows
