@@ -200,11 +200,15 @@ def sweep_table(summary: dict) -> str:
             for g, st in gauges.items():
                 lines.append(f"{_fmt(p.get('rpm')):>7} {engine:<8} {g:<14} {str(e.get('status')):<10} "
                              f"{_fmt(st.get('bending_max_ue')):>9} {_fmt(st.get('bending_min_ue')):>9} "
-                             f"{_fmt(e.get('floquet_max'), 3):>8}" + (f"  {e['error']}" if e.get("error") else ""))
+                             f"{_fmt(e.get('floquet_max'), 3):>8}" + (f"  {e['error']}" if e.get("error") else "")
+                             + ("  not steady" if e.get("steady") is False else ""))
     if summary.get("parametric_resonance_rpm"):
         lines.append(f"parametric resonance (|Floquet multiplier| > 1) at {summary['parametric_resonance_rpm']} rpm")
     if summary.get("points_without_solution"):
         lines.append(f"no solution at {summary['points_without_solution']} rpm")
+    if summary.get("points_not_steady"):
+        lines.append(f"not steady at {summary['points_not_steady']} rpm (last two revolutions differ by more than "
+                     "output.steady_tolerance): those peaks are a transient's, not a steady state's")
     for c in summary.get("resonance_candidates") or []:
         lines.append(f"resonance candidate: mode {c['mode']} x harmonic {c['harmonic']} at "
                      f"{c['rpm'][0]:.0f}-{c['rpm'][1]:.0f} rpm")

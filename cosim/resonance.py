@@ -50,9 +50,10 @@ def campbell(fmap: dict, rpm_min: float, rpm_max: float, max_harmonic: int = 20)
 
 
 def plot_sweep(folder, name: str, points: list, fmap: dict | None, marks_rpm=(), max_harmonic: int = 20,
-               record_peaks=()) -> list:
+               record_peaks=(), not_steady_rpm=()) -> list:
     """Write ``sweep_peaks`` and ``campbell`` figures (PNG and SVG) to ``folder``; returns the paths.
-    ``record_peaks`` (:func:`cosim.figures.peaks_by_speed`) are drawn as open markers at their speeds."""
+    ``record_peaks`` (:func:`cosim.figures.peaks_by_speed`) are drawn as open markers at their speeds;
+    ``not_steady_rpm``: marched points whose last revolutions still differ (shaded)."""
     from .figures import gauge_label, new_figure, peak_markers, save
 
     folder = Path(folder)
@@ -76,11 +77,15 @@ def plot_sweep(folder, name: str, points: list, fmap: dict | None, marks_rpm=(),
     failed = [p["rpm"] for p in done if any(e.get("status") != "completed" for e in p["engines"].values())]
     for r in failed:
         ax.axvline(r, color="0.85", lw=3, zorder=0)
+    for r in not_steady_rpm:
+        ax.axvline(r, color="mistyrose", lw=3, zorder=0)
     for r in marks_rpm:
         ax.axvline(r, color="k", lw=0.8, ls=":")
     ax.set_xlabel("crank speed [rpm]")
     ax.set_ylabel("peak bending strain [µε]")
-    ax.set_title(f"{name}: steady-state peak strain vs speed" + (" (grey: no solution, e.g. buckling)" if failed else ""))
+    notes = (["grey: no solution, e.g. buckling"] if failed else []) + \
+        (["pink: not steady, peaks of a transient"] if len(not_steady_rpm) else [])
+    ax.set_title(f"{name}: steady-state peak strain vs speed" + (f" ({'; '.join(notes)})" if notes else ""))
     ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0)
     ax.grid(alpha=0.3)
     paths += save(fig, folder, "sweep_peaks")

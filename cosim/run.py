@@ -101,6 +101,16 @@ def last_revolution_stats(run, period: float | None = None, t0: float = 0.0) -> 
     return out
 
 
+def steadiness(run, tolerance: float) -> dict:
+    """Whether an engine run ended steady: its last two revolutions agree within ``tolerance``
+    (relative to each signal's peak-to-peak, :func:`cosim.metrics.run_change`); never assumed, so
+    a run shorter than two revolutions is not steady. ``{"steady", "revolution_change" (None when
+    undefined), "steady_tolerance"}``."""
+    change = run_change(run)
+    return {"steady": bool(change < tolerance), "revolution_change": None if change != change else float(change),
+            "steady_tolerance": tolerance}
+
+
 def linkage_summary(sc: Scenario) -> dict | None:
     """Limit positions and transmission-angle range of a four-bar scenario [deg]
     (:func:`cosim.synthesis.limit_positions`); None for other linkages or a non-Grashof one."""
@@ -122,12 +132,7 @@ def _engine_summary(ch, scenario: Scenario, sim_t0: float) -> dict:
          "sim_time_s": float(run.t[-1] - sim_t0) if len(run.t) else 0.0, "samples": int(len(run.t)),
          "coupling_passes_mean": float(np.mean(ch.passes)) if len(ch.passes) else 0.0}
     d.update(last_revolution_stats(run, t0=sim_t0))
-    change = run_change(run)
-    tol = scenario.output.steady_tolerance
-    # Steady: the last two revolutions agree (cosim.metrics); never assumed.
-    d["steady"] = bool(change < tol)
-    d["revolution_change"] = None if change != change else float(change)
-    d["steady_tolerance"] = tol
+    d.update(steadiness(run, scenario.output.steady_tolerance))
     if ch.motor is not None and len(run.t):
         f = ch.speed_fluctuation()
         if len(f["mean"]):

@@ -73,7 +73,7 @@ def sweep_point(raw: dict, path: str, rpm: float, engines: tuple, revolutions: f
     matrix engine uses the periodic steady-state solve (``method = "periodic"``, with its Floquet
     multipliers) or time marching like the others (``"march"``)."""
     from .master import CoSimulation
-    from .run import last_revolution_stats
+    from .run import last_revolution_stats, steadiness
 
     sc = from_dict(apply_overrides(raw, {"drive.speed": f"{rpm} rpm", "drive.mode": "prescribed"}), path)
     out = {"rpm": rpm, "engines": {}}
@@ -84,8 +84,11 @@ def sweep_point(raw: dict, path: str, rpm: float, engines: tuple, revolutions: f
     if marched:
         res = CoSimulation(sc, marched, mode="prescribed").run(revolutions=revolutions)
         for name, ch in res.channels.items():
+            # A marched point's peaks are a steady state's only if its last revolutions agree (near
+            # buckling the FE rig's response stays irregular: 40 revolutions at 450 rpm differ by ~100 %).
             out["engines"][name] = {"status": ch.status, "error": ch.error,
-                                    **last_revolution_stats(ch.run, sc.revolution_period_s)}
+                                    **last_revolution_stats(ch.run, sc.revolution_period_s),
+                                    **steadiness(ch.run, sc.output.steady_tolerance)}
     out["wall_time_s"] = time.perf_counter() - tic
     return out
 
@@ -192,6 +195,7 @@ def _rows(point: dict) -> list:
                          **{k: stats.get(k) for k in ("bending_max_ue", "bending_min_ue", "axial_max_ue", "axial_min_ue")},
                          "drive_torque_max_Nm": e.get("drive_torque_max_Nm"),
                          "drive_torque_min_Nm": e.get("drive_torque_min_Nm"), "floquet_max": e.get("floquet_max"),
+                         "steady": e.get("steady"), "revolution_change": e.get("revolution_change"),
                          "error": e.get("error") or ""})
     return rows
 
@@ -257,6 +261,8 @@ def run_sweep(scenario: str, rpm, engines=("tmm",), revolutions: float | None = 
         # only a point that did not run at all fails the sweep.
         summary["points_without_solution"] = sorted(
             p["rpm"] for p in points if any(e.get("status") != "completed" for e in p["engines"].values()))
+        summary["points_not_steady"] = sorted(p["rpm"] for p in points if any(
+            e.get("status") == "completed" and e.get("steady") is False for e in p["engines"].values()))
         summary["status"] = "failed" if any(p.get("did_not_run") for p in points) else "completed"
     except KeyboardInterrupt:
         summary["status"] = "interrupted"
@@ -288,7 +294,8 @@ def run_sweep(scenario: str, rpm, engines=("tmm",), revolutions: float | None = 
         from .resonance import plot_sweep
         summary["figures"] = [str(x.name) for x in plot_sweep(folder, sc.name, summary["points"], fmap,
                                                                 marks_rpm=[abs(sc.drive.speed_rad_s) * 30 / math.pi],
-                                                                record_peaks=record_peaks)]
+                                                                record_peaks=record_peaks,
+                                                                not_steady_rpm=summary.get("points_not_steady", ()))]
     write_json(folder / "summary.json", summary)
     if record and points:
         _record(folder / "sweep.rrd", sc.name, summary["points"], fmap, (float(rpms.min()), float(rpms.max())),

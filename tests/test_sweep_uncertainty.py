@@ -212,3 +212,19 @@ def test_an_interrupted_sweep_writes_the_points_it_finished(tmp_path, monkeypatc
     assert written["status"] == "interrupted"
     assert [p["rpm"] for p in written["points"]] == [100.0, 150.0]
     assert (folder / "sweep.csv").read_text().count("\n") == 3         # header and two rows
+
+
+def test_a_marched_sweep_reports_points_that_do_not_settle(tmp_path):
+    """Marched points carry whether their last two revolutions agree (output.steady_tolerance):
+    at 450 rpm, near the FE rig's buckling speed, the response stays irregular (40 revolutions,
+    the last two differing by ~100 % of their peak-to-peak; the periodic solver finds no periodic
+    state there either), so its peaks are a transient's and the sweep says so; 200 rpm settles."""
+    from cosim.report import sweep_table
+    folder, summary = run_sweep(str(_light(tmp_path)), "200,450", ("tmm",), workers=2, out=tmp_path / "out",
+                                progress=False, record=False, resonance=False, method="march")
+    steady = {p["rpm"]: p["engines"]["tmm"]["steady"] for p in summary["points"]}
+    assert steady == {200.0: True, 450.0: False}
+    assert summary["points_not_steady"] == [450.0]
+    assert summary["points"][1]["engines"]["tmm"]["revolution_change"] > 0.1
+    assert "not steady at [450.0] rpm" in sweep_table(summary)
+    assert "steady" in (folder / "sweep.csv").read_text().splitlines()[0].split(",")
