@@ -188,3 +188,30 @@ def test_a_prescribed_run_marches_no_step_past_its_end(monkeypatch):
     assert sum(marched) == len(res["tmm"].run.t)
     with pytest.raises(ValueError, match="until"):
         DriveInput(prescribed=constant_speed_profile(1.0, 0.0, 0.0), until=1.0)
+
+
+def test_the_engines_node_positions_are_the_rigid_ones_plus_the_rotated_displacements():
+    """The TMM engine's deformed nodes (all links at once, cosim.engines.tmm._nodes) against the
+    closed form per link: the link's rigid-body node positions plus its local displacements
+    (u along the link, w across) rotated by the link's angle, at the last step marched; a rigid
+    link (the FE rig's crank) keeps its rigid-body positions."""
+    sc = load(FE)
+    engine, outs = _engine_run(sc, [10, 10], ahead=False)
+    last = outs[-1]
+    angle = float(last.crank_angle[-1])
+    motion = engine.td.mech.motion(np.array([angle]), np.array([sc.drive.speed_rad_s]), np.zeros(1))
+    local = engine.td.unstack(engine.march.z)
+    rigid_links = 0
+    for link in sc.mechanism.links():
+        lm = motion.link(link.name)
+        rigid = lm.point(link.stations)[0][0]                         # (n, 2)
+        expected = rigid.copy()
+        if link.name in local:
+            u, w = local[link.name][:, 0], local[link.name][:, 1]
+            c, s = math.cos(float(lm.angle[0])), math.sin(float(lm.angle[0]))
+            expected += np.stack([c * u - s * w, s * u + c * w], -1)
+            assert np.max(np.abs(expected - rigid)) > 1e-6              # the elastic part is there
+        else:
+            rigid_links += 1
+        np.testing.assert_allclose(last.nodes[link.name][-1], expected, rtol=0, atol=1e-12)
+    assert rigid_links == 1
