@@ -11,7 +11,7 @@ import numpy as np
 from . import kernels
 from .errors import InputError
 from .ked import CrankMotion, KEDResult, quasi_static
-from .time_step import ANDERSON_DEPTH
+from .time_step import ANDERSON_DEPTH, AXIAL_FORCE_TOLERANCE
 
 class March:
     """Incremental time-domain march of a :class:`TimeDomain` (one step at a time).
@@ -135,7 +135,7 @@ class March:
                 code, params, self.dt, c_a, c_v, indices[j:], *data, td.m_vec, td.aM_vec, td.beta_node, seg.start,
                 seg.end, seg.length, seg.EA, seg.beta, td.seg_blocks, td.gauge_segment, td.coupling.coriolis,
                 td.has_kv, dynamic, "shortening" in td.dynamic_terms, "axial_force" in td.dynamic_terms,
-                td.axial_tolerance, 1e-6, td.axial_iterations, ANDERSON_DEPTH, *arrays, P, outs[j:],
+                td.axial_tolerance, AXIAL_FORCE_TOLERANCE, td.axial_iterations, ANDERSON_DEPTH, *arrays, P, outs[j:],
                 zs[j:] if record_z else zs, Ps[j:] if record_axial else Ps, iterations[j:])
             self.state = {key: arr.copy() for key, arr in zip(("d", "v", "a", "acc", "d1", "d2"), arrays) if key in st}
             self.axial = P.copy() if dynamic else self.axial

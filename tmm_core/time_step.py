@@ -27,6 +27,11 @@ from .structure import solve_factored
 
 AXIAL_FORCE_MODELS = ("dynamic", "quasi_static", "none")
 ANDERSON_DEPTH = 4          # iterates mixed by the second-order step iteration
+#: Relative change of the segment axial forces at which the second-order step iteration stops
+#: (with the displacements' TimeDomain.axial_tolerance). The axial force only feeds the geometric
+#: stiffness: 1e-6 is ample, and its round-off floor, a difference of large nodal forces, sits
+#: near 1e-8. The numpy step and the compiled march both read it.
+AXIAL_FORCE_TOLERANCE = 1e-6
 AXIAL_RESTARTS = 3          # refactorizations of a second-order step that does not converge
 DYNAMIC_TERMS = ("shortening", "axial_force")
 
@@ -112,9 +117,7 @@ class StepSolver:
             last_finite = P_new
             dz = float(np.max(np.abs(z_new - z))) / (float(np.max(np.abs(z_new))) + 1e-300)
             dP = float(np.max(np.abs(P_new - P))) / (float(np.max(np.abs(P_new))) + scale_P)
-            # The axial force only feeds the geometric stiffness: 1e-6 is ample (and its round-off
-            # floor, a difference of large nodal forces, sits near 1e-8).
-            if dz < self.axial_tolerance and dP < 1e-6:
+            if dz < self.axial_tolerance and dP < AXIAL_FORCE_TOLERANCE:
                 if len(self.gauge_segment) and shorten:
                     # Gauge axial strain = the full axial strain, with the shortening from bending.
                     delta = shape_products(seg, z_new)[0]
