@@ -72,6 +72,16 @@ def run_change(run) -> float:
     return revolution_change(run.crank_angle, [s for s in signals if np.all(np.isfinite(s))])
 
 
+def steadiness(run, tolerance: float) -> dict:
+    """Whether an engine run ended steady: its last two revolutions agree within ``tolerance``
+    (relative to each signal's peak-to-peak, :func:`run_change`); never assumed, so
+    a run shorter than two revolutions is not steady. ``{"steady", "revolution_change" (None when
+    undefined), "steady_tolerance"}``."""
+    change = run_change(run)
+    return {"steady": bool(change < tolerance), "revolution_change": None if change != change else float(change),
+            "steady_tolerance": tolerance}
+
+
 class SteadyWatch:
     """Follows engines macro step by macro step and tells when each one is steady. Keeps only
     the last three revolutions of each engine (memory bounded in run length)."""

@@ -42,7 +42,7 @@ import numpy as np
 from . import __version__
 from .engines import ENGINES, EngineUnavailable, make_engine
 from .master import CoSimulation, InputError
-from .metrics import last_revolution, revolutions_completed, run_change
+from .metrics import last_revolution, revolutions_completed, steadiness
 from .runlog import run_folder, write_json
 from .scenario import Scenario, load, resolved
 from .interrupts import Interrupts, mark_interrupted
@@ -99,16 +99,6 @@ def last_revolution_stats(run, period: float | None = None, t0: float = 0.0) -> 
         out["gauges"][g] = {"bending_max_ue": float(b.max()), "bending_min_ue": float(b.min()),
                             "axial_max_ue": float(a.max()), "axial_min_ue": float(a.min())}
     return out
-
-
-def steadiness(run, tolerance: float) -> dict:
-    """Whether an engine run ended steady: its last two revolutions agree within ``tolerance``
-    (relative to each signal's peak-to-peak, :func:`cosim.metrics.run_change`); never assumed, so
-    a run shorter than two revolutions is not steady. ``{"steady", "revolution_change" (None when
-    undefined), "steady_tolerance"}``."""
-    change = run_change(run)
-    return {"steady": bool(change < tolerance), "revolution_change": None if change != change else float(change),
-            "steady_tolerance": tolerance}
 
 
 def linkage_summary(sc: Scenario) -> dict | None:

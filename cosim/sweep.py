@@ -73,7 +73,8 @@ def sweep_point(raw: dict, path: str, rpm: float, engines: tuple, revolutions: f
     matrix engine uses the periodic steady-state solve (``method = "periodic"``, with its Floquet
     multipliers) or time marching like the others (``"march"``)."""
     from .master import CoSimulation
-    from .run import last_revolution_stats, steadiness
+    from .metrics import steadiness
+    from .run import last_revolution_stats
 
     sc = from_dict(apply_overrides(raw, {"drive.speed": f"{rpm} rpm", "drive.mode": "prescribed"}), path)
     out = {"rpm": rpm, "engines": {}}
