@@ -25,13 +25,14 @@ from .time_step import select, terms_at
 MAP_CHUNK_BYTES = 64e6       # working memory of one chunk of the map solve
 
 
-def compiled_maps(td, prep, P, motion):
+def compiled_maps(td, prep, P, drive):
     """The load-to-response maps of a :class:`tmm_core.TimeDomain` ``td`` (as the numpy path of
     :meth:`tmm_core.TimeDomain.configurations`: a :class:`StepMaps`) from one compiled
-    factorization per configuration solved for every unit load; returns the maps and the inertia
-    count ``(B,)``. Its arrays get no huge-page advice (:func:`without_huge_page_advice`)."""
+    factorization per configuration solved for every unit load (``drive``: the batch's
+    :meth:`drive_torque_terms`, as :func:`numpy_maps`); returns the maps and the inertia count
+    ``(B,)``. Its arrays get no huge-page advice (:func:`without_huge_page_advice`)."""
     with without_huge_page_advice():
-        return _compiled_maps(td, prep, P, motion)
+        return _compiled_maps(td, prep, P, drive)
 
 
 @contextlib.contextmanager
@@ -55,7 +56,7 @@ def without_huge_page_advice():
         toggle(previous)
 
 
-def _compiled_maps(td, prep, P, motion):
+def _compiled_maps(td, prep, P, drive):
     B = len(P)
     n = td.n_dof
     # Unit loads (stacked node vector order = the compiled node order) plus a zero column.
@@ -65,7 +66,6 @@ def _compiled_maps(td, prep, P, motion):
     axial = td.axial_force == "dynamic"
     maps = StepMaps.empty(B, n, td.outputs.size, len(td.segments.length) if axial else None)
     negative = np.empty(B, dtype=int)
-    drive = td.mech.drive_torque_terms(motion, td.gravity)
     gauge_at = gauge_nodes(td, lay)
     chunk = max(1, int(MAP_CHUNK_BYTES // (8.0 * (n + 1) * (2 * n + 6 * len(td.gauges) + 8))))
     for c0 in range(0, B, chunk):
@@ -101,17 +101,17 @@ def _relative(x):
         x[:, :, :-1] -= x[:, :, -1:]
 
 
-def compiled_factors(td, prep, P, motion):
+def compiled_factors(td, prep, P, drive):
     """The map-free alternative: every configuration's compiled factorization kept
     (:func:`tmm_core.structure_compiled.factor_prepared`) and the outputs' affine functionals of
-    the joint reactions and gauge states (their coefficients: the outputs of unit inputs); returns
-    a :class:`StepFactors` and the inertia count ``(B,)``."""
+    the joint reactions and gauge states (their coefficients: the outputs of unit inputs;
+    ``drive`` as :func:`compiled_maps`); returns a :class:`StepFactors` and the inertia count
+    ``(B,)``."""
     B = len(P)
     lay = prep.layout
     stored, negative = structure_compiled.factor_prepared(prep, P)
     gauge_at = gauge_nodes(td, lay)
-    Ocx = output_functionals(td, prep, P, slice(0, B), td.mech.drive_torque_terms(motion, td.gravity),
-                             len(lay.labels), len(gauge_at))
+    Ocx = output_functionals(td, prep, P, slice(0, B), drive, len(lay.labels), len(gauge_at))
     layout = (lay.seg_off, lay.rigid, np.ascontiguousarray(prep.angle), lay.ends, lay.free,
               np.asarray(gauge_at, dtype=np.int64))
     return StepFactors(layout, stored, Ocx), negative

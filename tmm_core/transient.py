@@ -278,12 +278,13 @@ class TimeDomain(StepSolver):
             if not with_maps and structure_compiled.stored_bytes(prep) > self.max_map_bytes:
                 prep = None
         step_factors = None
+        drive = mech.drive_torque_terms(motion, self.gravity)
         if prep is not None:
             P_stacked = structure_compiled.stack_segments(prep, P or {})
             if with_maps:
-                maps, negative = step_data.compiled_maps(self, prep, P_stacked, motion)
+                maps, negative = step_data.compiled_maps(self, prep, P_stacked, drive)
             else:
-                step_factors, negative = step_data.compiled_factors(self, prep, P_stacked, motion)
+                step_factors, negative = step_data.compiled_factors(self, prep, P_stacked, drive)
             factor = None
         else:
             factor = make_factor()
@@ -296,7 +297,6 @@ class TimeDomain(StepSolver):
                 f"not positive definite at crank angle {math.degrees(float(angle[np.argmax(indefinite)])):.6g} deg: "
                 "the links buckle even with their inertia; the transfer-matrix model cannot continue (a smaller step "
                 "adds inertia)")
-        drive = mech.drive_torque_terms(motion, self.gravity)
         P0 = None if P is None else np.concatenate([P[l.name] for l in self.links], axis=-1)
         crank = CrankStates(np.asarray(angle, float), np.asarray(speed, float), np.asarray(accel, float))
 
