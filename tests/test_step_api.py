@@ -191,7 +191,7 @@ def test_a_prescribed_run_marches_no_step_past_its_end(monkeypatch):
 
 
 def test_the_engines_node_positions_are_the_rigid_ones_plus_the_rotated_displacements():
-    """The TMM engine's deformed nodes (all links at once, cosim.engines.tmm._nodes) against the
+    """The TMM engine's deformed nodes (cosim.engines.tmm._nodes) against the
     closed form per link: the link's rigid-body node positions plus its local displacements
     (u along the link, w across) rotated by the link's angle, at the last step marched; a rigid
     link (the FE rig's crank) keeps its rigid-body positions."""
