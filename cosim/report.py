@@ -11,6 +11,13 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+from .engines import MODELS
+
+#: Where a user reads why the models and the measurement differ (pointed to when they differ much).
+MEASUREMENT_GAP_DOC = "README.md, section 'How far the bench is from the measurement'"
+#: A peak error beyond this fraction gets the pointer to that section.
+LARGE_PEAK_ERROR = 0.5
+
 
 def load_summary(run_dir) -> dict:
     """The parsed summary.json of a folder (or the file itself); ValueError naming the file when
@@ -122,7 +129,8 @@ def comparison_table(summary: dict) -> str:
         lines.append(f"{name:<8} {e.get('status', '?'):<11} {_fmt(e.get('wall_time_s'), 2):>9} "
                      f"{_fmt(e.get('sim_time_s'), 3):>8} {_fmt(e.get('revolutions_run'), 1):>5} {steady:>7} "
                      f"{'-' if change is None else f'{100 * change:.2f}%':>7} {_fmt(e.get('drive_torque_max_Nm'), 2):>10} "
-                     f"{_fmt(e.get('drive_torque_min_Nm'), 2):>10}" + (f"  {e['error']}" if e.get("error") else ""))
+                     f"{_fmt(e.get('drive_torque_min_Nm'), 2):>10}  {MODELS.get(name, '')}"
+                     + (f"  {e['error']}" if e.get("error") else ""))
     lines.append("steady: the last two revolutions agree within the tolerance (change = their largest difference "
                  "relative to the peak-to-peak); results of an engine that is NOT STEADY are a transient")
     speed = {n: e["speed"] for n, e in engines.items() if e.get("speed")}
@@ -145,9 +153,27 @@ def comparison_table(summary: dict) -> str:
                          f"{_fmt(s.get('correlation'), 2):>6} {_fmt(s.get('phase_lag_deg')):>9} "
                          f"{_fmt(s.get('scale'), 2):>6} {_fmt(s.get('inside_envelope'), 2):>6}"
                          + ("" if s.get("steady", True) else "  NOT STEADY"))
+        gap = _measurement_gap_line(scores)
+        if gap:
+            lines.append(gap)
     for w in summary.get("record_warnings") or []:
         lines.append(f"note: {w}")
     return "\n".join(lines)
+
+
+def _measurement_gap_line(scores: list) -> str | None:
+    """One line pointing to the measurement-gap section when any peak error exceeds
+    :data:`LARGE_PEAK_ERROR`; a rigid engine among the scored is named as such (it has no elastic
+    response to overshoot with: scoring closest does not make it the better model)."""
+    errors = [abs(s[k]) for s in scores for k in ("plus_peak_error", "minus_peak_error")
+              if isinstance(s.get(k), (int, float)) and s[k] == s[k]]
+    if not errors or max(errors) <= LARGE_PEAK_ERROR:
+        return None
+    rigid = sorted({s.get("engine") for s in scores if MODELS.get(s.get("engine"), "").startswith("rigid")})
+    return (f"peak errors up to {100 * max(errors):.0f} %: the models and this record differ by more than the "
+            f"models differ from each other; why, and what the declared unknowns can and cannot explain: "
+            f"{MEASUREMENT_GAP_DOC}" + (f". {', '.join(rigid)}: the rigid model (no elastic response), which is why "
+                                        "it can score closest" if rigid else ""))
 
 
 def _pct(x):

@@ -174,8 +174,8 @@ def run_scenario(scenario, options: RunOptions = RunOptions(), callback=None) ->
         records_for(sc, Path(options.records))
 
     folder = run_folder(sc.name, options.out)
-    log.info("%s through %s (%s, %s); results to %s", sc.name, ", ".join(engines), mode,
-             "until steady" if until_steady else f"{revolutions:g} revolutions", folder)
+    log.info("%s at %.4g rpm through %s (%s, %s); results to %s", sc.name, sc.drive.speed_rpm, ", ".join(engines),
+             mode, "until steady" if until_steady else f"{revolutions:g} revolutions", folder)
     import tomli_w
     (folder / "scenario.resolved.toml").write_text(tomli_w.dumps(resolved(sc)), encoding="utf-8")
     summary = {"scenario": sc.name, "status": "incomplete", "bench_version": __version__, "mode": mode,

@@ -489,7 +489,7 @@ def resolved(scenario: Scenario) -> dict:
                                           ("branch", None if not hasattr(mech, "branch")
                                            else "open" if mech.branch == 1 else "crossed")) if v is not None},
             "links": {link.name: link for link in mech.links()},
-            "drive": scenario.drive, "gauges": {g.name: g for g in scenario.gauges},
+            "drive": {**dataclasses.asdict(scenario.drive), "speed_rpm": scenario.drive.speed_rpm}, "gauges": {g.name: g for g in scenario.gauges},
             "gravity_m_s2": list(scenario.gravity) if scenario.gravity else None,
             "solver": {"tmm": scenario.tmm, "exudyn": scenario.exudyn, "mujoco": scenario.mujoco},
             "motor": scenario.motor, "coupling": scenario.coupling, "output": scenario.output}),

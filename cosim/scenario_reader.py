@@ -17,7 +17,7 @@ from tmm_core import (Coupling, Damping, Link, Material, PointMass, Section, Sta
 from tmm_core.mechanism import EndBlock
 
 from .scenario_types import (Assumption, CouplingSettings, DriveSpec, ScenarioError, TMMSettings)
-from .units import UREG, has_number, quantity as parse_quantity
+from .units import UREG, AngleUnitError, has_number, magnitude_in, quantity as parse_quantity
 
 G0 = 9.80665           # standard gravity [m/s^2], for weights written in force units
 #: Magnitudes a value may have in SI units: beyond them no rig is meant and the arithmetic of
@@ -50,9 +50,11 @@ def _converted(raw: str, unit: str) -> tuple:
     if (parsed.dimensionless and not target.dimensionless) or (_needs_unit(unit) and parsed.unitless):
         return "no_unit", None
     try:
-        return "ok", float(parsed.to(unit).magnitude)
+        return "ok", magnitude_in(parsed, unit)
     except pint.DimensionalityError:
         return "wrong_dimension", (str(target.dimensionality), str(parsed.dimensionality))
+    except AngleUnitError as exc:
+        return "angle", str(exc)
     except (OverflowError, ZeroDivisionError, TypeError, ValueError):
         return "not_convertible", None
 
@@ -127,6 +129,8 @@ class Reader:
                 raise self.fail(key, f"has no unit; write it with one, e.g. '{raw} {example_unit(unit)}'", raw)
             if code == "wrong_dimension":
                 raise self.fail(key, f"has the wrong dimension: expected {q[0]}, got {q[1]}", raw)
+            if code == "angle":
+                raise self.fail(key, q, raw)
             if code == "not_convertible":
                 raise self.fail(key, "is not a number with a unit that can be converted (too large, or not a "
                                      "number)", raw)

@@ -37,6 +37,12 @@ class DriveSpec:
     speed_rad_s: float = 0.0
     start_angle_rad: float = 0.0
 
+    @property
+    def speed_rpm(self) -> float:
+        """The drive speed in revolutions per minute, unsigned (the direction is the sign of
+        ``speed_rad_s``): the one conversion the console, the summary and the sweeps print."""
+        return abs(self.speed_rad_s) * 30.0 / math.pi
+
 
 @dataclass(frozen=True)
 class TMMSettings:

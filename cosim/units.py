@@ -16,6 +16,7 @@ import pint
 UREG = pint.UnitRegistry()
 UREG.define("microstrain = 1e-6 = ue = µε")
 UREG.define("strain = 1 = _ = in_per_in")
+UREG.define("@alias turn = rev")       # "10 rev/s", the spelling the messages suggest
 
 _NUMBER = re.compile(r"^\s*\(*\s*[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?")
 STRAIN = "µε"                  # how strain is written in the display
@@ -23,6 +24,13 @@ STRAIN = "µε"                  # how strain is written in the display
 
 class UnitError(ValueError):
     """A text is not a number with a unit of the expected kind."""
+
+
+class AngleUnitError(UnitError):
+    """A value's angle units do not fit the quantity meant (its message says how to write it).
+
+    pint takes the radian as 1, so without this check ``"7 in/rad"`` would be read as 7 inches,
+    ``"95 rpm/rad"`` as 95 rpm, ``"1 deg deg"`` as 0.0175 deg and ``"10 Hz"`` as 10 rad/s."""
 
 
 def has_number(text: str) -> bool:
@@ -65,12 +73,63 @@ def factor(unit: str, to: str) -> float:
 
 
 def to_si(text, unit: str) -> float:
-    """The value of ``text`` (a number with a unit) in ``unit``."""
+    """The value of ``text`` (a number with a unit) in ``unit``, angles counted as in
+    :func:`magnitude_in`."""
     q = quantity(text)
     try:
-        return float(q.to(unit).magnitude)
+        return magnitude_in(q, unit)
     except pint.DimensionalityError:
         raise UnitError(f"{text!r} is not in {unit}") from None
+    except AngleUnitError as exc:
+        raise AngleUnitError(f"{text!r} {exc}") from None
+
+
+def angle_power(q) -> float:
+    """The power of the angle in a quantity's units (``rpm``: 1, ``Hz``: 0, ``N*m/rad``: -1,
+    ``deg**2``: 2), counted on its root units, where every angle unit becomes the radian."""
+    return dict(q.to_root_units().unit_items()).get("radian", 0)
+
+
+def _is_hertz(q) -> bool:
+    """Whether a quantity is written in hertz (Hz, kHz, ...): a cycle frequency, not a rate."""
+    items = list(q.unit_items())
+    return bool(items) and all(name.endswith("hertz") and power == 1 for name, power in items)
+
+
+def magnitude_in(q: pint.Quantity, unit: str) -> float:
+    """The magnitude of ``q`` in ``unit`` with the angle kept as a dimension of its own.
+
+    The conventions (every angular rate of the bench alike):
+
+    * a frequency in hertz where an angular rate is meant counts revolutions per unit time:
+      ``10 Hz`` is 600 rpm (62.83 rad/s), not 10 rad/s;
+    * an angular rate where a frequency in hertz is meant counts revolutions too: ``600 rpm`` is
+      10 Hz;
+    * a coefficient per radian (``N*m/rad``, ``V*s/rad``) may be written without the radian, as
+      in SI (``N*m``), since there the radian is 1 by definition;
+    * every other mismatch of angles is refused (:class:`AngleUnitError`): an angle where a length
+      is meant (``in/rad``), a rate without an angle where a speed is meant (``1/s``, ``rpm/rad``),
+      two angles where one is meant (``deg deg``).
+
+    Raises ``pint.DimensionalityError`` when the dimensions (angles aside) differ."""
+    target = UREG.Quantity(1.0, unit)
+    value = float(q.to(unit).magnitude)
+    have, want = angle_power(q), angle_power(target)
+    if have == want:
+        return value
+    if want - have == 1 and _is_hertz(q):
+        return float((q * UREG.turn).to(unit).magnitude)
+    if have - want == 1 and _is_hertz(target):
+        return float((q / UREG.turn).to(unit).magnitude)
+    if have == 0 and want < 0:
+        return value
+    if want == 1 and have == 0:
+        raise AngleUnitError("is a rate without an angle where an angular speed is meant: write it as "
+                             "'600 rpm', '62.8 rad/s', '10 rev/s' or '10 Hz' (hertz are read as revolutions per "
+                             "second)")
+    raise AngleUnitError(f"carries angle^{have:g} where {unit} carries angle^{want:g}: an angle unit is "
+                         "missing or one too many (radians are dimensionless to the unit parser, so it would "
+                         "be read silently as something else)")
 
 
 INCH = factor("in", "m")

@@ -127,6 +127,13 @@ UNITS = [
     (SC, {"linkage.offset": "1 kg"}, "linkage.offset"),
     (SC, {"linkage.slide_angle": "1 in"}, "linkage.slide_angle"),
     (SC, {"linkage.slide_angle": 45}, "linkage.slide_angle"),         # was 45 rad
+    # Angles are dimensionless to pint: each of these was read silently as something else.
+    (CR, {"drive.speed": "10 1/s"}, "drive.speed"),                   # was 10 rad/s
+    (CR, {"drive.speed": "95 rpm/rad"}, "drive.speed"),               # was 95 rpm
+    (CR, {"links.coupler.length": "7 in/rad"}, "links.coupler.length"),  # was 7 in
+    (CR, {"drive.start_angle": "1 deg deg"}, "drive.start_angle"),    # was 0.0175 deg
+    (CR, {"solver.tmm.step": "1 deg deg"}, "solver.tmm.step"),
+    (CR, {"materials.aluminium.E": "10e6 psi*rad"}, "materials.aluminium.E"),
 ]
 
 

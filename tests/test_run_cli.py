@@ -252,3 +252,20 @@ def test_run_scores_every_engine_against_table_one(run_dir):
             assert math.isfinite(scores[(engine, gauge, "fe_table2_373rpm")]["phase_lag_deg"])
     assert any("face is not stated" in w for w in summary["record_warnings"])
     assert "scores against records" in res.stdout and "fe_table1" in res.stdout
+
+
+def test_console_names_each_engines_model_and_points_to_the_measurement_gap():
+    """Each engine's line says what it models; large errors against a record point to the docs'
+    measurement-gap section, and a rigid engine among the scored is named as the rigid model."""
+    score = {"gauge": "coupler", "record": "fe_table1", "plus_peak_error": 2.36, "minus_peak_error": 0.1}
+    summary = {"scenario": "x", "status": "completed", "engines": {
+        "tmm": {"status": "completed"}, "mujoco": {"status": "completed"}},
+        "scores": [dict(score, engine="tmm"), dict(score, engine="mujoco", plus_peak_error=0.2)]}
+    text = comparison_table(summary)
+    tmm_line = next(line for line in text.splitlines() if line.startswith("tmm ") and "completed" in line)
+    assert "flexible: transfer-matrix" in tmm_line
+    assert "rigid bodies" in next(line for line in text.splitlines() if line.startswith("mujoco ") and
+                                  "completed" in line)
+    assert "How far the bench is from the measurement" in text and "mujoco: the rigid model" in text
+    summary["scores"] = [dict(score, engine="tmm", plus_peak_error=0.05)]
+    assert "How far the bench" not in comparison_table(summary)

@@ -12,6 +12,14 @@ from .base import DriveInput, Engine, EngineError, EngineOutput, EngineRun, Engi
 
 ENGINES = ("tmm", "exudyn", "mujoco")
 
+#: What each engine models, as the console and the summary say it: the two flexible models
+#: predict strain from the links' elastic deflection; the rigid one has no deflection, so its
+#: "strains" are those of the rigid-body loads acting on a static beam (why it can look closest
+#: to a record that the flexible models overshoot, or far from them near a resonance).
+MODELS = {"tmm": "flexible: transfer-matrix beams",
+          "exudyn": "flexible: ANCF beam elements",
+          "mujoco": "rigid bodies, quasi-static strain"}
+
 
 def make_engine(name: str) -> Engine:
     """A fresh engine by name; raises :class:`EngineUnavailable` if its library cannot be imported."""
