@@ -39,6 +39,7 @@ Owns: the record format and strict loading. Boundaries: no scoring
 from __future__ import annotations
 
 import csv
+import io
 import math
 import tomllib
 from dataclasses import dataclass, field
@@ -48,6 +49,7 @@ import numpy as np
 
 from tmm_core import InputError
 
+from .files import RECORD_BYTES, SCENARIO_BYTES, FileRefused, read_text_bounded
 from .units import UnitError, factor, to_si
 
 RECORD_DIR = Path(__file__).resolve().parent.parent / "scenarios" / "records"
@@ -144,9 +146,10 @@ def _read_csv(path: Path, required: list):
     if not path.exists():
         raise record_error(path, "file not found")
     try:
-        with open(path, newline="", encoding="utf-8") as fh:
-            reader = csv.reader(fh)
-            rows = [(reader.line_num, r) for r in reader]       # keep the file's line numbers for messages
+        reader = csv.reader(io.StringIO(read_text_bounded(path, RECORD_BYTES), newline=""))
+        rows = [(reader.line_num, r) for r in reader]           # keep the file's line numbers for messages
+    except FileRefused as exc:
+        raise record_error(path, str(exc)) from None
     except UnicodeDecodeError:
         raise record_error(path, "not a UTF-8 text file") from None
     except csv.Error as exc:
@@ -205,7 +208,11 @@ def load_record(path) -> Record:
     if not side.exists():
         raise record_error(side, "sidecar not found (each record is <name>.csv with <name>.toml)")
     try:
-        meta = tomllib.loads(side.read_text(encoding="utf-8"))
+        meta = tomllib.loads(read_text_bounded(side, SCENARIO_BYTES))
+    except FileRefused as exc:
+        raise record_error(side, str(exc)) from None
+    except RecursionError:
+        raise record_error(side, "tables or arrays nested too deeply to be a record's sidecar") from None
     except tomllib.TOMLDecodeError as exc:
         raise record_error(side, f"not valid TOML: {exc}") from None
     except UnicodeDecodeError:

@@ -12,6 +12,7 @@ import json
 from pathlib import Path
 
 from .engines import MODELS
+from .files import SUMMARY_BYTES, FileRefused, read_text_bounded
 
 #: Where a user reads why the models and the measurement differ (pointed to when they differ much).
 MEASUREMENT_GAP_DOC = "README.md, section 'How far the bench is from the measurement'"
@@ -28,7 +29,11 @@ def load_summary(run_dir) -> dict:
     if not path.exists():
         raise FileNotFoundError(f"no summary.json in {Path(run_dir)} (is it a run folder under logs/?)")
     try:
-        data = json.loads(path.read_text(encoding="utf-8"))
+        data = json.loads(read_text_bounded(path, SUMMARY_BYTES))
+    except FileRefused as exc:
+        raise ValueError(f"{path}: {exc}; not a bench summary") from None
+    except RecursionError:
+        raise ValueError(f"{path}: nested too deeply to be a bench summary") from None
     except json.JSONDecodeError as exc:
         raise ValueError(f"{path}: not valid JSON ({exc})") from None
     except UnicodeDecodeError:

@@ -70,6 +70,7 @@ import numpy as np
 from tmm_core import FourBarMechanism, Gauge, SliderCrankMechanism, TMMError
 
 from . import scenario_reader as rd
+from .files import SCENARIO_BYTES, FileRefused, read_text_bounded
 from .motor_design import motor as read_motor
 from .scenario_reader import G0, Reader
 # The data types live in scenario_types; they stay importable from here, with the unit registry.
@@ -108,7 +109,9 @@ def load(path_or_name) -> "Scenario | StaticScenario":
 
 
 #: The largest scenario file read (a scenario is a few kB; a wrong path must not be read whole).
-MAX_FILE_BYTES = 1_000_000
+MAX_FILE_BYTES = SCENARIO_BYTES
+#: The longest chain of ``extends`` followed (a rig uses one or two bases).
+MAX_EXTENDS_DEPTH = 16
 
 
 def _read_with_bases(path: Path, chain: list, root: Path | None = None) -> dict:
@@ -123,14 +126,19 @@ def _read_with_bases(path: Path, chain: list, root: Path | None = None) -> dict:
     never echoed in a message."""
     if path.resolve() in chain:
         raise ScenarioError(f"scenario '{path}': key 'extends' loops back ({' -> '.join(str(p) for p in chain)})")
+    if len(chain) >= MAX_EXTENDS_DEPTH:
+        raise ScenarioError(f"scenario '{chain[0]}': key 'extends' chains more than {MAX_EXTENDS_DEPTH} files "
+                            f"(at {path}); a rig needs a base or two")
     if root is None:
         root = path.resolve().parent.parent
     try:
-        if path.stat().st_size > MAX_FILE_BYTES:
-            raise ScenarioError(f"scenario '{path}': larger than {MAX_FILE_BYTES // 1000} kB; not a scenario file")
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
+        data = tomllib.loads(read_text_bounded(path, MAX_FILE_BYTES))
+    except FileRefused as exc:
+        raise ScenarioError(f"scenario '{path}': {exc}; not a scenario file") from None
     except tomllib.TOMLDecodeError as exc:
         raise ScenarioError(f"scenario '{path}': not valid TOML: {exc}") from None
+    except RecursionError:
+        raise ScenarioError(f"scenario '{path}': tables or arrays nested too deeply to be a scenario") from None
     except UnicodeDecodeError:
         raise ScenarioError(f"scenario '{path}': not a UTF-8 text file (save it as UTF-8; UTF-16 and other "
                             "encodings are not read)") from None

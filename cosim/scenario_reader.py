@@ -44,8 +44,8 @@ def _converted(raw: str, unit: str) -> tuple:
     and pint's parsing and conversion were most of a scenario's load time."""
     try:
         parsed = parse_quantity(raw)
-    except ValueError:
-        return "not_quantity", None
+    except ValueError as exc:
+        return "not_quantity", str(exc)
     target = UREG.Quantity(1, unit)
     if (parsed.dimensionless and not target.dimensionless) or (_needs_unit(unit) and parsed.unitless):
         return "no_unit", None
@@ -124,7 +124,7 @@ class Reader:
                 raise self.fail(key, f"has no number; write a number and a unit, e.g. '1 {example_unit(unit)}'", raw)
             code, q = _converted(raw, unit)
             if code == "not_quantity":
-                raise self.fail(key, "is not a quantity with a unit", raw)
+                raise self.fail(key, f"is not a quantity with a unit ({q})", raw)
             if code == "no_unit":
                 raise self.fail(key, f"has no unit; write it with one, e.g. '{raw} {example_unit(unit)}'", raw)
             if code == "wrong_dimension":

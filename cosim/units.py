@@ -46,10 +46,38 @@ def quantity(text) -> pint.Quantity:
     return _parsed(str(text))
 
 
+#: The longest text read as a quantity ("(10.3e6 psi) * 100" is 18 characters).
+MAX_TEXT = 200
+#: The largest exponent a quantity may carry (units go to the 4th power: m**4 of an area moment).
+MAX_EXPONENT = 12
+# An exponent: '**' then a plain number, optionally signed or in parentheses; group 2 is a
+# second '**' right after it (pint evaluates "9**9**9" as 9**(9**9) on Python integers: a hang).
+_PLAIN = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
+_EXPONENT = re.compile(rf"\*\*\s*(\(\s*{_PLAIN}\s*\)|{_PLAIN})(\s*\*\*)?")
+
+
+def _bounded(expr: str) -> None:
+    """Refuse, before pint evaluates it, a text whose arithmetic is unbounded: too long, a
+    control character, or an exponent that is not a small plain number (pint computes powers of
+    integers exactly, so a 12-byte "9**9**9 in" would run until memory is gone)."""
+    if len(expr) > MAX_TEXT:
+        raise UnitError(f"{expr[:40]!r}... is {len(expr)} characters; a quantity has at most {MAX_TEXT}")
+    if any(ord(c) < 32 or ord(c) == 127 for c in expr):
+        raise UnitError(f"{expr!r} contains a control character")
+    at = expr.find("**")
+    while at >= 0:
+        m = _EXPONENT.match(expr, at)
+        if m is None or m.group(2) or abs(float(m.group(1).strip("() ") or "nan")) > MAX_EXPONENT:
+            raise UnitError(f"{expr!r}: an exponent must be a plain number of at most {MAX_EXPONENT} "
+                            "(no powers of powers)")
+        at = expr.find("**", m.end(1))
+
+
 @functools.lru_cache(maxsize=4096)
 def _parsed(raw: str) -> pint.Quantity:
     if not has_number(raw):
         raise UnitError(f"{raw!r} has no number")
+    _bounded(raw.replace("^", "**"))
     try:
         q = UREG.Quantity(raw.replace("^", "**"))
         q = q if isinstance(q, pint.Quantity) else UREG.Quantity(q, "")
