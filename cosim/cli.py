@@ -30,6 +30,7 @@ import sys
 from pathlib import Path
 
 from . import __version__
+from .interrupts import exit_status, interrupt_on_sigterm
 
 SCENARIO_DIR = Path(__file__).resolve().parent.parent / "scenarios"
 
@@ -242,8 +243,12 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = build_parser()
-    args = parser.parse_args(argv)
+    interrupt_on_sigterm()
+    try:
+        parser = build_parser()
+        args = parser.parse_args(argv)
+    except KeyboardInterrupt:          # Ctrl-C while the subcommands' modules load: no traceback
+        return exit_status()
     setup_logging(getattr(args, "verbose", 0) + getattr(args, "verbose_top", 0), _quiet(args))
     log = logging.getLogger("cosim.cli")
     log.debug("cosim %s, options %s", __version__, vars(args))
@@ -251,7 +256,7 @@ def main(argv: list[str] | None = None) -> int:
         return _dispatch(parser, args)
     except KeyboardInterrupt:
         log.warning("interrupted")
-        return 130
+        return exit_status()
     except (ValueError, FileNotFoundError, OSError) as exc:
         log.error(_one_line(exc))
         return 2
@@ -296,7 +301,7 @@ def _dispatch(parser, args) -> int:
         print(f"\nsweep {summary['status']}: {len(summary['points'])} points in {summary['wall_time_s']:.1f} s; "
               f"written to {folder}", file=out)
         _show(folder / "sweep.rrd", viewer, save)
-        return 0 if summary["status"] == "completed" else 1
+        return _exit_code(summary["status"])
     if args.command == "uncertainty":
         from .report import uncertainty_table
         from .uncertainty import run_uncertainty
@@ -308,7 +313,7 @@ def _dispatch(parser, args) -> int:
         print(uncertainty_table(summary), file=out)
         print(f"\nwritten to {folder}", file=out)
         _show(folder / "uncertainty.rrd", viewer, save)
-        return 0 if summary["status"].startswith("completed") else 1
+        return _exit_code(summary["status"])
     if args.command == "new":
         from .template import new_scenario
         path, bases = new_scenario(args.name, args.like, args.out)
@@ -325,6 +330,14 @@ def _dispatch(parser, args) -> int:
         return compare_main(args.run_dir)
     parser.print_help()
     return 0
+
+
+def _exit_code(status: str) -> int:
+    """A command's exit status from its summary's status: 0 when it completed (with failed samples
+    too: the band is a result), 128 + the signal when a signal interrupted it, 1 otherwise."""
+    if status.startswith("completed"):
+        return 0
+    return exit_status() if status == "interrupted" else 1
 
 
 def _refuse_structure(scenario: str, command: str) -> None:
@@ -392,7 +405,7 @@ def run_main(scenario: str, args=None) -> int:
     if result.recorder is not None and getattr(result.recorder, "serving", None):
         logging.getLogger("cosim.cli").info("serving the recording until Ctrl-C")
         result.recorder.serve_until_interrupted()
-    return {"completed": 0, "interrupted": 130}.get(result.summary["status"], 1)
+    return _exit_code(result.summary["status"])
 
 
 def _viewer(args):

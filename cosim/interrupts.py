@@ -8,10 +8,39 @@ Owns: the run's signal handling and the trimming of interrupted results. Boundar
 """
 from __future__ import annotations
 
+import contextlib
 import math
 import signal
 
 import numpy as np
+
+
+#: The signals this process has been interrupted by, in order (the exit status follows the last).
+_received: list[int] = []
+
+
+def note_signal(signum: int) -> None:
+    """Remember that ``signum`` interrupted this process (for :func:`exit_status`)."""
+    _received.append(int(signum))
+
+
+def exit_status() -> int:
+    """The exit status of a command ended by a signal, by the shell's convention 128 + the signal:
+    130 after Ctrl-C (SIGINT, also when Python raised KeyboardInterrupt itself), 143 after SIGTERM."""
+    return 128 + (_received[-1] if _received else signal.SIGINT)
+
+
+def _raise_interrupt(signum, frame):
+    note_signal(signum)
+    raise KeyboardInterrupt(f"signal {signum}")
+
+
+def interrupt_on_sigterm() -> None:
+    """Make SIGTERM end a command the way Ctrl-C does (KeyboardInterrupt: files are finished,
+    summaries say ``interrupted``, workers are ended) instead of killing it mid-write. For the
+    main thread of a command-line process."""
+    with contextlib.suppress(ValueError):       # not the main thread: Python's own handling stays
+        signal.signal(signal.SIGTERM, _raise_interrupt)
 
 
 class Interrupts:
@@ -33,7 +62,7 @@ class Interrupts:
 
     def _handle(self, signum, frame):
         self.signal = signum
-        raise KeyboardInterrupt(f"signal {signum}")
+        _raise_interrupt(signum, frame)
 
     def check(self) -> None:
         if self.signal is not None:

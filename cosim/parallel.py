@@ -7,6 +7,9 @@ Owns: one executor interface (local processes or Dask). Boundaries: no job logic
 from __future__ import annotations
 
 import os
+import signal
+import threading
+import time
 from concurrent.futures import ProcessPoolExecutor
 from contextlib import contextmanager
 
@@ -22,23 +25,67 @@ def executor(workers: int | None = None, scheduler: str | None = None):
         finally:
             client.close()
     else:
-        pool = ProcessPoolExecutor(max_workers=workers or os.cpu_count() or 1, initializer=one_thread_per_worker)
+        pool = ProcessPoolExecutor(max_workers=workers or os.cpu_count() or 1, initializer=start_worker,
+                                   initargs=(os.getpid(),))
         try:
             yield pool
+        except BaseException:
+            # Interrupted or failed: the jobs still running are of no use, and a long one (an
+            # identification start) would hold the exit for a minute.
+            pool.shutdown(wait=False, cancel_futures=True)
+            terminate_workers(pool)
+            raise
         finally:
             pool.shutdown(cancel_futures=True)
 
 
-def one_thread_per_worker() -> None:
-    """Worker start: one BLAS thread and one compiled-kernel thread per worker process. The
-    workers already fill the cores; threads on top of them oversubscribe the machine, and the
-    small dense solves of a periodic solve then slow down by orders of magnitude (measured on 2
-    cores, two workers: six 216 x 216 eigenvalue problems 3.8 s with OpenBLAS's default threads,
-    0.03 s with one)."""
+def terminate_workers(pool: ProcessPoolExecutor) -> None:
+    """End a local pool's worker processes now (SIGTERM, then SIGKILL after a second). Python
+    3.14 has ``ProcessPoolExecutor.terminate_workers`` for this; before it, the pool's process
+    table is the only handle on its workers."""
+    if hasattr(pool, "terminate_workers"):
+        pool.terminate_workers()
+        return
+    procs = list((getattr(pool, "_processes", None) or {}).values())
+    for proc in procs:
+        if proc.is_alive():
+            proc.terminate()
+    for proc in procs:
+        proc.join(timeout=1.0)
+        if proc.is_alive():
+            proc.kill()
+
+
+def start_worker(parent_pid: int) -> None:
+    """Worker start: the worker leaves the parent's Ctrl-C to the parent, ends when the parent is
+    gone, and uses one thread for BLAS and the compiled kernels.
+
+    * SIGINT ignored: a Ctrl-C in the terminal reaches the whole process group; the parent
+      decides (it cancels the jobs and ends the workers), and no worker prints a traceback.
+    * A watchdog thread ends the worker once its parent has died (SIGKILL of the parent leaves
+      no one to end it, and an idle worker would wait on its job queue forever).
+    * One thread: the workers already fill the cores; threads on top of them oversubscribe the
+      machine, and the small dense solves of a periodic solve then slow down by orders of
+      magnitude (measured on 2 cores, two workers: six 216 x 216 eigenvalue problems 3.8 s with
+      OpenBLAS's default threads, 0.03 s with one)."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    threading.Thread(target=_exit_with_parent, args=(parent_pid,), daemon=True, name="parent-watch").start()
     from threadpoolctl import threadpool_limits
     threadpool_limits(1, user_api="blas")
     from tmm_core import kernels_static
     kernels_static.THREADS = 1
+
+
+#: How often a worker checks that its parent is alive [s].
+PARENT_POLL_S = 0.5
+
+
+def _exit_with_parent(parent_pid: int) -> None:
+    """Poll the parent; once this process has been re-parented (the parent died), exit at once
+    without cleanup (the parent's queues are gone; flushing them would block)."""
+    while os.getppid() == parent_pid:
+        time.sleep(PARENT_POLL_S)
+    os._exit(1)
 
 
 def describe(scheduler: str | None) -> str:

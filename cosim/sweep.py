@@ -272,6 +272,25 @@ def run_sweep(scenario: str, rpm, engines=("tmm",), revolutions: float | None = 
         if bar is not None:
             bar.close()
     summary["wall_time_s"] = time.perf_counter() - tic
+    try:
+        fmap = _after_points(sc, folder, summary, points, rpms, resonance, progress, record_peaks)
+    except KeyboardInterrupt:
+        # The points are on disk; the figure or map in progress is not: the summary says so.
+        summary["status"] = "interrupted"
+        summary.setdefault("notes", []).append("interrupted after the points: figures or recording may be missing")
+        write_json(folder / "summary.json", summary)
+        raise
+    write_json(folder / "summary.json", summary)
+    if record and points:
+        _record(folder / "sweep.rrd", sc.name, summary["points"], fmap, (float(rpms.min()), float(rpms.max())),
+                record_peaks)
+    return folder, summary
+
+
+def _after_points(sc, folder: Path, summary: dict, points: list, rpms, resonance: bool, progress: bool,
+                  record_peaks) -> dict | None:
+    """The natural-frequency map (four-bars, unless the sweep was interrupted) and the figure;
+    fills the summary's resonance keys and figures, returns the map (or None)."""
     fmap = None
     four_bar = type(sc.mechanism).__name__ == "FourBarMechanism"
     if resonance and not four_bar:
@@ -294,14 +313,10 @@ def run_sweep(scenario: str, rpm, engines=("tmm",), revolutions: float | None = 
     if points:
         from .resonance import plot_sweep
         summary["figures"] = [str(x.name) for x in plot_sweep(folder, sc.name, summary["points"], fmap,
-                                                                marks_rpm=[abs(sc.drive.speed_rad_s) * 30 / math.pi],
+                                                                marks_rpm=[sc.drive.speed_rpm],
                                                                 record_peaks=record_peaks,
                                                                 not_steady_rpm=summary.get("points_not_steady", ()))]
-    write_json(folder / "summary.json", summary)
-    if record and points:
-        _record(folder / "sweep.rrd", sc.name, summary["points"], fmap, (float(rpms.min()), float(rpms.max())),
-                record_peaks)
-    return folder, summary
+    return fmap
 
 
 def _save(folder: Path, summary: dict, points: list, rows: list) -> None:

@@ -151,7 +151,13 @@ def run_uncertainty(scenario: str, samples: int | None = None, seed: int | None 
     design = morris_design(unknowns, r, seed) if sensitivity else (None, None, [])
     runs = [None] + lhs + design[2]
     tic = time.perf_counter()
-    results = evaluate(sc, unknowns, runs, settings, workers, scheduler, desc=f"uncertainty {sc.name}" if progress else None)
+    try:
+        results = evaluate(sc, unknowns, runs, settings, workers, scheduler,
+                           desc=f"uncertainty {sc.name}" if progress else None)
+    except KeyboardInterrupt:
+        summary["status"] = "interrupted"        # the samples are lost with the workers: nothing to keep
+        write_json(folder / "summary.json", summary)
+        raise
     nominal, mc, mo = results[0], results[1:1 + n], results[1 + n:]
     summary["wall_time_s"] = time.perf_counter() - tic
     summary["failed_samples"] = [f"sample {i}: {x.get('error')}" for i, x in enumerate(mc + mo)
