@@ -19,7 +19,8 @@ same as with any other command whose output was cut short).
 Output: the tables (and where the results were written) go to stdout (with ``--stdout`` the
 recording goes there, and the tables to stderr); progress bars and messages
 go to stderr through :mod:`logging` (``-v`` adds detail, ``-q`` leaves only warnings and errors
-and switches the bars off; bars are off anyway when stderr is not a terminal). Results are
+and switches the bars off; bars are off anyway when stderr is not a terminal). The ``--serve``
+viewer's address is printed on stderr even with ``-q`` (:func:`cosim.recording.sinks.announce_serving`). Results are
 written under ``./logs/`` of the current directory unless ``--out`` says otherwise.
 
 Owns: the ``cosim`` command: arguments, dispatch, exit codes, logging set-up. Boundaries: no
