@@ -22,7 +22,7 @@ import rerun as rr
 import rerun.blueprint as rrb
 
 from .charts import Chart, Series, log_chart
-from .layout import RECORD_COLORS, engine_color, part, shades
+from .layout import RECORD_COLORS, engine_color, part, recording_id, shades
 
 MODE_COLORS = [(31, 119, 180), (255, 127, 14), (44, 160, 44), (214, 39, 40), (148, 103, 189), (140, 86, 75)]
 HARMONIC_COLOR = (110, 110, 110)
@@ -30,8 +30,8 @@ DEGREE_TICKS = (0.0, 90.0, 180.0, 270.0, 360.0)
 NOMINAL_COLOR = (230, 170, 0)             # stands out from the band's blues, readable as label text
 
 
-def _open(path, app: str, recording_id: str):
-    rec = rr.RecordingStream(app, recording_id=recording_id)
+def _open(path, app: str, label: str):
+    rec = rr.RecordingStream(app, recording_id=recording_id(label, path))
     rec.set_sinks(rr.FileSink(str(path)))
     return rec
 
