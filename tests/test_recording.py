@@ -381,3 +381,21 @@ def test_summary_recordings_of_two_runs_have_their_own_ids(tmp_path):
         for p in paths:
             p.unlink()
             p.parent.rmdir()
+
+
+def test_chart_tick_values_are_strokes_not_point_labels(tmp_path):
+    """Issue 31: a chart's point labels are its two axis titles only; the tick values are line
+    strokes (point labels sit below their point, off the grid line)."""
+    import rerun as rr
+
+    from cosim.recording import read_static
+    from cosim.recording.charts import Chart, Series, log_chart
+    rec = rr.RecordingStream("test-charts")
+    rec.set_sinks(rr.FileSink(str(tmp_path / "c.rrd")))
+    log_chart(rec, Chart("/c", "c", "crank speed [rpm]", "frequency [Hz]",
+                         [Series("mode 1 [Hz]", [90.0, 100.0], [79.0, 79.0], (0, 0, 200))], y_range=(0.0, 120.0)))
+    rec.flush()
+    rec.disconnect()
+    assert list(read_static(tmp_path / "c.rrd", "/c/labels", "Points2D:labels")) == ["crank speed [rpm]",
+                                                                                    "frequency [Hz]"]
+    assert len(read_static(tmp_path / "c.rrd", "/c/ticks", "LineStrips2D:strips")) > 7 * 2
