@@ -195,9 +195,39 @@ def test_band_figure_uses_readable_names(tmp_path):
     assert "fe_table1" not in svg and "coupler_mid" not in svg
 
 
+def run_cell_as_jupyter(source: str, name: str, namespace: dict) -> list:
+    """Run a code cell as Jupyter with matplotlib's inline backend would, and return the figures
+    it displays, once per display: the cell's value when it is a figure (the last line an
+    expression), every open figure at ``plt.show()`` (which then closes them), and every figure
+    still open at the end of the cell."""
+    import ast
+
+    import matplotlib.pyplot as plt
+    from matplotlib.figure import Figure
+    shown = []
+
+    def show(*args, **kwargs):
+        shown.extend(plt.figure(n) for n in plt.get_fignums())
+        plt.close("all")
+    namespace["plt"] = plt
+    tree = ast.parse(source)
+    last = tree.body.pop() if tree.body and isinstance(tree.body[-1], ast.Expr) else None
+    real_show, plt.show = plt.show, show
+    try:
+        exec(compile(tree, name, "exec"), namespace)
+        value = eval(compile(ast.Expression(last.value), name, "eval"), namespace) if last else None
+    finally:
+        plt.show = real_show
+    shown += [value] if isinstance(value, Figure) else []
+    shown += [plt.figure(n) for n in plt.get_fignums()]
+    plt.close("all")
+    return shown
+
+
 def test_the_notebook_runs_and_loads_the_run(tmp_path, monkeypatch):
     """scenarios/notebooks/compare_engines.ipynb, code cells in order in a fresh namespace (no
-    Jupyter kernel), matplotlib on Agg, from a temporary working directory (its ./logs)."""
+    Jupyter kernel), matplotlib on Agg, from a temporary working directory (its ./logs). Issue 31:
+    its figure was shown twice (plt's inline display and the cell's value ``fig``); once now."""
     import matplotlib
     import nbformat
     matplotlib.use("Agg")
@@ -206,9 +236,11 @@ def test_the_notebook_runs_and_loads_the_run(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     namespace = {"__name__": "__notebook__"}
     tic = time.perf_counter()
+    displayed = []
     for i, cell in enumerate(c for c in nb.cells if c.cell_type == "code"):
-        exec(compile(cell.source, f"compare_engines.ipynb cell {i}", "exec"), namespace)
+        displayed += run_cell_as_jupyter(cell.source, f"compare_engines.ipynb cell {i}", namespace)
     assert time.perf_counter() - tic < 60
+    assert len(displayed) == 1 and displayed[0] is namespace["fig"], displayed      # the figure, once
     run = namespace["run"]
     assert isinstance(run, cosim.RunData) and set(run.engines) == {"tmm", "mujoco"}
     assert Path(namespace["result"].folder).parent == tmp_path / "logs"
