@@ -258,3 +258,26 @@ def test_an_engine_without_results_is_named_on_the_figure(run95, tmp_path):
     (folder / "summary.json").write_text(json.dumps(summary))
     svg = plot_strains(folder)[1].read_text(encoding="utf-8")
     assert "no result: exudyn (unavailable)" in svg
+
+
+def test_band_figure_says_the_nominal_is_not_a_sample(tmp_path):
+    """Issue 31: the nominal curve left the envelope with no word why. It is the scenario as
+    written (at 373 rpm a constant crank speed, an infinite drive inertia outside the declared
+    range), not a sample; the figure says so."""
+    from cosim.scenario import load
+    from cosim.uncertainty import nominal_note, plot_band
+    from cosim.unknowns import declared
+    sc = load("crank_rocker_373rpm")
+    note = nominal_note(declared(sc.raw, str(sc.path))[2])
+    assert "not one of the samples" in note and "infinite drive inertia" in note and "'drive_inertia'" in note
+    rows = [{"gauge": "coupler_mid", "crank_angle_deg": a, "nominal_ue": 300.0, "low_ue": -120.0, "high_ue": 120.0,
+             "p5_ue": -110.0, "p95_ue": 110.0} for a in range(0, 360, 10)]
+    plot_band(tmp_path, "crank_rocker_373rpm", rows, [], note)
+    svg = (tmp_path / "band.svg").read_text(encoding="utf-8")
+    assert "nominal (scenario as written, not a sample)" in svg and "envelope of the samples" in svg
+    assert "infinite drive inertia" in svg
+
+
+def test_the_nominal_note_names_no_drive_inertia_when_none_is_declared():
+    from cosim.uncertainty import nominal_note
+    assert "inertia" not in nominal_note({})

@@ -5,7 +5,8 @@
 largest Floquet multiplier against speed (with the line |mu| = 1), the Campbell diagram (crank
 harmonics and the natural-frequency bands against speed) and the natural frequencies over a
 revolution [deg]. ``uncertainty.rrd``: per gauge the band of predicted bending strain over the
-crank angle (envelope, 5-95 %, nominal) with the recorded peaks. All charts are static, so every
+crank angle (envelope of the samples, 5-95 %, nominal: the scenario as written, which is not a
+sample and may leave the envelope) with the recorded peaks. All charts are static, so every
 panel shows at once, whatever the timeline.
 
 Both are written to their file only; ``cosim sweep/uncertainty`` then show the finished file in
@@ -141,11 +142,14 @@ def uncertainty_recording(path, name: str, rows: list, records: list) -> None:
 
         def col(key):
             return np.array([r[key] for r in rr_], dtype=float)
-        series = [Series("envelope low [µε]", a, col("low_ue"), light, width=1.0, dots=False),
-                  Series("envelope high [µε]", a, col("high_ue"), light, width=1.0, dots=False),
+        # The nominal is the scenario as written, not a sample: it may leave the samples' envelope
+        # (cosim.uncertainty.nominal_note), which its name says.
+        series = [Series("envelope of the samples, low [µε]", a, col("low_ue"), light, width=1.0, dots=False),
+                  Series("envelope of the samples, high [µε]", a, col("high_ue"), light, width=1.0, dots=False),
                   Series("5 % [µε]", a, col("p5_ue"), color, width=1.5, dots=False),
                   Series("95 % [µε]", a, col("p95_ue"), color, width=1.5, dots=False),
-                  Series("nominal [µε]", a, col("nominal_ue"), NOMINAL_COLOR, width=2.0, dots=False)]
+                  Series("nominal: scenario as written, not a sample [µε]", a, col("nominal_ue"), NOMINAL_COLOR,
+                         width=2.0, dots=False)]
         for i, x in enumerate(r for r in records if r["gauge"] == g):
             c = RECORD_COLORS[i % len(RECORD_COLORS)]
             series.append(Series(f"{x['record']} {x['peak']}peak, {'inside' if x['inside'] else 'OUTSIDE'} the band",
