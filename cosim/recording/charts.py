@@ -152,7 +152,8 @@ def log_chart(rec: rr.RecordingStream, chart: Chart) -> rrb.Spatial2DView:
     grid = [to_view([x, x], [y0, y1]) for x in xt] + [to_view([x0, x1], [y, y]) for y in yt]
     rec.log(f"{root}/grid", rr.LineStrips2D(grid, colors=[GRID_COLOR], radii=[rr.Radius.ui_points(0.5)],
                                            draw_order=0.5), static=True)
-    figures = [stroke for *_, strokes in tick_labels(to_view, (x0, x1), (y0, y1), chart.x_ticks) for stroke in strokes]
+    labels = tick_labels(to_view, (x0, x1), (y0, y1), chart.x_ticks)
+    figures = [stroke for *_, strokes in labels for stroke in strokes]
     rec.log(f"{root}/ticks", rr.LineStrips2D(figures, colors=[TICK_COLOR], radii=[rr.Radius.ui_points(0.6)],
                                             draw_order=1.0), static=True)
     labels = [((WIDTH / 2, 0.15), chart.x_label), ((-0.05, -HEIGHT - 0.08), chart.y_label)]
