@@ -10,13 +10,17 @@
     cosim synthesize --case I|II ...             link lengths of a rigid crank-rocker (cosim.synthesis)
 
 Bad input (unknown scenario or engine, malformed range, bad scenario file) ends with a one-line
-``error: ...`` on stderr and exit status 2; a run in which an engine failed exits with 1.
+``error: ...`` on stderr and exit status 2; a run in which an engine failed exits with 1. A
+stdout closed by its reader (``cosim compare ... | head``) ends quietly with exit status 141
+(128 + SIGPIPE, what ``git log | head`` or ``yes | head`` give, so ``set -o pipefail`` sees the
+same as with any other command whose output was cut short).
 ``python -m cosim`` is the same command.
 
 Output: the tables (and where the results were written) go to stdout (with ``--stdout`` the
 recording goes there, and the tables to stderr); progress bars and messages
 go to stderr through :mod:`logging` (``-v`` adds detail, ``-q`` leaves only warnings and errors
-and switches the bars off; bars are off anyway when stderr is not a terminal). Results are
+and switches the bars off; bars are off anyway when stderr is not a terminal). The ``--serve``
+viewer's address is printed on stderr even with ``-q`` (:func:`cosim.recording.sinks.announce_serving`). Results are
 written under ``./logs/`` of the current directory unless ``--out`` says otherwise.
 
 Owns: the ``cosim`` command: arguments, dispatch, exit codes, logging set-up. Boundaries: no
@@ -26,6 +30,7 @@ from __future__ import annotations
 
 import argparse
 import logging
+import os
 import sys
 from pathlib import Path
 
@@ -253,10 +258,15 @@ def main(argv: list[str] | None = None) -> int:
     log = logging.getLogger("cosim.cli")
     log.debug("cosim %s, options %s", __version__, vars(args))
     try:
-        return _dispatch(parser, args)
+        status = _dispatch(parser, args)
+        sys.stdout.flush()              # here, not at exit, where a closed pipe would print a traceback
+        return status
     except KeyboardInterrupt:
         log.warning("interrupted")
         return exit_status()
+    except BrokenPipeError:             # the reader of stdout has gone (`| head`): nothing to say
+        _silence_stdout()
+        return EXIT_BROKEN_PIPE
     except (ValueError, FileNotFoundError, OSError) as exc:
         log.error(_one_line(exc))
         return 2
@@ -268,6 +278,20 @@ def main(argv: list[str] | None = None) -> int:
             log.error(_one_line(exc))
             return 2
         raise
+
+
+#: Exit status when stdout's reader closed the pipe: 128 + SIGPIPE (13), the shell's convention.
+EXIT_BROKEN_PIPE = 141
+
+
+def _silence_stdout() -> None:
+    """Point stdout at the null device, so that the interpreter's final flush of what is still
+    buffered for the closed pipe neither fails nor prints (the recipe of Python's signal docs)."""
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+    except (OSError, ValueError, AttributeError):     # a stdout without a file descriptor (captured)
+        pass
 
 
 def _one_line(exc) -> str:

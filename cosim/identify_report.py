@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .recording.layout import recording_id
+
 
 def _rows(result):
     names = result["calibration_scenarios"] + result["validation_scenarios"]
@@ -60,7 +62,8 @@ def plot(folder, result: dict, preds: dict) -> list:
 def record_rrd(path, result: dict, preds: dict) -> None:
     import rerun as rr
     import rerun.blueprint as rrb
-    rec = rr.RecordingStream("flexlink-bench-identify", recording_id="identify-" + "+".join(result["calibration_scenarios"]))
+    rec = rr.RecordingStream("flexlink-bench-identify",
+                             recording_id=recording_id("identify-" + "+".join(result["calibration_scenarios"]), path))
     rec.save(str(path))
     views = []
     for name in _rows(result):

@@ -338,10 +338,43 @@ def _meta(r: Reader, meta: dict, default_name: str):
     return name, description, tuple(sources), rig
 
 
+#: The values a structural link's material and section take (outside them a number was written in
+#: the wrong unit): a modulus of 0.1-1000 GPa [Pa], a density at most 30 000 kg/m^3 (osmium is
+#: 22 600) and a slenderness (length over the section's radius of gyration) at most 3000 (a strip
+#: 1 m long and 1 mm deep). Only the ends that lower the bending frequency are checked.
+STRUCTURAL_E_PA = (1e8, 1e12)
+STRUCTURAL_MAX_DENSITY = 3e4
+STRUCTURAL_MAX_SLENDERNESS = 3000.0
+
+
+def _soft_link_key(top: dict, link) -> tuple[str, object, str]:
+    """``(key, written value, what to check)`` of the value that puts ``link``'s first bending
+    frequency below the crank's: its material's modulus or density, or its section's depth
+    (inertia when written as area and inertia), whichever lies outside a structural link's
+    range; else ``drive.speed`` (a speed no linkage turns at)."""
+    mat, E = link.material.name, link.material.E_Pa
+    written = top.get("materials", {}).get(mat, {})
+    if not STRUCTURAL_E_PA[0] <= E <= STRUCTURAL_E_PA[1]:
+        return f"materials.{mat}.E", rd.peek(written.get("E", E)), "the modulus and its unit"
+    if link.material.density_kg_m3 > STRUCTURAL_MAX_DENSITY:
+        return (f"materials.{mat}.density", rd.peek(written.get("density", link.material.density_kg_m3)),
+                "the density and its unit")
+    slenderness = link.length_m / math.sqrt(link.section.inertia_m4 / link.section.area_m2)
+    sec = rd.peek(top.get("links", {}).get(link.name, {}).get("section"))
+    sec_table = top.get("sections", {}).get(sec, {}) if isinstance(sec, str) else {}
+    if slenderness > STRUCTURAL_MAX_SLENDERNESS and isinstance(sec_table, dict) and sec_table:
+        part = "depth" if "width" in sec_table else "inertia"      # a rectangle bends in plane over its depth
+        return (f"sections.{sec}.{part}", rd.peek(sec_table.get(part)),
+                f"the section's {part} and its unit: the {link.length_m:.3g} m {link.name} is {slenderness:.3g} "
+                "radii of gyration long, a link typically a few hundred")
+    return "drive.speed", rd.peek(top.get("drive", {}).get("speed")), "the number and its unit"
+
+
 def _check_stiffness(r: Reader, top: dict, mech, drive) -> None:
-    """Refuse a link far too soft for any linkage (a modulus or section written in the wrong unit):
-    its first bending frequency (pinned-pinned span) below the crank's turning frequency, where
-    the transfer matrices of the turning link overflow. Names the material's modulus."""
+    """Refuse a link far too soft for any linkage (a modulus, density or section written in the
+    wrong unit): its first bending frequency (pinned-pinned span) below the crank's turning
+    frequency, where the transfer matrices of the turning link overflow. Names the key whose value
+    is outside a structural link's range (:func:`_soft_link_key`), the speed if none is."""
     speed = abs(drive.speed_rad_s)
     links = getattr(mech, "links", None)
     if not speed or links is None:
@@ -354,17 +387,15 @@ def _check_stiffness(r: Reader, top: dict, mech, drive) -> None:
         if not m > 0:
             continue
         omega1 = (math.pi / link.length_m) ** 2 * math.sqrt(EI / m)      # first bending mode [rad/s]
-        if omega1 < speed and 1e8 <= link.material.E_Pa <= 1e12:
-            # A structural modulus (0.1-1000 GPa): the speed is what is out of range.
-            raise r.fail("drive.speed", f"turns the crank at {speed / (2 * math.pi):.3g} Hz, above the {link.name}'s "
-                                        f"first bending frequency {omega1 / (2 * math.pi):.3g} Hz: no linkage runs "
-                                        "there (check the number and its unit)", rd.peek(top.get("drive", {}).get("speed")))
         if omega1 < speed:
-            raise r.fail(f"materials.{link.material.name}.E",
-                         f"the {link.name} is far too soft for a linkage: its first bending frequency "
-                         f"{omega1 / (2 * math.pi):.3g} Hz lies below the crank's {speed / (2 * math.pi):.3g} Hz "
-                         "(check the modulus, the section and their units)",
-                         rd.peek(top.get("materials", {}).get(link.material.name, {}).get("E", link.material.E_Pa)))
+            key, value, what = _soft_link_key(top, link)
+            if key == "drive.speed":
+                raise r.fail(key, f"turns the crank at {speed / (2 * math.pi):.3g} Hz, above the {link.name}'s "
+                                  f"first bending frequency {omega1 / (2 * math.pi):.3g} Hz: no linkage runs "
+                                  f"there (check {what})", value)
+            raise r.fail(key, f"the {link.name} is far too soft for a linkage: its first bending frequency "
+                              f"{omega1 / (2 * math.pi):.3g} Hz lies below the crank's {speed / (2 * math.pi):.3g} Hz "
+                              f"(check {what})", value)
         # Rayleigh coefficients: the modal ratio they give at the link's first mode, below critical
         # like a written ratio (a coefficient in the wrong unit damps every mode away).
         d = link.damping

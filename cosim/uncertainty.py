@@ -22,7 +22,12 @@ solve. Runs go to a ``concurrent.futures`` executor (local processes or a Dask c
 
 * **Band**: the envelope (and the 5-95 % percentiles of the Latin hypercube samples) of the bending
   strain over the crank angle, over every sample (Latin hypercube and Morris design, the nominal
-  run excluded), and the range of each +/- peak.
+  run excluded), and the range of each +/- peak. The nominal run is the scenario as written, not a
+  sample: where its values lie outside the declared ranges (a prescribed constant crank speed is
+  an infinite drive inertia, outside any declared ``model.drive_inertia`` range) or at their
+  edges (no gravity, no wire moment, no friction), a finite sample does not come near it and the
+  nominal curve leaves the envelope. That is the design, not an error; :func:`nominal_note` says
+  so on the figure and in ``summary.json``.
 * **Sensitivity**: Morris elementary effects (SALib) of every +/- bending peak per gauge; ``mu*``
   is given as the change of the peak over the unknown's whole range [microstrain] (for a choice:
   between its values), and the unknowns are ranked by their mean normalized ``mu*``.
@@ -36,6 +41,7 @@ from __future__ import annotations
 
 import logging
 import math
+import textwrap
 import time
 from pathlib import Path
 
@@ -54,6 +60,18 @@ def parameters(raw: dict, path: str = "<scenario>") -> tuple:
     """``(samples, seed, {name: description})`` of the declared unknowns (see :func:`cosim.unknowns.declared`)."""
     n, seed, unknowns, _ = declared(raw, path)
     return n, seed, {k: u.describe() for k, u in unknowns.items()}
+
+
+def nominal_note(unknowns: dict) -> str:
+    """Why the nominal curve may leave the envelope (shown under the band figure, kept in
+    ``summary.json``): it is the scenario as written, not a sample."""
+    note = ("nominal: the scenario as written, not one of the samples; the envelope is the range of the "
+            "samples, so the nominal leaves it where its values lie outside or at the edge of the declared ranges")
+    inertia = [name for name, u in unknowns.items() if "model.drive_inertia" in u.keys]
+    if inertia:
+        note += (f" (here: it turns the crank at a constant speed, an infinite drive inertia, outside the declared "
+                 f"'{inertia[0]}' range)")
+    return note
 
 
 def draw(unknowns: dict, n: int, seed: int) -> list:
@@ -169,6 +187,7 @@ def run_uncertainty(scenario: str, samples: int | None = None, seed: int | None 
         write_json(folder / "summary.json", summary)
         return folder, summary
     summary.update(band_summary(nominal, every, [x for x in mc if x.get("status") == "completed"]))
+    summary["nominal_note"] = nominal_note(unknowns)
     rows = summary.pop("_rows")
     if sensitivity:
         summary["sensitivity"] = morris_ranking(design[0], design[1], mo, unknowns, list(nominal["gauges"]), seed)
@@ -178,7 +197,8 @@ def run_uncertainty(scenario: str, samples: int | None = None, seed: int | None 
     summary["records"] = record_check(sc, summary["band"], records_dir)
     summary["status"] = "completed" if not summary["failed_samples"] else "completed with failed samples"
     write_csv(folder / "band.csv", rows)
-    summary["figures"] = [p.name for p in plot_band(folder, sc.name, rows, summary["records"])]
+    summary["figures"] = [p.name for p in plot_band(folder, sc.name, rows, summary["records"],
+                                                    summary["nominal_note"])]
     write_json(folder / "summary.json", summary)
     if record:
         _record(folder / "uncertainty.rrd", sc, rows, summary["records"])
@@ -247,7 +267,10 @@ def parallel_map(fn, argsets, workers, scheduler, desc: str | None = None):
         return [f.result() for f in futures]
 
 
-def plot_band(folder, name, rows, records):
+def plot_band(folder, name, rows, records, note: str = ""):
+    """``band.png`` and ``band.svg``: per gauge the envelope and 5-95 % band of the samples' bending
+    strain [µε] over the crank angle [deg], the nominal curve, the recorded peaks; ``note`` (see
+    :func:`nominal_note`) under the panels."""
     from .figures import gauge_label, new_figure, save
     gauges = sorted({r["gauge"] for r in rows})
     fig = new_figure(figsize=(6.5 * len(gauges), 4.6), layout="constrained")
@@ -255,9 +278,10 @@ def plot_band(folder, name, rows, records):
     for ax, g in zip(axes[0], gauges):
         rr = [r for r in rows if r["gauge"] == g]
         a = [r["crank_angle_deg"] for r in rr]
-        ax.fill_between(a, [r["low_ue"] for r in rr], [r["high_ue"] for r in rr], alpha=0.25, label="envelope")
+        ax.fill_between(a, [r["low_ue"] for r in rr], [r["high_ue"] for r in rr], alpha=0.25,
+                        label="envelope of the samples")
         ax.fill_between(a, [r["p5_ue"] for r in rr], [r["p95_ue"] for r in rr], alpha=0.35, label="5-95 %")
-        ax.plot(a, [r["nominal_ue"] for r in rr], "k", lw=1, label="nominal")
+        ax.plot(a, [r["nominal_ue"] for r in rr], "k", lw=1, label="nominal (scenario as written, not a sample)")
         for rec in records:
             if rec["gauge"] == g:
                 ax.axhline(rec["recorded_ue"], ls="--" if rec["peak"] == "+" else "-.", color="C3",
@@ -268,6 +292,8 @@ def plot_band(folder, name, rows, records):
         ax.set_ylabel("bending strain [µε]")
         ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.16), ncol=2)   # under the axis, off the band
         ax.grid(alpha=0.3)
+    if note:
+        fig.supxlabel(textwrap.fill(note, 110 * len(gauges)), fontsize=7)      # ~110 characters a panel
     return save(fig, folder, "band")
 
 

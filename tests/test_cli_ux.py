@@ -1,6 +1,7 @@
 """Issue 18 items 4, 5, 7, 10, 11: where results go, progress and logging, `python -m cosim`,
 a robust `cosim compare`, the user's own records and scenarios (`--records`, `cosim new`, `extends`)."""
 import json
+import os
 import shutil
 import subprocess
 import sys
@@ -90,6 +91,21 @@ def test_compare_prints_a_sweep_folders_own_table(tmp_path, capsys):
     assert "sweep of crank_rocker_95rpm" in out and "2 of 2 points" in out
     assert "28.0" in out and "TMMError: buckling" in out and "no solution at [100.0] rpm" in out
     assert "mode 1 x harmonic 47" in out
+
+
+def test_compare_into_a_closed_pipe_ends_quietly(tmp_path):
+    """Issue 31: `cosim compare ... | head` ended with 'Broken pipe' and exit 2. The read end is
+    closed before the command starts, so its first write meets a closed pipe whatever the timing."""
+    folder = write_summary(tmp_path / "sw", SWEEP)
+    read_end, write_end = os.pipe()
+    os.close(read_end)
+    try:
+        res = subprocess.run([sys.executable, "-m", "cosim", "compare", str(folder)], stdout=write_end,
+                             stderr=subprocess.PIPE, text=True, cwd=ROOT, timeout=600)
+    finally:
+        os.close(write_end)
+    assert res.returncode == 141, res.stderr            # 128 + SIGPIPE, the shell's convention
+    assert res.stderr == ""
 
 
 def test_compare_prints_an_uncertainty_folders_own_table(tmp_path, capsys):

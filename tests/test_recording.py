@@ -348,3 +348,54 @@ def test_bad_reference(sc, tmp_path):
     rec.close()
     with pytest.raises(RuntimeError, match="closed"):
         rec.log_text("a", "b")
+
+
+# -- issue 31: summary recordings of two runs opened together stay two ------------------------------
+def _ids(path):
+    from rerun.chunk import RrdReader
+    store = RrdReader(str(path)).recordings()[0]
+    return store.application_id, store.recording_id
+
+
+def test_summary_recordings_of_two_runs_have_their_own_ids(tmp_path):
+    """Sweep, uncertainty and identification recordings had fixed recording ids ('<name>-sweep'
+    ...), so two of them opened in one viewer merged. Two runs of the same scenario, into folders
+    of the same name (``--out`` elsewhere), must differ; the application id stays fixed."""
+    from cosim.identify_report import record_rrd
+    from cosim.recording.summaries import sweep_recording, uncertainty_recording
+    points = [{"rpm": 90.0, "engines": {"tmm": {"gauges": {"g": {"bending_max_ue": 1.0, "bending_min_ue": -1.0}}}}}]
+    rows = [{"gauge": "g", "crank_angle_deg": a, "low_ue": -1.0, "high_ue": 1.0, "p5_ue": -0.5, "p95_ue": 0.5,
+             "nominal_ue": 0.0} for a in (0.0, 180.0)]
+    result = {"calibration_scenarios": ["rig"], "validation_scenarios": [], "predictions": {"rig": {"rpm": 90.0}}}
+    write = {"flexlink-bench-sweep": lambda p: sweep_recording(p, "rig", points),
+             "flexlink-bench-uncertainty": lambda p: uncertainty_recording(p, "rig", rows, []),
+             "flexlink-bench-identify": lambda p: record_rrd(p, result, {"rig": {"gauges": {}}})}
+    for app, draw in write.items():
+        paths = [tmp_path / run / "rig-run" / "summary.rrd" for run in ("a", "b")]
+        for p in paths:
+            p.parent.mkdir(parents=True)
+            draw(p)
+        (app_a, id_a), (app_b, id_b) = _ids(paths[0]), _ids(paths[1])
+        assert app_a == app_b == app
+        assert id_a != id_b and "rig-run" in id_a, (id_a, id_b)
+        for p in paths:
+            p.unlink()
+            p.parent.rmdir()
+
+
+def test_chart_tick_values_are_strokes_not_point_labels(tmp_path):
+    """Issue 31: a chart's point labels are its two axis titles only; the tick values are line
+    strokes (point labels sit below their point, off the grid line)."""
+    import rerun as rr
+
+    from cosim.recording import read_static
+    from cosim.recording.charts import Chart, Series, log_chart
+    rec = rr.RecordingStream("test-charts")
+    rec.set_sinks(rr.FileSink(str(tmp_path / "c.rrd")))
+    log_chart(rec, Chart("/c", "c", "crank speed [rpm]", "frequency [Hz]",
+                         [Series("mode 1 [Hz]", [90.0, 100.0], [79.0, 79.0], (0, 0, 200))], y_range=(0.0, 120.0)))
+    rec.flush()
+    rec.disconnect()
+    assert list(read_static(tmp_path / "c.rrd", "/c/labels", "Points2D:labels")) == ["crank speed [rpm]",
+                                                                                    "frequency [Hz]"]
+    assert len(read_static(tmp_path / "c.rrd", "/c/ticks", "LineStrips2D:strips")) > 7 * 2

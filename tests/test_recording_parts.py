@@ -99,6 +99,39 @@ def test_chart_ticks():
     np.testing.assert_allclose(ticks(-2600.0, 1800.0), [-2000, -1000, 0, 1000])
 
 
+def test_y_tick_values_are_centred_on_their_grid_lines():
+    """Issue 31: rerun draws a point's label below the point, so the y values of the sweep and
+    band charts sat under their grid lines (79 Hz read as 100). Drawn as strokes, each value's
+    figure is centred on its own grid line (and each x value under its tick)."""
+    from cosim.recording.charts import HEIGHT, WIDTH, tick_labels
+
+    def to_view(x, y):                     # the chart's frame: (0, 0) bottom left, y down in view units
+        return np.column_stack([np.asarray(x, float) / 360.0 * WIDTH, -np.asarray(y, float) / 120.0 * HEIGHT])
+    labels = tick_labels(to_view, (0.0, 360.0), (0.0, 120.0), x_ticks=(0.0, 90.0, 180.0, 270.0, 360.0))
+    ys = {text: strokes for axis, _, text, strokes in labels if axis == "y"}
+    assert sorted(ys, key=float) == ["0", "20", "40", "60", "80", "100", "120"]
+    for text, strokes in ys.items():
+        pts = np.concatenate(strokes)
+        line = -float(text) / 120.0 * HEIGHT
+        assert (pts[:, 1].min() + pts[:, 1].max()) / 2 == pytest.approx(line, abs=1e-12), text
+        assert pts[:, 1].min() < line < pts[:, 1].max() and pts[:, 0].max() < 0      # across it, left of the frame
+    xs = {text: strokes for axis, _, text, strokes in labels if axis == "x"}
+    assert list(xs) == ["0", "90", "180", "270", "360"]
+    for text, strokes in xs.items():
+        pts = np.concatenate(strokes)
+        # the figures' box is centred; the ink of a '1' sits at its box's right: within 0.02 (ticks 0.4 apart)
+        assert (pts[:, 0].min() + pts[:, 0].max()) / 2 == pytest.approx(float(text) / 360.0 * WIDTH, abs=0.02)
+        assert pts[:, 1].min() > 0                                                      # below the frame
+
+
+def test_tick_figures_have_their_segments():
+    from cosim.recording.charts import figure_strokes
+    assert len(figure_strokes("8", 0.0, 0.0)) == 7 and len(figure_strokes("1", 0.0, 0.0)) == 2
+    assert len(figure_strokes("-1.5", 0.0, 0.0)) == 1 + 2 + 1 + 5          # minus, one, point, five
+    right = max(p[:, 0].max() for p in figure_strokes("120", -0.03, 0.0))
+    assert right == pytest.approx(-0.03)                                    # right-aligned at the anchor
+
+
 @pytest.mark.parametrize("argv, viewer, url, save, stdout", [
     ([], "save", None, None, False),
     (["--headless"], "save", None, None, False),

@@ -166,3 +166,58 @@ def test_the_writer_process_imports_this_cosim_whatever_the_working_directory(tm
         rec.log_macro_step(step)
     assert rec.close() == []
     assert read_back(tmp_path / "run.rrd")["/tmm/strain/coupler_mid"] > 10
+
+
+# -- issue 31: `-q --serve-web` still prints the viewer's address ----------------------------------
+# Rerun's servers are replaced by stand-ins: these tests open no port.
+WEB_ADDRESS = "http://127.0.0.1:9090/?url=rerun%2Bhttp%3A%2F%2F127.0.0.1%3A9876%2Fproxy"
+
+
+class _Stream:
+    """A stand-in for a rerun RecordingStream: keeps the sinks it is given."""
+    sinks = ()
+
+    def set_sinks(self, *sinks):
+        self.sinks = sinks
+
+
+def test_quiet_serve_of_a_run_still_prints_the_address(monkeypatch, capsys):
+    import rerun as rr
+
+    from cosim.cli import setup_logging
+    from cosim.recording.sinks import ViewerOptions, attach
+    served = []
+    monkeypatch.setattr(rr, "GrpcServerSink", lambda port: ("grpc server", port))
+    monkeypatch.setattr(rr, "serve_web_viewer", lambda **kw: served.append(kw))
+    setup_logging(quiet=True)
+    try:
+        urls = attach(_Stream(), None, ViewerOptions("serve"))
+    finally:
+        setup_logging()
+    assert urls == ["rerun+http://127.0.0.1:9876/proxy"] and served[0]["web_port"] == 9090
+    assert WEB_ADDRESS in capsys.readouterr().err
+
+
+def test_quiet_serve_of_a_sweep_file_still_prints_the_address(monkeypatch, capsys, tmp_path):
+    from cosim.cli import setup_logging
+    from cosim.recording import sinks
+    started = []
+
+    class Viewer:                          # `rerun --serve-web FILE` that ends at once
+        def __init__(self, argv, **kw):
+            started.append(argv)
+
+        def wait(self, timeout=None):
+            return 0
+
+        def poll(self):
+            return 0
+    monkeypatch.setattr(sinks, "rerun_executable", lambda: "rerun")
+    monkeypatch.setattr(subprocess, "Popen", Viewer)
+    setup_logging(quiet=True)
+    try:
+        assert sinks.show_file(tmp_path / "sweep.rrd", sinks.ViewerOptions("serve")) == []
+    finally:
+        setup_logging()
+    assert started and "--serve-web" in started[0]
+    assert WEB_ADDRESS in capsys.readouterr().err

@@ -94,6 +94,12 @@ def test_a_percent_damping_and_the_shipped_scenarios_still_load():
     ({"links.coupler.point_masses[0].position": "0.3 in"}, "links.coupler.point_masses[0].position",
      "not at a node"),
     ({"materials.aluminium.E": "1e-3 psi"}, "materials.aluminium.E", "far too soft"),     # was 'more segments'
+    # issue 31: a density or section that makes the link too soft was named 'drive.speed'
+    ({"materials.aluminium.density": "5.292e4 slug/ft^3"}, "materials.aluminium.density", "'5.292e4 slug/ft^3'"),
+    ({"sections.strip.depth": "0.0125 mm"}, "sections.strip.depth", "'0.0125 mm'"),
+    ({"sections.strip": {"area": "0.125 in^2", "inertia": "1e-9 in^4", "depth": "0.125 in"}},
+     "sections.strip.inertia", "'1e-9 in^4'"),
+    ({"drive.speed": "1e6 rpm"}, "drive.speed", "no linkage runs there"),    # the speed itself, still named
 ])
 def test_a_wrong_value_is_named_by_its_own_key(overrides, key, words):
     assert words in refused(overrides, key)

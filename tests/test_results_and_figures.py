@@ -195,9 +195,39 @@ def test_band_figure_uses_readable_names(tmp_path):
     assert "fe_table1" not in svg and "coupler_mid" not in svg
 
 
+def run_cell_as_jupyter(source: str, name: str, namespace: dict) -> list:
+    """Run a code cell as Jupyter with matplotlib's inline backend would, and return the figures
+    it displays, once per display: the cell's value when it is a figure (the last line an
+    expression), every open figure at ``plt.show()`` (which then closes them), and every figure
+    still open at the end of the cell."""
+    import ast
+
+    import matplotlib.pyplot as plt
+    from matplotlib.figure import Figure
+    shown = []
+
+    def show(*args, **kwargs):
+        shown.extend(plt.figure(n) for n in plt.get_fignums())
+        plt.close("all")
+    namespace["plt"] = plt
+    tree = ast.parse(source)
+    last = tree.body.pop() if tree.body and isinstance(tree.body[-1], ast.Expr) else None
+    real_show, plt.show = plt.show, show
+    try:
+        exec(compile(tree, name, "exec"), namespace)
+        value = eval(compile(ast.Expression(last.value), name, "eval"), namespace) if last else None
+    finally:
+        plt.show = real_show
+    shown += [value] if isinstance(value, Figure) else []
+    shown += [plt.figure(n) for n in plt.get_fignums()]
+    plt.close("all")
+    return shown
+
+
 def test_the_notebook_runs_and_loads_the_run(tmp_path, monkeypatch):
     """scenarios/notebooks/compare_engines.ipynb, code cells in order in a fresh namespace (no
-    Jupyter kernel), matplotlib on Agg, from a temporary working directory (its ./logs)."""
+    Jupyter kernel), matplotlib on Agg, from a temporary working directory (its ./logs). Issue 31:
+    its figure was shown twice (plt's inline display and the cell's value ``fig``); once now."""
     import matplotlib
     import nbformat
     matplotlib.use("Agg")
@@ -206,9 +236,11 @@ def test_the_notebook_runs_and_loads_the_run(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     namespace = {"__name__": "__notebook__"}
     tic = time.perf_counter()
+    displayed = []
     for i, cell in enumerate(c for c in nb.cells if c.cell_type == "code"):
-        exec(compile(cell.source, f"compare_engines.ipynb cell {i}", "exec"), namespace)
+        displayed += run_cell_as_jupyter(cell.source, f"compare_engines.ipynb cell {i}", namespace)
     assert time.perf_counter() - tic < 60
+    assert len(displayed) == 1 and displayed[0] is namespace["fig"], displayed      # the figure, once
     run = namespace["run"]
     assert isinstance(run, cosim.RunData) and set(run.engines) == {"tmm", "mujoco"}
     assert Path(namespace["result"].folder).parent == tmp_path / "logs"
@@ -226,3 +258,26 @@ def test_an_engine_without_results_is_named_on_the_figure(run95, tmp_path):
     (folder / "summary.json").write_text(json.dumps(summary))
     svg = plot_strains(folder)[1].read_text(encoding="utf-8")
     assert "no result: exudyn (unavailable)" in svg
+
+
+def test_band_figure_says_the_nominal_is_not_a_sample(tmp_path):
+    """Issue 31: the nominal curve left the envelope with no word why. It is the scenario as
+    written (at 373 rpm a constant crank speed, an infinite drive inertia outside the declared
+    range), not a sample; the figure says so."""
+    from cosim.scenario import load
+    from cosim.uncertainty import nominal_note, plot_band
+    from cosim.unknowns import declared
+    sc = load("crank_rocker_373rpm")
+    note = nominal_note(declared(sc.raw, str(sc.path))[2])
+    assert "not one of the samples" in note and "infinite drive inertia" in note and "'drive_inertia'" in note
+    rows = [{"gauge": "coupler_mid", "crank_angle_deg": a, "nominal_ue": 300.0, "low_ue": -120.0, "high_ue": 120.0,
+             "p5_ue": -110.0, "p95_ue": 110.0} for a in range(0, 360, 10)]
+    plot_band(tmp_path, "crank_rocker_373rpm", rows, [], note)
+    svg = (tmp_path / "band.svg").read_text(encoding="utf-8")
+    assert "nominal (scenario as written, not a sample)" in svg and "envelope of the samples" in svg
+    assert "infinite drive inertia" in svg
+
+
+def test_the_nominal_note_names_no_drive_inertia_when_none_is_declared():
+    from cosim.uncertainty import nominal_note
+    assert "inertia" not in nominal_note({})

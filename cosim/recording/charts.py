@@ -4,7 +4,8 @@ Rerun plots series only against a timeline, and labels a sequence timeline's axi
 time-series views all follow the one timeline chosen in the time panel, so a plot over crank
 angle is empty while the time panel shows crank speed. A sweep (peaks against speed) and a band
 (strain against crank angle) are x-y data, so they are drawn here as static 2D charts: a frame,
-grid lines at round ticks with labelled values, the axis titles, the series as line strips with
+grid lines at round ticks with their values (drawn as strokes centred on the line: see
+:data:`FIGURE_HEIGHT`), the axis titles, the series as line strips with
 dots at the data points, and a legend of labelled dots. Static data show at every time, whatever
 the timeline.
 
@@ -22,8 +23,20 @@ import rerun as rr
 import rerun.blueprint as rrb
 
 WIDTH, HEIGHT = 1.6, 1.0                  # the plot frame in view units
-# Labels are drawn on light boxes: dark text.
+# Labels are drawn on light boxes: dark text. Tick values are strokes on the view's dark ground.
 FRAME_COLOR, GRID_COLOR, TEXT_COLOR = (160, 160, 160), (70, 70, 70), (60, 60, 60)
+TICK_COLOR = (200, 200, 200)
+
+# Tick values are drawn as seven-segment figures of line strokes, in view units, centred on their
+# grid line (y) or tick (x). Rerun draws a point's label as a box below the point (5 UI points
+# down, a line of text high, whatever the zoom), so a y tick value logged as a point label sat
+# under its grid line and read as the value of the line below (79 Hz read as 100).
+FIGURE_HEIGHT = 0.05                      # height of a tick figure [view units]
+TICK_GAP = 0.03                           # between the frame and the tick figures [view units]
+_SEGMENTS = {"a": ((0, 1), (1, 1)), "b": ((1, 1), (1, 0.5)), "c": ((1, 0.5), (1, 0)), "d": ((0, 0), (1, 0)),
+             "e": ((0, 0), (0, 0.5)), "f": ((0, 0.5), (0, 1)), "g": ((0, 0.5), (1, 0.5))}
+_FIGURES = {"0": "abcdef", "1": "bc", "2": "abged", "3": "abgcd", "4": "fgbc", "5": "afgcd", "6": "afgedc",
+            "7": "abc", "8": "abcdefg", "9": "abcdfg", "-": "g"}
 
 
 @dataclass
@@ -63,6 +76,52 @@ def _fmt(v: float, step: float) -> str:
     return f"{v:.{digits}f}"
 
 
+def figure_strokes(text: str, anchor_x: float, centre_y: float, align: str = "right",
+                   height: float = FIGURE_HEIGHT) -> list:
+    """The line segments (each a 2 x 2 array, view units, y down) drawing the number ``text``
+    (digits, '-', '.') ``height`` tall, its vertical middle at ``centre_y`` and its right end
+    (``align`` 'right') or its middle ('center') at ``anchor_x``."""
+    w, gap, dot = 0.5 * height, 0.3 * height, 0.25 * height
+    advances = [dot if ch == "." else w + gap for ch in text]
+    x = anchor_x - (sum(advances) - gap) * (1.0 if align == "right" else 0.5)
+    strokes = []
+    for ch, advance in zip(text, advances):
+        if ch == ".":
+            strokes.append(np.array([[x, centre_y + height / 2], [x + 0.1 * height, centre_y + height / 2]]))
+        for seg in _FIGURES.get(ch, ""):
+            (ax, ay), (bx, by) = _SEGMENTS[seg]
+            strokes.append(np.array([[x + ax * w, centre_y - (ay - 0.5) * height],
+                                     [x + bx * w, centre_y - (by - 0.5) * height]]))
+        x += advance
+    return strokes
+
+
+def tick_values(x_range, y_range, x_ticks=None) -> tuple:
+    """``(x ticks, y ticks)`` within the ranges: ``x_ticks`` if given, else round 1-2-5 steps."""
+    (x0, x1), (y0, y1) = x_range, y_range
+    xt = np.asarray(x_ticks, dtype=float) if x_ticks is not None else ticks(x0, x1)
+    yt = ticks(y0, y1)
+    return xt[(xt >= x0) & (xt <= x1)], yt[(yt >= y0) & (yt <= y1)]
+
+
+def tick_labels(to_view, x_range, y_range, x_ticks=None) -> list:
+    """``[(axis, value, text, strokes)]`` of the chart's tick values: each y value right of the
+    frame's left edge and centred on its grid line, each x value centred under its tick.
+    ``to_view(x, y)``: data to view units; ranges and ticks in data units."""
+    (x0, x1), (y0, y1) = x_range, y_range
+    xt, yt = tick_values(x_range, y_range, x_ticks)
+    xs = xt[1] - xt[0] if len(xt) > 1 else 1.0
+    ys = yt[1] - yt[0] if len(yt) > 1 else 1.0
+    out = []
+    for x, (vx, _) in zip(xt, to_view(xt, np.full(len(xt), y0))):
+        text = _fmt(x, xs)
+        out.append(("x", float(x), text, figure_strokes(text, vx, TICK_GAP + FIGURE_HEIGHT / 2, "center")))
+    for y, (_, vy) in zip(yt, to_view(np.full(len(yt), x0), yt)):
+        text = _fmt(y, ys)
+        out.append(("y", float(y), text, figure_strokes(text, -TICK_GAP, vy, "right")))
+    return out
+
+
 def _range(values, given):
     """The axis range: ``given``, else the data's widened to round ticks."""
     if given is not None:
@@ -89,17 +148,15 @@ def log_chart(rec: rr.RecordingStream, chart: Chart) -> rrb.Spatial2DView:
     frame = [[0, 0], [WIDTH, 0], [WIDTH, -HEIGHT], [0, -HEIGHT], [0, 0]]
     rec.log(f"{root}/frame", rr.LineStrips2D([frame], colors=[FRAME_COLOR], radii=[rr.Radius.ui_points(1.0)],
                                             draw_order=1.0), static=True)
-    xt = np.asarray(chart.x_ticks, dtype=float) if chart.x_ticks is not None else ticks(x0, x1)
-    yt = ticks(y0, y1)
-    xt, yt = xt[(xt >= x0) & (xt <= x1)], yt[(yt >= y0) & (yt <= y1)]
-    xs = xt[1] - xt[0] if len(xt) > 1 else 1.0
-    ys = yt[1] - yt[0] if len(yt) > 1 else 1.0
+    xt, yt = tick_values((x0, x1), (y0, y1), chart.x_ticks)
     grid = [to_view([x, x], [y0, y1]) for x in xt] + [to_view([x0, x1], [y, y]) for y in yt]
     rec.log(f"{root}/grid", rr.LineStrips2D(grid, colors=[GRID_COLOR], radii=[rr.Radius.ui_points(0.5)],
                                            draw_order=0.5), static=True)
-    labels = [(p, _fmt(x, xs)) for p, x in zip(to_view(xt, np.full(len(xt), y0)) + [0, 0.05], xt)]
-    labels += [(p, _fmt(y, ys)) for p, y in zip(to_view(np.full(len(yt), x0), yt) - [0.1, 0], yt)]
-    labels += [((WIDTH / 2, 0.15), chart.x_label), ((-0.05, -HEIGHT - 0.08), chart.y_label)]
+    labels = tick_labels(to_view, (x0, x1), (y0, y1), chart.x_ticks)
+    figures = [stroke for *_, strokes in labels for stroke in strokes]
+    rec.log(f"{root}/ticks", rr.LineStrips2D(figures, colors=[TICK_COLOR], radii=[rr.Radius.ui_points(0.6)],
+                                            draw_order=1.0), static=True)
+    labels = [((WIDTH / 2, 0.15), chart.x_label), ((-0.05, -HEIGHT - 0.08), chart.y_label)]
     rec.log(f"{root}/labels", rr.Points2D([p for p, _ in labels], labels=[t for _, t in labels],
                                           colors=[TEXT_COLOR], radii=[rr.Radius.ui_points(0.1)], show_labels=True),
             static=True)

@@ -12,6 +12,8 @@ from __future__ import annotations
 
 import math
 import re
+import uuid
+from pathlib import Path
 
 import numpy as np
 
@@ -55,6 +57,17 @@ MOTOR_LABELS = {
     "drive_work_J": "work on the crank",
 }
 _UNIT_SUFFIXES = ("_rad_s2", "_rad_s", "_rad", "_Nm", "_A", "_V", "_W", "_J")
+
+
+def recording_id(label: str, path) -> str:
+    """The recording id of a summary recording (sweep, uncertainty, identification) written to
+    ``path``: ``label``, the run folder's name and a random suffix, so that two recordings opened
+    together in the viewer stay two (the same id merges them) while their application id, which
+    groups them, stays fixed. The suffix is there because ``--out`` can give two runs folders of
+    the same name."""
+    folder = Path(path).parent.name
+    stem = folder if folder.startswith(label) else f"{label}-{folder}" if folder else label
+    return f"{stem}-{uuid.uuid4().hex[:8]}"
 
 
 def part(name) -> str:

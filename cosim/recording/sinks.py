@@ -148,10 +148,22 @@ def attach(rec, file_path, options: ViewerOptions) -> list:
             url = f"rerun+http://127.0.0.1:{options.grpc_port}/proxy"
             rr.serve_web_viewer(web_port=options.web_port, open_browser=False, connect_to=url)
             urls.append(url)
-            log.info("serving the recording: open http://127.0.0.1:%d/?url=%s in a browser, or run `rerun %s`",
-                     options.web_port, quote(url, safe=""), url)
+            announce_serving("the recording", options.web_port, url)
     rec.set_sinks(*sinks)
     return urls
+
+
+def web_viewer_address(web_port: int, grpc_url: str) -> str:
+    """The browser address of the web viewer served on ``web_port`` (localhost) showing the
+    stream at ``grpc_url``."""
+    return f"http://127.0.0.1:{web_port}/?url={quote(grpc_url, safe='')}"
+
+
+def announce_serving(what: str, web_port: int, grpc_url: str, tail: str = "") -> None:
+    """Say where the served recording is, on stderr. Printed, not logged: ``-q`` (logging at
+    WARNING) must still show it, as it is the one thing a user of ``--serve`` needs."""
+    print(f"serving {what}: open {web_viewer_address(web_port, grpc_url)} in a browser, or run `rerun {grpc_url}`"
+          f"{tail}", file=sys.stderr, flush=True)
 
 
 def finish(rec, urls: list, timeout_s: float) -> list:
@@ -213,8 +225,7 @@ def show_file(path, options: ViewerOptions, save_copy=None) -> list:
     elif options.viewer == "serve":
         import subprocess
         url = f"rerun+http://127.0.0.1:{options.grpc_port}/proxy"
-        log.info("serving %s: open http://127.0.0.1:%d/?url=%s in a browser, or run `rerun %s`; Ctrl-C stops",
-                 path, options.web_port, quote(url, safe=""), url)
+        announce_serving(str(path), options.web_port, url, "; Ctrl-C stops")
         proc = subprocess.Popen([exe, "--serve-web", str(path), "--port", str(options.grpc_port),
                                  "--web-viewer-port", str(options.web_port)], stdout=subprocess.DEVNULL,
                                 stderr=subprocess.DEVNULL)

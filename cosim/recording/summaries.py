@@ -5,7 +5,8 @@
 largest Floquet multiplier against speed (with the line |mu| = 1), the Campbell diagram (crank
 harmonics and the natural-frequency bands against speed) and the natural frequencies over a
 revolution [deg]. ``uncertainty.rrd``: per gauge the band of predicted bending strain over the
-crank angle (envelope, 5-95 %, nominal) with the recorded peaks. All charts are static, so every
+crank angle (envelope of the samples, 5-95 %, nominal: the scenario as written, which is not a
+sample and may leave the envelope) with the recorded peaks. All charts are static, so every
 panel shows at once, whatever the timeline.
 
 Both are written to their file only; ``cosim sweep/uncertainty`` then show the finished file in
@@ -22,7 +23,7 @@ import rerun as rr
 import rerun.blueprint as rrb
 
 from .charts import Chart, Series, log_chart
-from .layout import RECORD_COLORS, engine_color, part, shades
+from .layout import RECORD_COLORS, engine_color, part, recording_id, shades
 
 MODE_COLORS = [(31, 119, 180), (255, 127, 14), (44, 160, 44), (214, 39, 40), (148, 103, 189), (140, 86, 75)]
 HARMONIC_COLOR = (110, 110, 110)
@@ -30,8 +31,8 @@ DEGREE_TICKS = (0.0, 90.0, 180.0, 270.0, 360.0)
 NOMINAL_COLOR = (230, 170, 0)             # stands out from the band's blues, readable as label text
 
 
-def _open(path, app: str, recording_id: str):
-    rec = rr.RecordingStream(app, recording_id=recording_id)
+def _open(path, app: str, label: str):
+    rec = rr.RecordingStream(app, recording_id=recording_id(label, path))
     rec.set_sinks(rr.FileSink(str(path)))
     return rec
 
@@ -141,11 +142,14 @@ def uncertainty_recording(path, name: str, rows: list, records: list) -> None:
 
         def col(key):
             return np.array([r[key] for r in rr_], dtype=float)
-        series = [Series("envelope low [µε]", a, col("low_ue"), light, width=1.0, dots=False),
-                  Series("envelope high [µε]", a, col("high_ue"), light, width=1.0, dots=False),
+        # The nominal is the scenario as written, not a sample: it may leave the samples' envelope
+        # (cosim.uncertainty.nominal_note), which its name says.
+        series = [Series("envelope of the samples, low [µε]", a, col("low_ue"), light, width=1.0, dots=False),
+                  Series("envelope of the samples, high [µε]", a, col("high_ue"), light, width=1.0, dots=False),
                   Series("5 % [µε]", a, col("p5_ue"), color, width=1.5, dots=False),
                   Series("95 % [µε]", a, col("p95_ue"), color, width=1.5, dots=False),
-                  Series("nominal [µε]", a, col("nominal_ue"), NOMINAL_COLOR, width=2.0, dots=False)]
+                  Series("nominal: scenario as written, not a sample [µε]", a, col("nominal_ue"), NOMINAL_COLOR,
+                         width=2.0, dots=False)]
         for i, x in enumerate(r for r in records if r["gauge"] == g):
             c = RECORD_COLORS[i % len(RECORD_COLORS)]
             series.append(Series(f"{x['record']} {x['peak']}peak, {'inside' if x['inside'] else 'OUTSIDE'} the band",
