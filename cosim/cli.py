@@ -36,6 +36,7 @@ from pathlib import Path
 
 from . import __version__
 from .interrupts import exit_status, interrupt_on_sigterm
+from .runlog import out_folder
 
 SCENARIO_DIR = Path(__file__).resolve().parent.parent / "scenarios"
 
@@ -167,7 +168,7 @@ def build_parser() -> argparse.ArgumentParser:
                         "drive.mode)")
     r.add_argument("--revolutions", type=float, help="crank revolutions to simulate (default: the scenario's "
                                                       "output.revolutions)")
-    r.add_argument("--out", type=Path, help="output folder (default: ./logs/<scenario>-<timestamp> in the current "
+    r.add_argument("--out", type=out_folder, help="output folder (default: ./logs/<scenario>-<timestamp> in the current "
                                             "directory)")
     r.add_argument("--records", type=Path, metavar="DIR",
                    help="score against the records in DIR (<name>.csv + <name>.toml each, format in "
@@ -195,7 +196,7 @@ def build_parser() -> argparse.ArgumentParser:
                         "modes plus a static correction, README 'Reduced model'); default: the scenario's "
                         "solver.tmm.model")
     _executor_arguments(s, "points")
-    s.add_argument("--out", type=Path, help="output folder (default: ./logs/<scenario>-sweep-<timestamp>)")
+    s.add_argument("--out", type=out_folder, help="output folder (default: ./logs/<scenario>-sweep-<timestamp>)")
     s.add_argument("--no-campbell", dest="campbell", action="store_false",
                    help="skip the natural-frequency map and Campbell diagram (36 eigenvalue searches over a "
                         "revolution; four-bars only)")
@@ -215,7 +216,7 @@ def build_parser() -> argparse.ArgumentParser:
     u.add_argument("--trajectories", type=int, help="Morris trajectories (default: the scenario's "
                                                     "morris_trajectories, else 8)")
     _executor_arguments(u, "samples")
-    u.add_argument("--out", type=Path, help="output folder (default: ./logs/<scenario>-uncertainty-<timestamp>)")
+    u.add_argument("--out", type=out_folder, help="output folder (default: ./logs/<scenario>-uncertainty-<timestamp>)")
     u.add_argument("--records", type=Path, metavar="DIR",
                    help="check the recorded peaks from DIR instead of the shipped scenarios/records")
     add_viewer_arguments(u, "uncertainty.rrd")
@@ -237,7 +238,7 @@ def build_parser() -> argparse.ArgumentParser:
                                    "overwritten.")
     n.add_argument("name", help="scenario name (letters, digits, _ and -): the file is NAME.toml")
     n.add_argument("--like", metavar="SCENARIO", help="copy this scenario (name or path) instead of the template")
-    n.add_argument("--out", type=Path, metavar="DIR", help="folder to write to (default: the current directory)")
+    n.add_argument("--out", type=out_folder, metavar="DIR", help="folder to write to (default: the current directory)")
     _verbosity_arguments(n)
 
     from .synthesis import add_parser as add_synthesize_parser

@@ -18,6 +18,8 @@ from pathlib import Path
 
 import numpy as np
 
+from .files import clear_link
+
 log = logging.getLogger(__name__)
 
 POSITIONS = {"mid": "mid-span", "midspan": "mid-span", "quarter": "quarter-span", "third": "third-span",
@@ -48,7 +50,7 @@ def save(fig, folder, stem: str, dpi: int = 130) -> list:
     with matplotlib.rc_context({"svg.fonttype": "none"}):
         for ext in ("png", "svg"):
             path = Path(folder) / f"{stem}.{ext}"
-            fig.savefig(path, dpi=dpi, bbox_inches="tight")
+            fig.savefig(clear_link(path), dpi=dpi, bbox_inches="tight")
             paths.append(path)
     return paths
 

@@ -42,7 +42,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .runlog import run_folder, write_json
+from .runlog import out_folder, run_folder, write_json
 from .scenario import ScenarioError, load
 from .unknowns import Settings, declared, read, solve, variant
 
@@ -443,7 +443,7 @@ def add_parser(sub):
                    help="record uncertainty: relative part and absolute part in microstrain (default 10%%,5)")
     p.add_argument("--records", type=Path, metavar="DIR",
                    help="read the records from DIR instead of the shipped scenarios/records")
-    p.add_argument("--out", type=Path, help="output folder (default: ./logs/<scenarios>-identify-<timestamp>)")
+    p.add_argument("--out", type=out_folder, help="output folder (default: ./logs/<scenarios>-identify-<timestamp>)")
     p.add_argument("--workers", type=int, help="local worker processes (default: the number of cores)")
     p.add_argument("--scheduler", help="Dask scheduler address: run the fits there")
     return p

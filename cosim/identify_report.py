@@ -64,7 +64,7 @@ def record_rrd(path, result: dict, preds: dict) -> None:
     import rerun.blueprint as rrb
     rec = rr.RecordingStream("flexlink-bench-identify",
                              recording_id=recording_id("identify-" + "+".join(result["calibration_scenarios"]), path))
-    rec.save(str(path))
+    rec.save(str(clear_link(path)))
     views = []
     for name in _rows(result):
         pred = preds[name]

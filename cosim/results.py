@@ -39,6 +39,8 @@ from pathlib import Path
 
 import numpy as np
 
+from .files import clear_link
+
 log = logging.getLogger(__name__)
 
 COLUMNS = ["time_s", "crank_angle_deg", "engine", "gauge", "quantity", "value", "unit"]
@@ -172,7 +174,7 @@ def write_parquet(folder) -> Path:
     folder = Path(folder)
     src = folder / "traces.csv"
     path = folder / "traces.parquet"
-    tmp = path.with_suffix(".parquet.tmp")
+    tmp = clear_link(path.with_suffix(".parquet.tmp"))
     with src.open("rb") as fh:
         fh.seek(0, 2)
         size = fh.tell()

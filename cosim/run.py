@@ -41,6 +41,7 @@ import numpy as np
 
 from . import __version__
 from .engines import ENGINES, EngineUnavailable, make_engine
+from .files import write_atomic
 from .master import CoSimulation, InputError
 from .metrics import last_revolution, revolutions_completed, steadiness
 from .runlog import run_folder, write_json
@@ -177,7 +178,7 @@ def run_scenario(scenario, options: RunOptions = RunOptions(), callback=None) ->
     log.info("%s at %.4g rpm through %s (%s, %s); results to %s", sc.name, sc.drive.speed_rpm, ", ".join(engines),
              mode, "until steady" if until_steady else f"{revolutions:g} revolutions", folder)
     import tomli_w
-    (folder / "scenario.resolved.toml").write_text(tomli_w.dumps(resolved(sc)), encoding="utf-8")
+    write_atomic(folder / "scenario.resolved.toml", tomli_w.dumps(resolved(sc)))
     summary = {"scenario": sc.name, "status": "incomplete", "bench_version": __version__, "mode": mode,
                "engines_requested": list(options.engines), "revolutions": revolutions,
                "until_steady": until_steady, "steady_tolerance": sc.output.steady_tolerance,

@@ -9,11 +9,15 @@ it makes or is given.
 """
 from __future__ import annotations
 
+import argparse
 import csv
+import io
 import json
 import math
 import time
 from pathlib import Path
+
+from .files import write_atomic
 
 
 def log_root() -> Path:
@@ -26,6 +30,14 @@ def __getattr__(name):
     if name == "LOG_ROOT":
         return log_root()
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def out_folder(text: str) -> Path:
+    """An ``--out`` option's folder; an empty text is refused (``Path("")`` is the current folder,
+    which a run would fill with its files)."""
+    if not str(text).strip():
+        raise argparse.ArgumentTypeError("an empty --out would write into the current folder; give a folder name")
+    return Path(text)
 
 
 def run_folder(name: str, out: Path | None = None) -> Path:
@@ -68,21 +80,15 @@ def _clean(value):
 
 
 def write_json(path: Path, data) -> Path:
-    """Write JSON atomically (temporary file, then rename): a crash never leaves half a file."""
-    path = Path(path)
-    tmp = path.with_suffix(path.suffix + ".tmp")
-    tmp.write_text(json.dumps(_clean(data), indent=2))
-    tmp.replace(path)
-    return path
+    """Write JSON atomically (temporary file, then rename): a crash never leaves half a file, and a
+    symlink in the way is replaced, never written through (:func:`cosim.files.write_atomic`)."""
+    return write_atomic(path, json.dumps(_clean(data), indent=2))
 
 
 def write_csv(path: Path, rows: list[dict]) -> Path:
-    path = Path(path)
-    tmp = path.with_suffix(path.suffix + ".tmp")
-    with open(tmp, "w", newline="") as fh:
-        fields = list(dict.fromkeys(k for row in rows for k in row))      # union, in first-seen order
-        writer = csv.DictWriter(fh, fieldnames=fields)
-        writer.writeheader()
-        writer.writerows(rows)
-    tmp.replace(path)
-    return path
+    text = io.StringIO(newline="")
+    fields = list(dict.fromkeys(k for row in rows for k in row))      # union, in first-seen order
+    writer = csv.DictWriter(text, fieldnames=fields)
+    writer.writeheader()
+    writer.writerows(rows)
+    return write_atomic(path, text.getvalue())

@@ -37,6 +37,7 @@ from tmm_core import Joint, LoadCase, Member, Structure, TMMError, external_resu
 from tmm_core.structure import RigidBody, SliderJoint
 
 from .joint_tables import joint_checker, joint_position, read_loads, read_springs
+from .files import write_atomic
 from .scenario_reader import MAX_SEGMENTS
 from .overrides import Variants
 
@@ -273,10 +274,10 @@ def run_static(sc: StaticScenario, out=None) -> tuple:
 
     from .runlog import run_folder, write_csv, write_json
     folder = run_folder(sc.name, out)
-    (folder / "scenario.resolved.toml").write_text(tomli_w.dumps(
+    write_atomic(folder / "scenario.resolved.toml", tomli_w.dumps(
         {"scenario": {"name": sc.name, "description": sc.description, "analysis": sc.analysis},
          "assumptions": [{"key": a.key, "value": a.value, "rationale": a.rationale} for a in sc.assumptions],
-         "input": sc.raw}), encoding="utf-8")
+         "input": sc.raw}))
     write_json(folder / "summary.json", {"scenario": sc.name, "kind": "structure", "status": "incomplete"})
     sol = solve(sc)
     rows, summary = results(sc, sol)

@@ -29,6 +29,8 @@ import numpy as np
 from tmm_core import ConvergenceError, FourBarGeometry, InputError, fourbar_motion
 from tmm_core.errors import require_positive
 
+from .files import write_atomic
+
 RESIDUAL_TOLERANCE = 1e-10   # of the thesis equations in ratios to d and radians: round-off, not "close"
 CHECK_TOLERANCE = 1e-8       # rad: the synthesized linkage through the bench's kinematics
 DEFAULT_LIKE = "crank_rocker_373rpm"
@@ -292,6 +294,8 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                         "180 deg (the thesis's theta3), e.g. '44.6649 deg' '102.2467 deg'")
     s.add_argument("--json", action="store_true", help="print one JSON object instead of the table")
     s.add_argument("--scenario-out", type=Path, metavar="PATH", help="write a scenario TOML of the linkage to PATH")
+    s.add_argument("--overwrite", action="store_true", help="with --scenario-out: replace an existing file at PATH "
+                                                            "(by default it is refused)")
     s.add_argument("--like", metavar="SCENARIO", help="with --scenario-out: the scenario whose sections, materials, "
                                                       f"gauges, drive and solvers to keep (default {DEFAULT_LIKE})")
     return s
@@ -323,6 +327,13 @@ def _case_inputs(args) -> dict:
                              f"option {option} = {value!r}: is not used by case {args.case}")
     if args.like is not None and args.scenario_out is None:
         raise InputError(f"option --like = {args.like!r}: is only used with --scenario-out")
+    if args.overwrite and args.scenario_out is None:
+        raise InputError("option --overwrite: is only used with --scenario-out")
+    out = args.scenario_out
+    if out is not None and (out.exists() or out.is_symlink()) and not (args.overwrite and out.is_file()):
+        raise InputError(f"option --scenario-out = {str(out)!r}: already exists" +
+                         ("; give another path, or --overwrite to replace it" if not out.is_dir() else
+                          " and is a folder; give a file path"))
     given = ([(n, "--" + n.replace("_", "-"), getattr(args, n)) for n in own] if args.case == "I" else
              [(n, f"--crank-limits ({n.upper()})", t) for n, t in zip(("theta1", "theta3"), args.crank_limits)])
     return {name: float(_quantity(option, text, "angle").to("rad").magnitude) for name, option, text in given}
@@ -364,8 +375,8 @@ def write_scenario(result: FourBarSynthesis, path: Path, like: str, unit) -> Pat
         "name": path.stem, "sources": list(base.sources) + [source],
         "description": f"synthesized crank-rocker (case {result.case}) on the sections and drive of {base.name}"}
     from_dict(data, str(path), default_name=path.stem)
-    path.write_text(f"# `cosim synthesize --case {result.case}` on scenario {base.name}: link lengths, ground, "
-                    f"gauge and point-mass positions differ\n" + tomli_w.dumps(data), encoding="utf-8")
+    write_atomic(path, f"# `cosim synthesize --case {result.case}` on scenario {base.name}: link lengths, ground, "
+                       f"gauge and point-mass positions differ\n" + tomli_w.dumps(data))
     return path
 
 

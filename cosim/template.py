@@ -16,6 +16,7 @@ import re
 import tomllib
 from pathlib import Path
 
+from .files import create_new
 from .scenario import SCENARIO_DIR, ScenarioError, load
 
 NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_\-]*$")
@@ -170,8 +171,9 @@ def new_scenario(name: str, like: str | None = None, out: Path | None = None) ->
     _check_name(name)
     folder = Path(out) if out is not None else Path.cwd()
     path = folder / f"{name}.toml"
-    if path.exists():
-        raise ScenarioError(f"{path}: already exists; choose another name or --out, or delete the file")
+    if path.exists() or path.is_symlink():
+        raise ScenarioError(f"{path}: already exists{' (a symlink)' if path.is_symlink() else ''}; choose another "
+                            "name or --out, or delete the file")
     copied = []
     if like is None:
         text = TEMPLATE.format(name=name, path=path)
@@ -188,16 +190,22 @@ def new_scenario(name: str, like: str | None = None, out: Path | None = None) ->
             except ValueError:
                 raise ScenarioError(f"{source}: extends {base}, outside its folder; copy it by hand") from None
             target = folder / rel
+            if target.is_symlink():
+                raise ScenarioError(f"{target}: is a symlink; the copy's base is never written through one (use "
+                                    "another --out)")
             if target.exists():
                 if target.read_bytes() != base.read_bytes():
                     raise ScenarioError(f"{target}: already exists and differs from {base}; the copy would extend "
                                         "the wrong base (use another --out)")
                 continue
             target.parent.mkdir(parents=True, exist_ok=True)
-            target.write_bytes(base.read_bytes())
+            create_new(target, base.read_bytes())
             copied.append(target)
     folder.mkdir(parents=True, exist_ok=True)
-    path.write_text(text, encoding="utf-8")
+    try:
+        create_new(path, text)
+    except FileExistsError:                 # created since the check above
+        raise ScenarioError(f"{path}: already exists; choose another name or --out, or delete the file") from None
     try:
         load(path)
     except ScenarioError:

@@ -24,6 +24,8 @@ from pathlib import Path
 
 import numpy as np
 
+from .files import open_new
+
 
 MOTOR_FIELDS = ("current_A", "voltage_V", "torque_em_Nm", "drive_torque_Nm", "motor_speed_rad_s",
                 "setpoint_rad_s", "electrical_power_W", "copper_loss_W", "friction_loss_W")
@@ -65,7 +67,7 @@ class TraceWriter:
             return
         if self.columns is None:
             self.columns = [c for c, _, _ in series]
-            self.fh = open(self.path, "w", newline="", encoding="utf-8")
+            self.fh = open_new(self.path, "w", newline="", encoding="utf-8")
             self.fh.write(",".join(["time_s"] + self.columns) + "\n")
         index = {c: j for j, c in enumerate(self.columns)}
         series = [(index[c], np.round(t, TIME_DECIMALS), v) for c, t, v in series

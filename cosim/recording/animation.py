@@ -10,6 +10,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ..files import clear_link
+
 from . import linkage as drawing
 from .layout import STRAIGHT_COLOR, engine_color
 
@@ -65,6 +67,6 @@ def write_gif(path, runs: dict, stations: dict | None = None, exaggeration: floa
         ax.set_xlabel(f"x [m]   (crank angle {angle:.0f} deg)", fontsize=8)
     anim = animation.FuncAnimation(fig, draw, frames=n)
     path = Path(path)
-    anim.save(path, writer=animation.PillowWriter(fps=fps))
+    anim.save(clear_link(path), writer=animation.PillowWriter(fps=fps))
     plt.close(fig)
     return path

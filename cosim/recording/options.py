@@ -20,8 +20,8 @@ from pathlib import Path
 
 from .sinks import DEFAULT_URL, ViewerOptions
 
-VIEWER_FLAGS = ("--save", "--headless", "--spawn", "--connect", "--url", "--serve", "--serve-web", "--stdout",
-                "--no-record", "--viewer-timeout")
+VIEWER_FLAGS = ("--save", "--overwrite", "--headless", "--spawn", "--connect", "--url", "--serve", "--serve-web",
+                "--stdout", "--no-record", "--viewer-timeout")
 
 
 def add_viewer_arguments(parser, file: str, run: bool = False) -> None:
@@ -44,6 +44,8 @@ def add_viewer_arguments(parser, file: str, run: bool = False) -> None:
                            "9090); prints the address, keeps serving after the run until Ctrl-C")
     view.add_argument("--no-record", dest="viewer", action="store_const", const="none",
                       help="no rerun recording at all")
+    g.add_argument("--overwrite", action="store_true",
+                   help="let --save PATH replace an existing file (by default an existing file is refused)")
     g.add_argument("--url", metavar="URL", help="the viewer URL for --connect (rerun's spelling; implies --connect)")
     g.add_argument("--stdout", action="store_true",
                    help="write the finished recording to stdout after the run (pipe into `rerun -`); the tables "
@@ -82,7 +84,20 @@ def viewer_from_args(args) -> tuple:
             if given:
                 raise ValueError(f"{flag} writes a recording; it cannot go with --no-record")
         return None, None
+    if save:
+        _check_save_path(Path(save), bool(getattr(args, "overwrite", False)))
     timeout = getattr(args, "viewer_timeout", 5.0)
     if not (timeout and timeout > 0):
         raise ValueError(f"--viewer-timeout must be a positive number of seconds, got {timeout!r}")
     return ViewerOptions(viewer, url=connect, stdout=stdout, timeout_s=timeout), (Path(save) if save else None)
+
+
+def _check_save_path(path: Path, overwrite: bool) -> None:
+    """``--save PATH`` writes a rerun recording: PATH must name a ``.rrd`` file (so it can never be
+    a run's traces.csv or summary.json) and must not exist unless ``--overwrite`` is given."""
+    if path.suffix != ".rrd":
+        raise ValueError(f"--save {path}: a recording is written to a .rrd file; give a path ending in .rrd")
+    if path.is_dir():
+        raise ValueError(f"--save {path}: is a folder; give a file path ending in .rrd")
+    if (path.exists() or path.is_symlink()) and not overwrite:
+        raise ValueError(f"--save {path}: already exists; give another path, or --overwrite to replace it")

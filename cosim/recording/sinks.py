@@ -38,6 +38,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from urllib.parse import quote, urlparse
 
+from ..files import clear_link
+
 VIEWERS = ("save", "spawn", "connect", "serve", "none")
 DEFAULT_URL = "rerun+http://127.0.0.1:9876/proxy"
 SCHEMES = ("rerun", "rerun+http", "rerun+https")
@@ -111,7 +113,7 @@ def attach(rec, file_path, options: ViewerOptions) -> list:
     import rerun as rr
     if file_path is not None:
         Path(file_path).parent.mkdir(parents=True, exist_ok=True)
-    sinks = [rr.FileSink(str(file_path))] if file_path is not None else []
+    sinks = [rr.FileSink(str(clear_link(file_path)))] if file_path is not None else []
     urls = []
     if options.viewer == "spawn":
         url = f"rerun+http://127.0.0.1:{options.grpc_port}/proxy"
@@ -197,7 +199,7 @@ def show_file(path, options: ViewerOptions, save_copy=None) -> list:
     output; ``save_copy``: also copy it there. Returns warnings (also logged)."""
     warnings = []
     if save_copy:
-        shutil.copyfile(path, save_copy)
+        shutil.copyfile(path, clear_link(save_copy))
     exe = rerun_executable()
     if options.viewer in ("spawn", "serve") and exe is None:
         warnings.append(f"--{options.viewer}: no `rerun` executable found; open {path} yourself")

@@ -22,6 +22,7 @@ import numpy as np
 import rerun as rr
 import rerun.blueprint as rrb
 
+from ..files import clear_link
 from .charts import Chart, Series, log_chart
 from .layout import RECORD_COLORS, engine_color, part, recording_id, shades
 
@@ -33,7 +34,7 @@ NOMINAL_COLOR = (230, 170, 0)             # stands out from the band's blues, re
 
 def _open(path, app: str, label: str):
     rec = rr.RecordingStream(app, recording_id=recording_id(label, path))
-    rec.set_sinks(rr.FileSink(str(path)))
+    rec.set_sinks(rr.FileSink(str(clear_link(path))))
     return rec
 
 
