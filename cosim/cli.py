@@ -416,7 +416,8 @@ def run_main(scenario: str, args=None) -> int:
     options = RunOptions(engines=engines, mode=args.drive, revolutions=args.revolutions, out=args.out,
                          viewer="none" if viewer is None else viewer.viewer,
                          connect_url=None if viewer is None else viewer.url, save_path=save,
-                         viewer_timeout_s=5.0 if viewer is None else viewer.timeout_s, exaggeration=args.exaggeration,
+                         viewer_timeout_s=5.0 if viewer is None else viewer.timeout_s,
+                         serve_address="127.0.0.1" if viewer is None else viewer.bind, exaggeration=args.exaggeration,
                          linkage_fps=args.linkage_fps, animation=args.animation, progress=not _quiet(args),
                          records=args.records, max_hours=max_hours)
     result = run_scenario(sc, options)

@@ -67,6 +67,7 @@ class RunOptions:
     connect_url: str | None = None
     save_path: Path | None = None        # the recording file (default: <run folder>/run.rrd)
     viewer_timeout_s: float = 5.0        # connecting to / flushing to a viewer (cosim.recording.sinks)
+    serve_address: str = "127.0.0.1"      # viewer 'serve': where its servers listen (this machine only)
     exaggeration: float | None = None    # linkage drawing; None: from the largest deformation
     linkage_fps: float | None = 60.0     # linkage frames per simulated second in the recording (None: every step)
     animation: bool = False              # linkage.gif in the run folder (matplotlib)
@@ -335,7 +336,8 @@ def _viewer_options(options: RunOptions):
         if options.viewer == "none":
             return None
         check_linkage_rate(1, options.linkage_fps)
-        return ViewerOptions(options.viewer, url=options.connect_url, timeout_s=options.viewer_timeout_s)
+        return ViewerOptions(options.viewer, url=options.connect_url, timeout_s=options.viewer_timeout_s,
+                             bind=options.serve_address)
     except ValueError as exc:
         raise InputError(str(exc)) from None
 

@@ -119,9 +119,37 @@ def test_serve_hosts_a_web_viewer_until_stopped(tmp_path):
         assert rec.serving == f"rerun+http://127.0.0.1:{grpc}/proxy"
         with urllib.request.urlopen(f"http://127.0.0.1:{web}/", timeout=20) as page:
             assert page.status == 200 and b"Rerun" in page.read()
+        if LISTENERS.exists():          # both servers listen on this machine only, never 0.0.0.0
+            assert listening(grpc) == {"127.0.0.1"} and listening(web) == {"127.0.0.1"}
     finally:
         rec.stop_serving()
     assert read_back(tmp_path / "run.rrd")["/tmm/strain/coupler_mid"] > 10
+    if LISTENERS.exists():              # and stop with the recording
+        deadline = time.monotonic() + 10
+        while (listening(grpc) or listening(web)) and time.monotonic() < deadline:
+            time.sleep(0.1)
+        assert not listening(grpc) and not listening(web)
+
+
+LISTENERS = Path("/proc/net/tcp")
+
+
+def listening(port: int) -> set:
+    """The IPv4 addresses a TCP port is listening on (Linux's /proc/net/tcp; state 0A = LISTEN)."""
+    found = set()
+    for line in LISTENERS.read_text().splitlines()[1:]:
+        local, state = line.split()[1], line.split()[3]
+        host, hex_port = local.split(":")
+        if state == "0A" and int(hex_port, 16) == port:
+            found.add(socket.inet_ntoa(bytes.fromhex(host)[::-1]))
+    return found
+
+
+def test_serve_address_must_go_with_serve_and_be_an_address(tmp_path):
+    res = cosim(*SMALL, "--serve-address", "0.0.0.0", "--out", str(tmp_path / "a"))
+    assert res.returncode == 2 and b"needs --serve" in res.stderr
+    res = cosim(*SMALL, "--serve", "--serve-address", "my-laptop", "--out", str(tmp_path / "b"))
+    assert res.returncode == 2 and b"not an IP address" in res.stderr
 
 
 def test_model_files_for_the_engines_own_tools(tmp_path):
@@ -186,15 +214,16 @@ def test_quiet_serve_of_a_run_still_prints_the_address(monkeypatch, capsys):
 
     from cosim.cli import setup_logging
     from cosim.recording.sinks import ViewerOptions, attach
+    from cosim.recording import sinks
     served = []
-    monkeypatch.setattr(rr, "GrpcServerSink", lambda port: ("grpc server", port))
-    monkeypatch.setattr(rr, "serve_web_viewer", lambda **kw: served.append(kw))
+    monkeypatch.setattr(rr, "GrpcServerSink", lambda bind_ip, port: ("grpc server", bind_ip, port))
+    monkeypatch.setattr(sinks, "start_web_viewer", lambda options, url: served.append((options, url)))
     setup_logging(quiet=True)
     try:
         urls = attach(_Stream(), None, ViewerOptions("serve"))
     finally:
         setup_logging()
-    assert urls == ["rerun+http://127.0.0.1:9876/proxy"] and served[0]["web_port"] == 9090
+    assert urls == ["rerun+http://127.0.0.1:9876/proxy"] and served[0][0].web_port == 9090
     assert WEB_ADDRESS in capsys.readouterr().err
 
 
@@ -221,3 +250,36 @@ def test_quiet_serve_of_a_sweep_file_still_prints_the_address(monkeypatch, capsy
         setup_logging()
     assert started and "--serve-web" in started[0]
     assert WEB_ADDRESS in capsys.readouterr().err
+
+
+@pytest.mark.skipif(not LISTENERS.exists(), reason="needs Linux /proc/net/tcp")
+def test_a_served_file_stops_listening_when_its_command_is_killed(tmp_path):
+    """`cosim sweep --serve` hosts its file with the rerun binary; a SIGKILL of the command used
+    to leave that server listening. It ends with its parent now (and listens on localhost)."""
+    import signal
+
+    import rerun as rr
+    path = tmp_path / "tiny.rrd"
+    rec = rr.RecordingStream("flexlink-bench-test", recording_id="tiny")
+    rec.set_sinks(rr.FileSink(str(path)))
+    rec.log("x", rr.Scalars([1.0]))
+    rec.disconnect()
+    grpc, web = free_port(), free_port()
+    code = ("import sys\nfrom pathlib import Path\nfrom cosim.recording.sinks import ViewerOptions, show_file\n"
+            f"show_file(Path({str(path)!r}), ViewerOptions('serve', grpc_port={grpc}, web_port={web}))\n")
+    proc = subprocess.Popen([sys.executable, "-c", code], cwd=ROOT, stdout=subprocess.DEVNULL,
+                            stderr=subprocess.DEVNULL)
+    try:
+        deadline = time.monotonic() + 60
+        while not listening(web) and time.monotonic() < deadline:
+            time.sleep(0.1)
+        assert listening(web) == {"127.0.0.1"} and listening(grpc) == {"127.0.0.1"}
+        proc.send_signal(signal.SIGKILL)
+        proc.wait(timeout=10)
+        deadline = time.monotonic() + 10
+        while (listening(web) or listening(grpc)) and time.monotonic() < deadline:
+            time.sleep(0.1)
+        assert not listening(web) and not listening(grpc)
+    finally:
+        if proc.poll() is None:
+            proc.kill()

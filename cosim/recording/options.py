@@ -18,10 +18,10 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from .sinks import DEFAULT_URL, ViewerOptions
+from .sinks import DEFAULT_URL, LOCALHOST, ViewerOptions
 
 VIEWER_FLAGS = ("--save", "--overwrite", "--headless", "--spawn", "--connect", "--url", "--serve", "--serve-web",
-                "--stdout", "--no-record", "--viewer-timeout")
+                "--serve-address", "--stdout", "--no-record", "--viewer-timeout")
 
 
 def add_viewer_arguments(parser, file: str, run: bool = False) -> None:
@@ -40,12 +40,15 @@ def add_viewer_arguments(parser, file: str, run: bool = False) -> None:
                       help=f"also {'stream' if run else 'send the file'} to a running rerun viewer (default URL "
                            f"{DEFAULT_URL}); an unreachable one is a warning after --viewer-timeout, never a hang")
     view.add_argument("--serve", "--serve-web", dest="viewer", action="store_const", const="serve",
-                      help="also serve the recording over gRPC and a web viewer on this machine (ports 9876, "
-                           "9090); prints the address, keeps serving after the run until Ctrl-C")
+                      help="also serve the recording over gRPC and a web viewer (ports 9876, 9090) to this machine "
+                           "only; prints the address, keeps serving after the run until Ctrl-C")
     view.add_argument("--no-record", dest="viewer", action="store_const", const="none",
                       help="no rerun recording at all")
     g.add_argument("--overwrite", action="store_true",
                    help="let --save PATH replace an existing file (by default an existing file is refused)")
+    g.add_argument("--serve-address", metavar="IP", default=LOCALHOST,
+                   help=f"with --serve: the address its servers listen on (default {LOCALHOST}, this machine only; "
+                        "0.0.0.0 exposes the recording to everyone on the network)")
     g.add_argument("--url", metavar="URL", help="the viewer URL for --connect (rerun's spelling; implies --connect)")
     g.add_argument("--stdout", action="store_true",
                    help="write the finished recording to stdout after the run (pipe into `rerun -`); the tables "
@@ -89,7 +92,11 @@ def viewer_from_args(args) -> tuple:
     timeout = getattr(args, "viewer_timeout", 5.0)
     if not (timeout and timeout > 0):
         raise ValueError(f"--viewer-timeout must be a positive number of seconds, got {timeout!r}")
-    return ViewerOptions(viewer, url=connect, stdout=stdout, timeout_s=timeout), (Path(save) if save else None)
+    bind = getattr(args, "serve_address", LOCALHOST)
+    if bind != LOCALHOST and viewer != "serve":
+        raise ValueError(f"--serve-address {bind}: is the address of --serve's servers; it needs --serve")
+    return (ViewerOptions(viewer, url=connect, stdout=stdout, timeout_s=timeout, bind=bind),
+            Path(save) if save else None)
 
 
 def _check_save_path(path: Path, overwrite: bool) -> None:

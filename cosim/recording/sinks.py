@@ -28,10 +28,15 @@ bound.
 """
 from __future__ import annotations
 
+import contextlib
+import ctypes
+import ipaddress
 import logging
 import os
 import shutil
+import signal
 import socket
+import subprocess
 import sys
 import time
 from dataclasses import dataclass
@@ -42,6 +47,8 @@ from ..files import clear_link
 
 VIEWERS = ("save", "spawn", "connect", "serve", "none")
 DEFAULT_URL = "rerun+http://127.0.0.1:9876/proxy"
+#: The servers of --serve listen here unless --serve-address names another address.
+LOCALHOST = "127.0.0.1"
 SCHEMES = ("rerun", "rerun+http", "rerun+https")
 log = logging.getLogger("cosim.recording")
 
@@ -56,18 +63,34 @@ class ViewerOptions:
     timeout_s: float = 5.0          # connecting to and flushing to a viewer
     grpc_port: int = 9876           # spawn and serve
     web_port: int = 9090            # serve
+    bind: str = LOCALHOST           # serve: the address the servers listen on (this machine only)
 
     def __post_init__(self):
         if self.viewer not in VIEWERS:
             raise ValueError(f"viewer must be one of {', '.join(VIEWERS)}, got {self.viewer!r}")
         if self.viewer == "connect":
             viewer_address(self.url or DEFAULT_URL)
+        try:
+            ipaddress.ip_address(self.bind)
+        except ValueError:
+            raise ValueError(f"--serve-address {self.bind!r}: not an IP address (127.0.0.1 serves this machine "
+                             "only; 0.0.0.0 every network interface)") from None
         if not (isinstance(self.timeout_s, (int, float)) and self.timeout_s > 0):
             raise ValueError(f"viewer timeout must be a positive number of seconds, got {self.timeout_s!r}")
 
     @property
     def connect_url(self) -> str:
         return self.url or DEFAULT_URL
+
+    @property
+    def served_host(self) -> str:
+        """Where this machine reaches the servers: the bind address, or localhost for a wildcard."""
+        return LOCALHOST if ipaddress.ip_address(self.bind).is_unspecified else self.bind
+
+    @property
+    def exposed(self) -> bool:
+        """Whether the servers listen beyond this machine (any address but a loopback one)."""
+        return not ipaddress.ip_address(self.bind).is_loopback
 
 
 def viewer_address(url: str) -> tuple:
@@ -142,30 +165,66 @@ def attach(rec, file_path, options: ViewerOptions) -> list:
         sinks += [rr.GrpcSink(u) for u in urls]
     elif options.viewer == "serve":
         try:
-            sinks.append(rr.GrpcServerSink(port=options.grpc_port))
+            sinks.append(rr.GrpcServerSink(bind_ip=options.bind, port=options.grpc_port))
         except Exception as exc:       # e.g. the port is taken
             log.warning("--serve: cannot serve on port %d (%s); the recording goes to %s only",
                         options.grpc_port, exc, file_path)
         else:
-            url = f"rerun+http://127.0.0.1:{options.grpc_port}/proxy"
-            rr.serve_web_viewer(web_port=options.web_port, open_browser=False, connect_to=url)
+            url = f"rerun+http://{options.served_host}:{options.grpc_port}/proxy"
+            # The SDK's own web server listens on every interface and takes no address (rerun
+            # issue 5882): the viewer binary serves the page instead, bound as asked.
+            start_web_viewer(options, url)
             urls.append(url)
-            announce_serving("the recording", options.web_port, url)
+            announce_serving("the recording", options, url)
     rec.set_sinks(*sinks)
     return urls
 
 
-def web_viewer_address(web_port: int, grpc_url: str) -> str:
-    """The browser address of the web viewer served on ``web_port`` (localhost) showing the
-    stream at ``grpc_url``."""
-    return f"http://127.0.0.1:{web_port}/?url={quote(grpc_url, safe='')}"
+def web_viewer_address(options: ViewerOptions, grpc_url: str) -> str:
+    """The browser address of the web viewer served on ``options.web_port`` showing the stream
+    at ``grpc_url``."""
+    return f"http://{options.served_host}:{options.web_port}/?url={quote(grpc_url, safe='')}"
 
 
-def announce_serving(what: str, web_port: int, grpc_url: str, tail: str = "") -> None:
-    """Say where the served recording is, on stderr. Printed, not logged: ``-q`` (logging at
-    WARNING) must still show it, as it is the one thing a user of ``--serve`` needs."""
-    print(f"serving {what}: open {web_viewer_address(web_port, grpc_url)} in a browser, or run `rerun {grpc_url}`"
-          f"{tail}", file=sys.stderr, flush=True)
+def announce_serving(what: str, options: ViewerOptions, grpc_url: str, tail: str = "") -> None:
+    """Say where the served recording is, on stderr, and who can reach it. Printed, not logged:
+    ``-q`` (logging at WARNING) must still show it, as it is the one thing a user of ``--serve``
+    needs."""
+    reach = (f"listening on {options.bind}: anyone on the network can read this recording" if options.exposed
+             else "this machine only")
+    print(f"serving {what} ({reach}): open {web_viewer_address(options, grpc_url)} in a browser, or run "
+          f"`rerun {grpc_url}`{tail}", file=sys.stderr, flush=True)
+
+
+PR_SET_PDEATHSIG = 1          # linux/prctl.h
+
+
+def _end_with_parent() -> None:
+    """In a server's child process before it starts (Linux): SIGTERM when the process that
+    started it ends, however it ends (SIGKILL included), so no listener outlives its run."""
+    with contextlib.suppress(Exception):
+        ctypes.CDLL(None, use_errno=True).prctl(PR_SET_PDEATHSIG, signal.SIGTERM)
+
+
+# A server's process ends with the process that started it (Linux; elsewhere the watchdogs of
+# the run and the recorder are all there is).
+_SERVER_START = {"preexec_fn": _end_with_parent} if sys.platform.startswith("linux") else {}
+
+
+def start_web_viewer(options: ViewerOptions, grpc_url: str):
+    """The web viewer's page served by the rerun binary on ``options.bind``:``options.web_port``
+    for the stream at ``grpc_url`` (a web server only: the data stays with its gRPC server).
+    Returns the process (it ends with this one), or None with a warning when it cannot start."""
+    exe = rerun_executable()
+    if exe is None:
+        log.warning("--serve: no `rerun` executable found to serve the web viewer; connect a viewer to %s", grpc_url)
+        return None
+    proc = subprocess.Popen([exe, "--serve-web", "--bind", options.bind, "--web-viewer-port", str(options.web_port),
+                             grpc_url], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, **_SERVER_START)
+    if not reachable(options.served_host, options.web_port, options.timeout_s):
+        log.warning("--serve: the web viewer did not start on port %d within %g s; connect a viewer to %s",
+                    options.web_port, options.timeout_s, grpc_url)
+    return proc
 
 
 def finish(rec, urls: list, timeout_s: float) -> list:
@@ -208,7 +267,6 @@ def show_file(path, options: ViewerOptions, save_copy=None) -> list:
             warnings.append(f"--spawn: no display (DISPLAY and WAYLAND_DISPLAY are unset); open {path} elsewhere, or "
                             "use --serve to view it in a browser")
         else:
-            import subprocess
             subprocess.Popen([exe, str(path)], start_new_session=True, stdout=subprocess.DEVNULL,
                              stderr=subprocess.DEVNULL)
     elif options.viewer == "connect":
@@ -225,12 +283,11 @@ def show_file(path, options: ViewerOptions, save_copy=None) -> list:
             rec.log_file_from_path(str(path))
             warnings += finish(rec, [url], options.timeout_s)
     elif options.viewer == "serve":
-        import subprocess
-        url = f"rerun+http://127.0.0.1:{options.grpc_port}/proxy"
-        announce_serving(str(path), options.web_port, url, "; Ctrl-C stops")
-        proc = subprocess.Popen([exe, "--serve-web", str(path), "--port", str(options.grpc_port),
+        url = f"rerun+http://{options.served_host}:{options.grpc_port}/proxy"
+        announce_serving(str(path), options, url, "; Ctrl-C stops")
+        proc = subprocess.Popen([exe, "--serve-web", str(path), "--bind", options.bind, "--port", str(options.grpc_port),
                                  "--web-viewer-port", str(options.web_port)], stdout=subprocess.DEVNULL,
-                                stderr=subprocess.DEVNULL)
+                                stderr=subprocess.DEVNULL, **_SERVER_START)
         try:
             proc.wait()
         except KeyboardInterrupt:
