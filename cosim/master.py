@@ -100,12 +100,7 @@ class ChannelResult:
         """Per-revolution crank speed statistics of the engine's crank (:func:`cosim.metrics.speed_fluctuation`),
         over the complete revolutions the run holds."""
         r = self.run
-        f = speed_fluctuation(r.t, r.crank_angle, r.crank_speed, self.angle0, self.t0)
-        if len(r.t) > 1 and len(f["t_start"]):
-            # A run that keeps only its last revolutions starts inside one: drop that revolution.
-            complete = f["t_start"] >= r.t[0] - (r.t[1] - r.t[0]) * (1 + 1e-9)
-            f = {k: v[complete] for k, v in f.items()}
-        return f
+        return speed_fluctuation(r.t, r.crank_angle, r.crank_speed, self.angle0, self.t0)
 
     def energy_balance(self, t_start: float | None = None, t_end: float | None = None) -> dict:
         """Energy flows over a time window (:func:`cosim.metrics.energy_balance`)."""
