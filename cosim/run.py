@@ -281,7 +281,7 @@ def run_scenario(scenario, options: RunOptions = RunOptions(), callback=None) ->
         if unsteady:
             notes.append(f"not steady: {', '.join(unsteady)} (the last two revolutions differ by more than "
                          f"{100 * sc.output.steady_tolerance:.2g} %); its peaks are a transient, not a steady state")
-        implausible = plausibility_notes(sc, summary)
+        implausible = plausibility_notes(sc, summary, progress=options.progress)
         for text in implausible:
             log.warning(text)
         notes += implausible

@@ -2,6 +2,7 @@
 printed table, however few revolutions the master holds in memory."""
 import hashlib
 import importlib.metadata
+import logging
 import math
 from types import SimpleNamespace
 
@@ -98,3 +99,31 @@ def test_a_cold_kernel_cache_is_detected_from_numbas_index_files(tmp_path):
     assert not cache_is_cold(source)
     source.write_text("def march():\n    return 1\n")      # an edited source is compiled again
     assert cache_is_cold(source)
+
+
+# -- post-run analyses are bounded in time (issue 31 f) ----------------------------------------
+def test_the_natural_frequency_map_is_thinned_to_its_time_bound_over_the_whole_revolution(monkeypatch, caplog):
+    import time
+
+    import tmm_core.frequencies
+    from cosim import resonance
+
+    def slow(mech, angles, n_modes, f_max_Hz):        # 50 ms per crank angle, frequencies known
+        time.sleep(0.05)
+        return [[80.0 + math.cos(angles[0]), 114.0][:n_modes]]
+    monkeypatch.setattr(tmm_core.frequencies, "fourbar_frequencies", slow)
+    sc = load("crank_rocker_373rpm")
+    logger = logging.getLogger("cosim")       # the CLI's set-up stops it propagating to the root
+    logger.addHandler(caplog.handler)
+    try:
+        fmap = resonance.frequency_map(sc, n_angles=36, n_modes=2, max_seconds=0.2)
+    finally:
+        logger.removeHandler(caplog.handler)
+    n = len(fmap["angle_rad"])
+    assert fmap["capped"] and 1 <= n <= 4 and fmap["f_Hz"].shape == (n, 2)
+    assert fmap["angle_rad"][0] == sc.drive.start_angle_rad
+    if n > 1:                                         # still spread evenly over the revolution
+        assert fmap["angle_rad"][1] - fmap["angle_rad"][0] == pytest.approx(2 * math.pi / n)
+    assert f"{n} of 36 crank angles" in caplog.text
+    whole = resonance.frequency_map(sc, n_angles=3, n_modes=2, max_seconds=None)
+    assert not whole["capped"] and len(whole["angle_rad"]) == 3
