@@ -9,6 +9,8 @@ from types import SimpleNamespace
 import pytest
 
 import cosim.run as run_module
+from cosim.master import CoSimulation
+from cosim.metrics import run_change
 from cosim.report import comparison_table
 from cosim.run import RunOptions, run_scenario
 from cosim.run_progress import RunProgress, toward_steady
@@ -127,3 +129,20 @@ def test_the_natural_frequency_map_is_thinned_to_its_time_bound_over_the_whole_r
     assert f"{n} of 36 crank angles" in caplog.text
     whole = resonance.frequency_map(sc, n_angles=3, n_modes=2, max_seconds=None)
     assert not whole["capped"] and len(whole["angle_rad"]) == 3
+
+
+# -- the stopping rule's tolerance (issue 31 d) ------------------------------------------------
+@pytest.mark.parametrize("value", ["0 %", "-0.1 %", "100 %", "150 %", "0.5 in"])
+def test_a_steady_tolerance_outside_0_to_100_percent_is_refused_naming_file_key_and_value(value):
+    from cosim.scenario import ScenarioError
+    with pytest.raises(ScenarioError) as err:
+        load("crank_rocker_373rpm").with_overrides({"output.steady_tolerance": value})
+    text = str(err.value)
+    assert "crank_rocker_373rpm.toml" in text and "key 'output.steady_tolerance'" in text and repr(value) in text
+
+
+def test_a_tightened_tolerance_is_what_stops_the_run():
+    sc = load("crank_rocker_373rpm").with_overrides({"output.steady_tolerance": "0.1 %"})
+    assert sc.output.steady_tolerance == pytest.approx(1e-3)
+    res = CoSimulation(sc, ("tmm",), mode="prescribed").run(until_steady=True)
+    assert res.stop == "steady" and run_change(res["tmm"].run) < 1e-3
