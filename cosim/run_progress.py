@@ -30,7 +30,7 @@ BAR_FORMAT = "{desc}: {percentage:3.0f}%|{bar}| {elapsed}{postfix}"
 
 def compile_notice() -> str | None:
     """Say so before a run that will compile the transfer-matrix kernels (numba's cache is cold):
-    the bar would otherwise sit at 0 % for about a minute and a half. Returns the message logged."""
+    the bar would otherwise sit at 0 % for one to two minutes. Returns the message logged."""
     if not cache_is_cold():
         return None
     text = (f"compiling the transfer-matrix kernels (once, about {COMPILE_ESTIMATE_S:.0f} s on a 2-core machine; "

@@ -249,7 +249,7 @@ def test_a_header_only_record_is_refused_naming_the_file(tmp_path):
 # -- 8. implausible results are said so --------------------------------------------------------------
 def test_a_strain_beyond_yield_is_reported_as_implausible(monkeypatch):
     import cosim.run_guards as run_guards
-    monkeypatch.setattr(run_guards, "resonances_near", lambda sc: "resonance near 373 rpm: mode 1")
+    monkeypatch.setattr(run_guards, "resonances_near", lambda sc, **options: "resonance near 373 rpm: mode 1")
     summary = {"engines": {"tmm": {"steady": False, "gauges": {"coupler_mid": {
         "bending_max_ue": 32600.0, "bending_min_ue": -30000.0}}}}}
     notes = plausibility_notes(BASE, summary)
