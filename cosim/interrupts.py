@@ -14,6 +14,8 @@ import signal
 
 import numpy as np
 
+from .metrics import revolutions_completed
+
 
 #: The signals this process has been interrupted by, in order (the exit status follows the last).
 _received: list[int] = []
@@ -111,6 +113,20 @@ def mark_interrupted(result, written_t, failures: dict) -> None:
                 trim_samples(ch.motor, written_t)
         else:
             trim_samples(ch.run, -math.inf)
+        _cut_length(ch, result.macro_step_s, written_t)
     sts = {ch.status for ch in result.channels.values()}
     result.status = "failed" if "failed" in sts else "interrupted"
     result.stop = "interrupted"
+    sim_time = max((ch.sim_time_s for ch in result.channels.values()), default=0.0)
+    result.t_end_s, result.sim_time_s = result.t_end_s - (result.sim_time_s - sim_time), sim_time
+
+
+def _cut_length(ch, macro_step_s: float, written_t) -> None:
+    """A channel's whole-run length (macro steps, simulated time [s], revolutions) cut back to
+    the last macro step written (``written_t`` [s], None: none was)."""
+    written = 0 if written_t is None else int(round((written_t - ch.t0) / macro_step_s))
+    if ch.macro_steps <= written:
+        return
+    ch.macro_steps, ch.sim_time_s = written, written * macro_step_s
+    a = ch.run.crank_angle
+    ch.revolutions_run = revolutions_completed([ch.angle0, float(a[-1])]) if len(a) else 0.0

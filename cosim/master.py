@@ -59,7 +59,7 @@ from .engines import make_engine
 from .engines.base import DriveInput, EngineError, EngineRun, concatenate, constant_speed_profile
 from .interface_signals import (ReflectedInertia, crank_extrapolation, crank_interpolation, extrapolate,
                                 linear_interpolation)
-from .metrics import SteadyWatch, energy_balance, speed_fluctuation
+from .metrics import SteadyWatch, energy_balance, revolutions_completed, speed_fluctuation
 from .motor import Motor, MotorState, MotorTrace
 from .scenario import CouplingSettings, Scenario
 
@@ -95,17 +95,18 @@ class ChannelResult:
     #: The motor's current [A] and voltage [V] extremes over the whole run ({name: (min, max)}),
     #: kept even when the run holds only its last revolutions (``keep_revolutions``).
     motor_extrema: dict | None = None
+    #: Macro steps the engine completed, the simulated time they make [s] (the integer count times
+    #: the macro step) and the crank revolutions it travelled: the whole run's, also when the run
+    #: holds only its last revolutions.
+    macro_steps: int = 0
+    sim_time_s: float = 0.0
+    revolutions_run: float = 0.0
 
     def speed_fluctuation(self) -> dict:
         """Per-revolution crank speed statistics of the engine's crank (:func:`cosim.metrics.speed_fluctuation`),
         over the complete revolutions the run holds."""
         r = self.run
-        f = speed_fluctuation(r.t, r.crank_angle, r.crank_speed, self.angle0, self.t0)
-        if len(r.t) > 1 and len(f["t_start"]):
-            # A run that keeps only its last revolutions starts inside one: drop that revolution.
-            complete = f["t_start"] >= r.t[0] - (r.t[1] - r.t[0]) * (1 + 1e-9)
-            f = {k: v[complete] for k, v in f.items()}
-        return f
+        return speed_fluctuation(r.t, r.crank_angle, r.crank_speed, self.angle0, self.t0)
 
     def energy_balance(self, t_start: float | None = None, t_end: float | None = None) -> dict:
         """Energy flows over a time window (:func:`cosim.metrics.energy_balance`)."""
@@ -118,10 +119,11 @@ class CoSimResult:
     mode: str
     coupling: CouplingSettings
     macro_step_s: float
-    t_end_s: float
+    t_end_s: float                      # t0 + sim_time_s
     channels: dict
     status: str                         # completed | stopped | interrupted | failed
     stop: str = "end"                   # why it ended: "end" (its length), "steady", or the status
+    sim_time_s: float = 0.0             # macro steps run x macro step [s]
 
     def __getitem__(self, engine: str) -> ChannelResult:
         return self.channels[engine]
@@ -136,6 +138,10 @@ class MacroStep:
     t: float
     outputs: dict                       # {engine: (EngineOutput, MotorTrace | None)}
     failed: dict = field(default_factory=dict)   # {engine: error message}, newly failed this step
+    #: In a run until steady: {running engine: its last two revolutions' change} (relative, after
+    #: two revolutions; cosim.metrics.SteadyWatch) and the tolerance that ends the run. None otherwise.
+    change: dict | None = None
+    steady_tolerance: float | None = None
 
 
 # -- channels ------------------------------------------------------------------------------------
@@ -152,6 +158,7 @@ class _Channel:
         self.motor = Motor(scenario.motor, integrates_crank=engine.kinematic) if mode == "motor" else None
         self.J_r = None     # interface Jacobian, set at start
         self.t0, self.angle0, self.t_end = 0.0, 0.0, None
+        self.steps, self.angle_end = 0, None   # macro steps done, the crank angle at the last one's end [rad]
 
     # -- start -----------------------------------------------------------------------------------
     def start(self, t0: float, angle: float, speed: float, t_end: float | None = None) -> None:
@@ -191,6 +198,7 @@ class _Channel:
             out = self.engine.advance(t_b, DriveInput(prescribed=self.profile, ahead=True, until=self.t_end))
             self.outputs.append(out)
             self.passes.append(1)
+            self._done(out)
             self._release()
             return out, None
         h = self.engine.internal_step_s
@@ -209,8 +217,15 @@ class _Channel:
             self.motor_extrema[name] = (min(lo, float(np.min(x))), max(hi, float(np.max(x))))
         for hist in (self.crank_hist, self.drive_hist, self.load_hist):
             del hist[:-2]
+        self._done(out)
         self._release()
         return out, trace
+
+    def _done(self, out) -> None:
+        """Count a completed macro step (the whole run's length, whatever the outputs held)."""
+        self.steps += 1
+        if len(out.crank_angle):
+            self.angle_end = float(out.crank_angle[-1])
 
     def _release(self) -> None:
         """Drop the macro steps older than ``keep_rad`` of crank angle (they are in traces.csv
@@ -326,15 +341,26 @@ class _Channel:
         return load, J_r
 
     # -- results ---------------------------------------------------------------------------------
-    def result(self, wall_time_s: float, status: str, error: str | None) -> ChannelResult:
+    def result(self, wall_time_s: float, status: str, error: str | None, macro_step_s: float) -> ChannelResult:
+        """The channel's result; ``macro_step_s`` [s] turns its step count into simulated time."""
         run = concatenate(self.name, self.outputs, wall_time_s)
         motor = MotorTrace.concatenate(self.traces) if self.motor is not None else None
+        revolutions = 0.0 if self.angle_end is None else revolutions_completed([self.angle0, self.angle_end])
         return ChannelResult(self.name, run, motor, np.array(self.passes, dtype=int), status, error,
                              self.t0, self.angle0, None if self.motor is None else self.motor.p,
-                             dict(self.motor_extrema) if self.motor is not None else None)
+                             dict(self.motor_extrema) if self.motor is not None else None,
+                             self.steps, self.steps * macro_step_s, revolutions)
 
 
 # -- the master ----------------------------------------------------------------------------------
+def _settled(watch: SteadyWatch, outputs: dict, running: list) -> bool:
+    """Feed a macro step's outputs to the watch; True when every running engine is steady."""
+    for name, (out, _) in outputs.items():
+        watch.add(name, out)
+    verdicts = [watch.steady(n) for n in running]     # every engine's change, for the progress shown
+    return all(verdicts)
+
+
 def macro_step_for(scenario: Scenario, engines, coupling: CouplingSettings | None = None,
                    mode: str | None = None) -> float:
     """The macro step [s]: the scenario's, or the largest engine step if the others divide it.
@@ -456,18 +482,18 @@ class CoSimulation:
                         status[name], errors[name] = "failed", str(exc)
                         failed[name] = str(exc)
                     clocks[name] += time.perf_counter() - tic
-                if callback is not None and callback(MacroStep(k + 1, n_steps, t_b, outputs, failed)):
+                running = [n for n, s in status.items() if s == "running"]
+                settled = bool(running) and watch is not None and _settled(watch, outputs, running)
+                change = None if watch is None else {n: watch.change[n] for n in running if n in watch.change}
+                if callback is not None and callback(MacroStep(k + 1, n_steps, t_b, outputs, failed, change,
+                                                               None if watch is None else watch.tolerance)):
                     stopped = reason = "stopped"
                     break
-                running = [n for n, s in status.items() if s == "running"]
                 if not running:
                     break
-                if watch is not None:
-                    for name, (out, _) in outputs.items():
-                        watch.add(name, out)
-                    if all(watch.steady(n) for n in running):
-                        reason = "steady"
-                        break
+                if settled:
+                    reason = "steady"
+                    break
         except KeyboardInterrupt:
             # Ctrl-C (or SIGTERM turned into it by the caller): keep every completed macro step.
             stopped = reason = "interrupted"
@@ -476,8 +502,8 @@ class CoSimulation:
             st = status[name]
             if st == "running":
                 st = stopped or "completed"
-            results[name] = ch.result(clocks[name], st, errors.get(name))
+            results[name] = ch.result(clocks[name], st, errors.get(name), H)
         sts = {r.status for r in results.values()}
         overall = next((s for s in ("failed", "interrupted", "stopped") if s in sts), "completed")
-        t_end = max((float(r.run.t[-1]) for r in results.values() if len(r.run.t)), default=t0)
-        return CoSimResult(sc, self.mode, self.coupling, H, t_end, results, overall, reason)
+        sim_time = max(r.sim_time_s for r in results.values())
+        return CoSimResult(sc, self.mode, self.coupling, H, t0 + sim_time, results, overall, reason, sim_time)

@@ -37,7 +37,10 @@ def revolutions_completed(angle) -> float:
 
 
 def last_revolution(angle) -> np.ndarray:
-    """Boolean mask of the samples in the last crank revolution."""
+    """Boolean mask of the samples in the last crank revolution: those whose crank angle lies
+    less than one revolution back from the last sample's (``angle`` [rad], cumulative). This is
+    the one definition of the last revolution's window (the extremes, the scores, the figures and
+    the steady-state comparison all use it)."""
     if len(angle) == 0:
         return np.zeros(0, dtype=bool)
     return _phase(angle) > -2 * math.pi * (1 - 1e-12)
@@ -45,18 +48,25 @@ def last_revolution(angle) -> np.ndarray:
 
 def revolution_change(angle, signals) -> float:
     """Largest change between the last and the previous revolution of the ``signals`` (arrays
-    over the same samples as ``angle``), relative to each signal's peak-to-peak over the last
-    revolution; NaN with less than two revolutions."""
+    over the same samples as ``angle`` [rad]), at equal crank angle, relative to each signal's
+    peak-to-peak over the last revolution (:func:`last_revolution`); NaN with less than two
+    revolutions. The crank angle must increase monotonically in the direction of rotation."""
     a = np.asarray(angle, dtype=float)
     if revolutions_completed(a) < 2 * (1 - 1e-9):
         return float("nan")
     ph = _phase(a)
-    last = ph > -2 * math.pi * (1 - 1e-12)
-    prev = (~last) & (ph > -4 * math.pi * (1 + 1e-12))
+    last = last_revolution(a)
+    # The previous revolution at the last one's crank angles is interpolated over *all* samples:
+    # the angle one revolution before the window's first (last) sample lies between a sample of
+    # the revolution before the previous one and one of the previous (of the previous and one of
+    # the last). Interpolating in the previous revolution's samples alone clamps those queries to
+    # its end values, which in a motor run (samples uniform in time, not in angle, so none falls
+    # on the window's edge) differ by a sample's worth of the signal's slope.
+    query = ph[last] - 2 * math.pi
     worst = 0.0
     for x in signals:
         x = np.asarray(x, dtype=float)
-        xl, xp = x[last], np.interp(ph[last] - 2 * math.pi, ph[prev], x[prev])
+        xl, xp = x[last], np.interp(query, ph, x)
         span = float(np.ptp(xl))
         if span <= 0.0 or not np.isfinite(span):
             continue
@@ -121,25 +131,29 @@ class SteadyWatch:
 
 
 # -- motor-driven runs: speed and energy ---------------------------------------------------
-def revolutions_of(t, angle, start_angle: float = 0.0):
-    """Times [s] at which the crank completes each revolution from ``start_angle`` (linear
-    interpolation of the angle samples; either direction of rotation)."""
+def revolution_bounds(t, angle, start_angle: float = 0.0, t0: float = 0.0) -> np.ndarray:
+    """Times [s] bounding the complete crank revolutions the samples (``t`` [s], ``angle`` [rad],
+    cumulative, either direction) cover, counted from ``start_angle`` at ``t0``: consecutive
+    entries bound one revolution (linear interpolation of the angle samples). A run that holds
+    only its last revolutions starts after revolutions it cannot time: those are left out, and so
+    is the revolution in which its samples start (its start is unknown)."""
     t, angle = np.asarray(t, dtype=float), np.asarray(angle, dtype=float)
     if len(t) < 2:
         return np.zeros(0)
     turns = np.maximum.accumulate(np.abs(angle - start_angle) / (2 * math.pi))
-    marks = np.arange(1, int(np.floor(turns.max())) + 1)
-    return np.interp(marks, turns, t) if len(marks) else np.zeros(0)
+    first = max(1, math.ceil(turns[0] - 1e-9))        # the first revolution end inside the samples
+    ends = np.interp(np.arange(first, int(np.floor(turns[-1])) + 1), turns, t)
+    return np.r_[t0, ends] if first == 1 else ends
 
 
 def speed_fluctuation(t, angle, speed, start_angle: float = 0.0, t0: float = 0.0) -> dict:
-    """Per complete crank revolution: ``t_start``, ``t_end`` [s], ``mean`` (2 pi / period),
-    ``max``, ``min`` [rad/s] of the speed samples and ``fluctuation`` = (max - min) / mean."""
+    """Per complete crank revolution (:func:`revolution_bounds`): ``t_start``, ``t_end`` [s],
+    ``mean`` (2 pi / period), ``max``, ``min`` [rad/s] of the speed samples and
+    ``fluctuation`` = (max - min) / mean."""
     t, speed = np.asarray(t, dtype=float), np.abs(np.asarray(speed, dtype=float))
-    ends = revolutions_of(t, angle, start_angle)
-    starts = np.r_[t0, ends[:-1]]
+    bounds = revolution_bounds(t, angle, start_angle, t0)
     out = {k: [] for k in ("t_start", "t_end", "mean", "max", "min", "fluctuation")}
-    for a, b in zip(starts, ends):
+    for a, b in zip(bounds[:-1], bounds[1:]):
         sel = (t >= a) & (t <= b)
         if not np.any(sel):
             continue
@@ -164,7 +178,7 @@ def energy_balance(channel, t_start: float | None = None, t_end: float | None = 
         raise InputError(f"{channel.engine}: an energy balance needs a motor-driven run")
     run = channel.run
     if t_start is None or t_end is None:
-        ends = np.r_[channel.t0, revolutions_of(run.t, run.crank_angle, channel.angle0)]
+        ends = revolution_bounds(run.t, run.crank_angle, channel.angle0, channel.t0)
         if len(ends) < 2:
             raise InputError(f"{channel.engine}: no complete revolution to balance")
         t_start, t_end = ends[-2], ends[-1]

@@ -12,23 +12,58 @@ sweep running (cosim.sweep).
 """
 from __future__ import annotations
 
+import logging
 import math
+import time
 from pathlib import Path
 
 import numpy as np
 
+log = logging.getLogger(__name__)
+
+#: Wall-time bound [s] of a natural-frequency map: a post-run analysis must not run for minutes
+#: (a few seconds per crank angle on a four-bar, measured 2.4 s on the FE rig; more on a finely
+#: meshed rig or a high frequency range).
+MAP_SECONDS = 120.0
+
 
 def frequency_map(scenario, n_angles: int = 36, n_modes: int = 4, f_max_Hz: float = 1000.0,
-                  progress: bool = False) -> dict:
-    """Natural frequencies [Hz] at ``n_angles`` crank angles: {"angle_rad", "f_Hz" (angles, modes)}.
-    One angle at a time (a few seconds each on a four-bar), so that ``progress`` can show a bar."""
+                  progress: bool = False, max_seconds: float | None = MAP_SECONDS) -> dict:
+    """Natural frequencies [Hz] at ``n_angles`` crank angles over a revolution: {"angle_rad",
+    "f_Hz" (angles, modes), "capped" (fewer angles than asked)}. One angle at a time (a few
+    seconds each on a four-bar), so that ``progress`` can show a bar. Bounded in time: when the
+    first angle shows that ``n_angles`` would take longer than ``max_seconds`` [s] (None: no
+    bound), the map takes as many angles as fit, still spread over the whole revolution, and
+    says so (its bands are then coarser)."""
     from tqdm import tqdm
 
     from tmm_core.frequencies import fourbar_frequencies
-    angles = scenario.drive.start_angle_rad + np.linspace(0, 2 * math.pi, n_angles, endpoint=False)
-    rows = [fourbar_frequencies(scenario.mechanism, [a], n_modes, f_max_Hz)[0]
-            for a in tqdm(angles, desc="natural frequencies", unit="angle", disable=None if progress else True)]
-    return {"angle_rad": angles, "f_Hz": np.array(rows).reshape(n_angles, n_modes)}
+    start = scenario.drive.start_angle_rad
+    angles = start + np.linspace(0, 2 * math.pi, n_angles, endpoint=False)
+    with tqdm(total=n_angles, desc="natural frequencies", unit="angle", disable=None if progress else True) as bar:
+        tic = time.perf_counter()
+        first = fourbar_frequencies(scenario.mechanism, [start], n_modes, f_max_Hz)[0]
+        bar.update(1)
+        each = time.perf_counter() - tic
+        fits = _angles_within(n_angles, each, max_seconds)
+        if fits < n_angles:
+            log.warning("natural-frequency map: %d of %d crank angles (%.1f s each; bounded to %.0f s), "
+                        "its frequency bands are coarser", fits, n_angles, each, max_seconds)
+            angles, bar.total = start + np.linspace(0, 2 * math.pi, fits, endpoint=False), fits
+            bar.refresh()
+        rows = [first]
+        for a in angles[1:]:
+            rows.append(fourbar_frequencies(scenario.mechanism, [a], n_modes, f_max_Hz)[0])
+            bar.update(1)
+    return {"angle_rad": angles, "f_Hz": np.array(rows).reshape(len(angles), n_modes), "capped": fits < n_angles}
+
+
+def _angles_within(n_angles: int, seconds_each: float, max_seconds: float | None) -> int:
+    """How many crank angles of ``seconds_each`` [s] fit in ``max_seconds`` [s] (at least the
+    one already computed, at most ``n_angles``)."""
+    if max_seconds is None or seconds_each * n_angles <= max_seconds:
+        return n_angles
+    return max(1, min(n_angles, int(max_seconds / max(seconds_each, 1e-9))))
 
 
 def campbell(fmap: dict, rpm_min: float, rpm_max: float, max_harmonic: int = 20) -> list:

@@ -48,6 +48,7 @@ from .runlog import run_folder, write_json
 from .scenario import Scenario, load, resolved
 from .interrupts import Interrupts, mark_interrupted
 from .run_guards import MAX_HOURS, check_cost, plausibility_notes
+from .run_progress import RunProgress, compile_notice
 from .samples import SampleCollector
 from .traces import TraceWriter
 
@@ -119,9 +120,12 @@ def linkage_summary(sc: Scenario) -> dict | None:
 
 
 def _engine_summary(ch, scenario: Scenario, sim_t0: float) -> dict:
+    """One engine's entry of summary.json; the simulated time [s] and the revolutions are the
+    whole run's (the master's step count), the rest of the revolutions the run holds."""
     run = ch.run
     d = {"status": ch.status, "error": ch.error, "wall_time_s": float(run.wall_time_s),
-         "sim_time_s": float(run.t[-1] - sim_t0) if len(run.t) else 0.0, "samples": int(len(run.t)),
+         "sim_time_s": float(ch.sim_time_s), "revolutions_run": float(ch.revolutions_run),
+         "samples": int(len(run.t)),
          "coupling_passes_mean": float(np.mean(ch.passes)) if len(ch.passes) else 0.0}
     d.update(last_revolution_stats(run, t0=sim_t0))
     d.update(steadiness(run, scenario.output.steady_tolerance))
@@ -200,11 +204,9 @@ def run_scenario(scenario, options: RunOptions = RunOptions(), callback=None) ->
     stations = [False]
     exports = _start_exports(engines, folder)
 
-    bar = None
-    if options.progress:
-        from tqdm import tqdm
-        bar = tqdm(total=1.0, unit="run", desc=f"{sc.name} ({', '.join(engines)})", leave=True, disable=None,
-                   bar_format="{desc}: {percentage:3.0f}%|{bar}| {elapsed}<{remaining}")
+    if "tmm" in engines:
+        compile_notice()
+    progress = RunProgress(until_steady, f"{sc.name} ({', '.join(engines)})", bar=options.progress)
     last_write = [time.monotonic()]
     failures = {}
     written_t = [None]
@@ -233,9 +235,7 @@ def run_scenario(scenario, options: RunOptions = RunOptions(), callback=None) ->
         if samples.due():
             take_block()
         failures.update(step.failed)
-        frac = step.step / step.n_steps
-        if bar is not None:
-            bar.update(frac - bar.n)
+        frac = progress.update(step)
         if time.monotonic() - last_write[0] > SUMMARY_EVERY_S:
             summary["progress"] = frac
             summary["sim_time_s"] = step.t
@@ -268,8 +268,7 @@ def run_scenario(scenario, options: RunOptions = RunOptions(), callback=None) ->
         raise
     finally:
         writer.close()
-        if bar is not None:
-            bar.close()
+        progress.close(completed=status not in (None, "interrupted"))
     summary["status"] = status
     if result is not None:
         summary["stop"] = {"steady": "every engine steady", "end": "revolution limit" if until_steady else
@@ -277,15 +276,14 @@ def run_scenario(scenario, options: RunOptions = RunOptions(), callback=None) ->
     summary["finished"] = time.strftime("%Y-%m-%dT%H:%M:%S")
     if result is not None:
         summary["progress"] = 1.0 if status == "completed" else summary.get("progress", 0.0)
+        summary["sim_time_s"] = result.sim_time_s
         for name, ch in result.channels.items():
             summary["engines"][name] = _engine_summary(ch, sc, 0.0)
-            if len(ch.run.t):
-                summary["engines"][name]["revolutions_run"] = revolutions_completed(ch.run.crank_angle)
         unsteady = [n for n, e in summary["engines"].items() if e.get("status") == "completed" and not e.get("steady")]
         if unsteady:
             notes.append(f"not steady: {', '.join(unsteady)} (the last two revolutions differ by more than "
                          f"{100 * sc.output.steady_tolerance:.2g} %); its peaks are a transient, not a steady state")
-        implausible = plausibility_notes(sc, summary)
+        implausible = plausibility_notes(sc, summary, progress=options.progress)
         for text in implausible:
             log.warning(text)
         notes += implausible

@@ -255,7 +255,7 @@ def test_a_header_only_record_is_refused_naming_the_file(tmp_path):
 # -- 8. implausible results are said so --------------------------------------------------------------
 def test_a_strain_beyond_yield_is_reported_as_implausible(monkeypatch):
     import cosim.run_guards as run_guards
-    monkeypatch.setattr(run_guards, "resonances_near", lambda sc: "resonance near 373 rpm: mode 1")
+    monkeypatch.setattr(run_guards, "resonances_near", lambda sc, **options: "resonance near 373 rpm: mode 1")
     summary = {"engines": {"tmm": {"steady": False, "gauges": {"coupler_mid": {
         "bending_max_ue": 32600.0, "bending_min_ue": -30000.0}}}}}
     notes = plausibility_notes(BASE, summary)
@@ -273,16 +273,23 @@ def test_an_interrupted_macro_step_is_dropped_and_a_swallowed_interrupt_is_not_a
     def channel(n, status, error=None):
         t = np.arange(1, n + 1) * 0.1
         run = EngineRun("e", t, t, t, t, {"g": (t, t)}, {"link": np.zeros((n, 3, 2))}, {}, 1.0)
-        return SimpleNamespace(run=run, motor=None, status=status, error=error)
+        # macro steps of 0.1 s; the crank angle [rad] equals the time [s] (t above)
+        return SimpleNamespace(run=run, motor=None, status=status, error=error, t0=0.0, angle0=0.0, macro_steps=n,
+                               sim_time_s=0.1 * n, revolutions_run=0.1 * n / (2 * math.pi))
     result = SimpleNamespace(channels={"tmm": channel(5, "interrupted"),
                                        "exudyn": channel(4, "failed", "Newton ... SystemError in a user function")},
-                             status="failed", stop="interrupted")
+                             status="failed", stop="interrupted", macro_step_s=0.1, sim_time_s=0.5, t_end_s=0.5)
     mark_interrupted(result, 0.4, failures={})
     assert result.status == "interrupted"
     for ch in result.channels.values():
         assert ch.status == "interrupted" and ch.error is None
         assert len(ch.run.t) == 4 and len(ch.run.gauges["g"][0]) == 4 and ch.run.nodes["link"].shape[0] == 4
-    genuine = SimpleNamespace(channels={"exudyn": channel(2, "failed", "diverged")}, status="failed", stop="x")
+        # the whole run's length is cut back with the samples (the step written last ends at 0.4 s)
+        assert ch.macro_steps == 4 and ch.sim_time_s == pytest.approx(0.4)
+        assert ch.revolutions_run == pytest.approx(0.4 / (2 * math.pi))
+    assert result.sim_time_s == pytest.approx(0.4) and result.t_end_s == pytest.approx(0.4)
+    genuine = SimpleNamespace(channels={"exudyn": channel(2, "failed", "diverged")}, status="failed", stop="x",
+                              macro_step_s=0.1, sim_time_s=0.2, t_end_s=0.2)
     mark_interrupted(genuine, 0.4, failures={"exudyn": "diverged"})
     assert genuine.status == "failed" and genuine.channels["exudyn"].error == "diverged"
 

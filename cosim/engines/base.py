@@ -29,6 +29,7 @@ from typing import Callable, Protocol
 
 import numpy as np
 
+from ..metrics import last_revolution
 from ..scenario import Scenario
 
 CrankProfile = Callable[[np.ndarray], tuple]   # t [s] -> (angle [rad], speed [rad/s], acceleration [rad/s^2])
@@ -137,9 +138,12 @@ class EngineRun:
     extras: dict
     wall_time_s: float
 
-    def last_revolution(self, period: float) -> np.ndarray:
-        """Boolean mask of the samples in the last crank revolution."""
-        return self.t > self.t[-1] - period * (1 - 1e-9)
+    def last_revolution(self, period: float | None = None) -> np.ndarray:
+        """Boolean mask of the samples in the last crank revolution, by crank angle
+        (:func:`cosim.metrics.last_revolution`, the one definition of that window). ``period``
+        [s] is accepted from older callers and not used: under a motor a revolution is not a
+        fixed time."""
+        return last_revolution(self.crank_angle)
 
 
 def concatenate(engine: str, outputs: list, wall_time_s: float) -> EngineRun:
