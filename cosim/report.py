@@ -97,8 +97,10 @@ def _fmt(x, digits=1):
 def comparison_table(summary: dict) -> str:
     """Gauge extremes of the last revolution per engine (microstrain), drive torque range, wall
     and simulated time; records and scores where the summary has them."""
+    revolutions = (f"until steady (at most {summary.get('revolutions')} revolutions)" if summary.get("until_steady")
+                   else f"revolutions {summary.get('revolutions')}")
     lines = [f"scenario {summary.get('scenario')}  status {summary.get('status')}  mode {summary.get('mode')}  "
-             f"revolutions {summary.get('revolutions')}" + (f"  (stop: {summary['stop']})" if summary.get("stop") else "")]
+             f"{revolutions}" + (f"  (stop: {summary['stop']})" if summary.get("stop") else "")]
     notice = status_notice(summary)
     if notice:
         lines.append(notice)
@@ -175,7 +177,7 @@ def _measurement_gap_line(scores: list) -> str | None:
     if not errors or max(errors) <= LARGE_PEAK_ERROR:
         return None
     rigid = sorted({s.get("engine") for s in scores if MODELS.get(s.get("engine"), "").startswith("rigid")})
-    return (f"peak errors up to {100 * max(errors):.0f} %: the models and this record differ by more than the "
+    return (f"peak errors up to {100 * max(errors):.0f} %: the models and the records differ by more than the "
             f"models differ from each other; why, and what the declared unknowns can and cannot explain: "
             f"{MEASUREMENT_GAP_DOC}" + (f". {', '.join(rigid)}: the rigid model (no elastic response), which is why "
                                         "it can score closest" if rigid else ""))
