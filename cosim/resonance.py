@@ -19,14 +19,15 @@ import numpy as np
 
 
 def frequency_map(scenario, n_angles: int = 36, n_modes: int = 4, f_max_Hz: float = 1000.0,
-                  progress: bool = False) -> dict:
-    """Natural frequencies [Hz] at ``n_angles`` crank angles: {"angle_rad", "f_Hz" (angles, modes)}.
+                  progress: bool = False, rtol: float = 1e-10) -> dict:
+    """Natural frequencies [Hz] at ``n_angles`` crank angles: {"angle_rad", "f_Hz" (angles, modes)}
+    (NaN where fewer modes lie below ``f_max_Hz``; ``rtol``: the bisection's relative tolerance).
     One angle at a time (a few seconds each on a four-bar), so that ``progress`` can show a bar."""
     from tqdm import tqdm
 
     from tmm_core.frequencies import fourbar_frequencies
     angles = scenario.drive.start_angle_rad + np.linspace(0, 2 * math.pi, n_angles, endpoint=False)
-    rows = [fourbar_frequencies(scenario.mechanism, [a], n_modes, f_max_Hz)[0]
+    rows = [fourbar_frequencies(scenario.mechanism, [a], n_modes, f_max_Hz, rtol)[0]
             for a in tqdm(angles, desc="natural frequencies", unit="angle", disable=None if progress else True)]
     return {"angle_rad": angles, "f_Hz": np.array(rows).reshape(n_angles, n_modes)}
 
