@@ -18,7 +18,8 @@
   (:mod:`cosim.figures`); a figure that fails is a note in the summary, never a lost run;
 * ``summary.json``: ``scenario``, ``status``, per engine ``wall_time_s``, ``sim_time_s``,
   ``status``, ``error`` and, for the last revolution, ``gauges.<g>.{bending,axial}_{max,min}_ue``
-  and the drive torque range; in motor mode the speed fluctuation and the energy balance.
+  and the drive torque range, ``flags`` (:mod:`cosim.physics_flags`); in motor mode the speed
+  fluctuation and the energy balance.
 
 ``summary.json`` is written at the start with ``status = "incomplete"`` and rewritten every few
 seconds, so a run that is killed leaves a summary that says so; an interrupted run (Ctrl-C,
@@ -46,6 +47,7 @@ from .metrics import last_revolution, revolutions_completed, steadiness
 from .runlog import run_folder, write_json
 from .scenario import Scenario, load, resolved
 from .interrupts import Interrupts, mark_interrupted
+from .physics_flags import attach_flags
 from .run_guards import MAX_HOURS, check_cost, plausibility_notes
 from .samples import SampleCollector
 from .traces import TraceWriter
@@ -287,6 +289,7 @@ def run_scenario(scenario, options: RunOptions = RunOptions(), callback=None) ->
         for text in implausible:
             log.warning(text)
         notes += implausible
+        attach_flags(sc, summary)         # engines.<engine>.flags: buckling, toggle, resonance, rigid model
         try:
             score_records(sc, result, summary, recorder[0], options.records)
             if options.records is not None:
