@@ -140,6 +140,7 @@ def comparison_table(summary: dict) -> str:
                      + (f"  {e['error']}" if e.get("error") else ""))
     lines.append("steady: the last two revolutions agree within the tolerance (change = their largest difference "
                  "relative to the peak-to-peak); results of an engine that is NOT STEADY are a transient")
+    lines += _flag_lines(engines)
     speed = {n: e["speed"] for n, e in engines.items() if e.get("speed")}
     if speed:
         lines += ["", "crank speed (motor): mean [rpm] and (max - min) / mean of the last revolution"]
@@ -166,6 +167,19 @@ def comparison_table(summary: dict) -> str:
     for w in summary.get("record_warnings") or []:
         lines.append(f"note: {w}")
     return "\n".join(lines)
+
+
+def _flag_lines(engines: dict) -> list:
+    """The engines' physics flags (``engines.<engine>.flags``, :mod:`cosim.physics_flags`), one line
+    per message with the engines that carry it."""
+    by_message = {}
+    for name, e in engines.items():
+        for f in e.get("flags") or []:
+            if isinstance(f, dict) and f.get("message"):
+                by_message.setdefault(f["message"], []).append(name)
+    if not by_message:
+        return []
+    return ["", "physics flags:"] + [f"  [{', '.join(names)}] {msg}" for msg, names in by_message.items()]
 
 
 def _measurement_gap_line(scores: list) -> str | None:

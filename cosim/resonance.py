@@ -28,9 +28,10 @@ MAP_SECONDS = 120.0
 
 
 def frequency_map(scenario, n_angles: int = 36, n_modes: int = 4, f_max_Hz: float = 1000.0,
-                  progress: bool = False, max_seconds: float | None = MAP_SECONDS) -> dict:
+                  progress: bool = False, max_seconds: float | None = MAP_SECONDS, rtol: float = 1e-10) -> dict:
     """Natural frequencies [Hz] at ``n_angles`` crank angles over a revolution: {"angle_rad",
-    "f_Hz" (angles, modes), "capped" (fewer angles than asked)}. One angle at a time (a few
+    "f_Hz" (angles, modes; NaN where fewer modes lie below ``f_max_Hz``), "capped" (fewer angles
+    than asked)}; ``rtol``: the frequency search's relative tolerance. One angle at a time (a few
     seconds each on a four-bar), so that ``progress`` can show a bar. Bounded in time: when the
     first angle shows that ``n_angles`` would take longer than ``max_seconds`` [s] (None: no
     bound), the map takes as many angles as fit, still spread over the whole revolution, and
@@ -42,7 +43,7 @@ def frequency_map(scenario, n_angles: int = 36, n_modes: int = 4, f_max_Hz: floa
     angles = start + np.linspace(0, 2 * math.pi, n_angles, endpoint=False)
     with tqdm(total=n_angles, desc="natural frequencies", unit="angle", disable=None if progress else True) as bar:
         tic = time.perf_counter()
-        first = fourbar_frequencies(scenario.mechanism, [start], n_modes, f_max_Hz)[0]
+        first = fourbar_frequencies(scenario.mechanism, [start], n_modes, f_max_Hz, rtol)[0]
         bar.update(1)
         each = time.perf_counter() - tic
         fits = _angles_within(n_angles, each, max_seconds)
@@ -53,7 +54,7 @@ def frequency_map(scenario, n_angles: int = 36, n_modes: int = 4, f_max_Hz: floa
             bar.refresh()
         rows = [first]
         for a in angles[1:]:
-            rows.append(fourbar_frequencies(scenario.mechanism, [a], n_modes, f_max_Hz)[0])
+            rows.append(fourbar_frequencies(scenario.mechanism, [a], n_modes, f_max_Hz, rtol)[0])
             bar.update(1)
     return {"angle_rad": angles, "f_Hz": np.array(rows).reshape(len(angles), n_modes), "capped": fits < n_angles}
 

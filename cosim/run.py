@@ -18,7 +18,8 @@
   (:mod:`cosim.figures`); a figure that fails is a note in the summary, never a lost run;
 * ``summary.json``: ``scenario``, ``status``, per engine ``wall_time_s``, ``sim_time_s``,
   ``status``, ``error`` and, for the last revolution, ``gauges.<g>.{bending,axial}_{max,min}_ue``
-  and the drive torque range; in motor mode the speed fluctuation and the energy balance.
+  and the drive torque range, ``flags`` (:mod:`cosim.physics_flags`); in motor mode the speed
+  fluctuation and the energy balance.
 
 ``summary.json`` is written at the start with ``status = "incomplete"`` and rewritten every few
 seconds, so a run that is killed leaves a summary that says so; an interrupted run (Ctrl-C,
@@ -47,6 +48,7 @@ from .metrics import last_revolution, revolutions_completed, steadiness
 from .runlog import run_folder, write_json
 from .scenario import Scenario, load, resolved
 from .interrupts import Interrupts, mark_interrupted
+from .physics_flags import attach_flags, questionable
 from .run_guards import MAX_HOURS, check_cost, plausibility_notes
 from .run_progress import RunProgress, compile_notice
 from .samples import SampleCollector
@@ -283,10 +285,13 @@ def run_scenario(scenario, options: RunOptions = RunOptions(), callback=None) ->
         if unsteady:
             notes.append(f"not steady: {', '.join(unsteady)} (the last two revolutions differ by more than "
                          f"{100 * sc.output.steady_tolerance:.2g} %); its peaks are a transient, not a steady state")
-        implausible = plausibility_notes(sc, summary, progress=options.progress)
+        implausible = plausibility_notes(sc, summary)
         for text in implausible:
             log.warning(text)
         notes += implausible
+        # engines.<engine>.flags: buckling, toggle, resonance, rigid model; the linkage's own
+        # frequencies (seconds) only when the results are in question
+        attach_flags(sc, summary, linkage_map=questionable(summary, bool(implausible)), progress=options.progress)
         try:
             score_records(sc, result, summary, recorder[0], options.records)
             if options.records is not None:

@@ -116,15 +116,13 @@ def duration_text(seconds: float) -> str:
 #: Without a yield strength in the file, a strain beyond this is reported as implausible (the
 #: yield strain of the aluminium alloys and steels linkages are made of is 0.2-0.5 %).
 PLAUSIBLE_STRAIN = 5e-3
-#: Wall-time bound [s] of the resonance check after an implausible run (its natural-frequency map).
-RESONANCE_CHECK_S = 45.0
 
 
-def plausibility_notes(sc: Scenario, summary: dict, progress: bool = False) -> list:
+def plausibility_notes(sc: Scenario, summary: dict) -> list:
     """Warnings about results no rig would show: a strain beyond the material's yield (its
-    ``yield_strength``, else :data:`PLAUSIBLE_STRAIN`), and then whether the crank speed's
-    harmonics lie in a band of the linkage's natural frequencies (a resonance the march is
-    ringing up; ``cosim sweep`` gives its periodic answer; ``progress``: a bar for that map)."""
+    ``yield_strength``, else :data:`PLAUSIBLE_STRAIN`). Whether a resonance is ringing it up is
+    the run's physics flags' (:mod:`cosim.physics_flags`), which then check the linkage's own
+    natural frequencies."""
     gauges = {g.name: g for g in sc.gauges}
     links = {}
     try:
@@ -146,32 +144,4 @@ def plausibility_notes(sc: Scenario, summary: dict, progress: bool = False) -> l
                            + ("the result is not steady either (a transient or a resonance)"
                               if not e.get("steady") else "check the scenario"))
                 break
-    if out:
-        near = resonances_near(sc, progress=progress)
-        if near:
-            out.append(near)
     return out
-
-
-def resonances_near(sc: Scenario, band: float = 0.1, progress: bool = False) -> str | None:
-    """A note when a crank-speed harmonic lies within ``band`` of the linkage's natural-frequency
-    bands (12 crank angles, fewer if they would take longer than RESONANCE_CHECK_S; four-bars
-    only; ``progress``: a bar); None if none does or the map cannot be made."""
-    from tmm_core import FourBarMechanism
-    if not isinstance(sc.mechanism, FourBarMechanism):
-        return None
-    try:
-        from .resonance import campbell, frequency_map
-        rpm = abs(sc.drive.speed_rad_s) * 30 / math.pi
-        fmap = frequency_map(sc, n_angles=12, n_modes=2, progress=progress, max_seconds=RESONANCE_CHECK_S)
-        hits = campbell(fmap, rpm * (1 - band), rpm * (1 + band))
-    except Exception as exc:
-        log.debug("no resonance map: %s", exc)
-        return None
-    if not hits:
-        return None
-    h = ", ".join(f"mode {c['mode']} ({c['band_Hz'][0]:.0f}-{c['band_Hz'][1]:.0f} Hz) x harmonic {c['harmonic']}"
-                  for c in hits[:4])
-    coarse = f" (bands from {len(fmap['angle_rad'])} crank angles only)" if fmap["capped"] else ""
-    return (f"resonance near {rpm:.0f} rpm: {h} of the crank speed lie within {100 * band:.0f} % of it{coarse}; "
-            "`cosim sweep` gives the periodic steady state and its Floquet multipliers")

@@ -68,6 +68,7 @@ from pathlib import Path
 import numpy as np
 
 from tmm_core import FourBarMechanism, Gauge, SliderCrankMechanism, TMMError
+from tmm_core.closed_forms import first_bending_frequency_Hz
 
 from . import scenario_reader as rd
 from .files import SCENARIO_BYTES, FileRefused, read_text_bounded
@@ -386,7 +387,7 @@ def _check_stiffness(r: Reader, top: dict, mech, drive) -> None:
         EI = link.material.E_Pa * link.section.inertia_m4
         if not m > 0:
             continue
-        omega1 = (math.pi / link.length_m) ** 2 * math.sqrt(EI / m)      # first bending mode [rad/s]
+        omega1 = 2 * math.pi * first_bending_frequency_Hz(EI, m, link.length_m)      # [rad/s]
         if omega1 < speed:
             key, value, what = _soft_link_key(top, link)
             if key == "drive.speed":

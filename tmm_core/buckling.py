@@ -12,6 +12,8 @@ from typing import Mapping
 
 import numpy as np
 
+from .closed_forms import euler_load_N
+
 
 def clamped_clamped_buckling_count(s) -> np.ndarray:
     """Number of clamped-clamped buckling loads of a segment below ``s = P L^2/EI`` (P < 0).
@@ -41,7 +43,7 @@ def buckling_message(structure, axial_force: Mapping[str, np.ndarray], negative)
     for m in structure.members:
         P = np.asarray(axial_force[m.name])
         Pmin = float(np.min(P)) if P.size else 0.0
-        Pcr = float(np.pi**2 * np.min(m.EI) / m.length**2)
+        Pcr = euler_load_N(float(np.min(m.EI)), m.length)
         if -Pmin / Pcr > worst_ratio:
             worst_name, worst_ratio, worst_P, worst_Pcr = m.name, -Pmin / Pcr, Pmin, Pcr
     negative = np.asarray(negative)
