@@ -52,7 +52,7 @@ from .physics_flags import attach_flags, questionable
 from .run_guards import MAX_HOURS, check_cost, plausibility_notes
 from .run_progress import RunProgress, compile_notice
 from .samples import SampleCollector
-from .traces import TraceWriter
+from .traces import TraceWriter, TracesNotWritten
 
 SUMMARY_EVERY_S = 2.0
 #: Revolutions of every engine's outputs a run holds in memory (the rest is in traces.csv): the
@@ -245,7 +245,7 @@ def run_scenario(scenario, options: RunOptions = RunOptions(), callback=None) ->
             last_write[0] = time.monotonic()
         return callback(step) if callback is not None else None
 
-    status, result = None, None
+    status, result, write_failed = None, None, False
     try:
         with interrupts:
             result = cosim.run(duration, callback=on_step, until_steady=until_steady,
@@ -262,6 +262,14 @@ def run_scenario(scenario, options: RunOptions = RunOptions(), callback=None) ->
             take_block()
         status = "interrupted"
         notes.append("interrupted during set-up")
+    except TracesNotWritten as exc:    # a full disk or a file-size limit: the run cannot keep its data
+        status, write_failed = "failed", True
+        summary["error"] = f"stopped: traces.csv could not be written: {exc.strerror}"
+        notes.append(f"{summary['error']}; the traces kept are whole rows; no parquet copy or figure is made")
+        log.error("%s", exc.strerror)
+        for name in engines:
+            summary["engines"][name] = {"status": "failed", "error": "stopped with the run: its traces could not "
+                                                                     "be written"}
     except BaseException:
         with contextlib.suppress(Exception):     # the steps computed before the error stay on disk
             take_block()
@@ -318,7 +326,7 @@ def run_scenario(scenario, options: RunOptions = RunOptions(), callback=None) ->
         # reads; the parquet copy and the figure are not made.
         notes.append("traces.parquet and the strain figure are not written for an interrupted run "
                      "(cosim.load_run reads traces.csv)")
-    elif writer.columns is not None:
+    elif writer.columns is not None and not write_failed:
         _write_results(folder, sc, summary, notes, options)
     if recorder[0] is not None:
         notes += [f"recording: {p}" for p in recorder[0].close()]

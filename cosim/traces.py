@@ -19,7 +19,9 @@ the blocks are cosim.samples.
 """
 from __future__ import annotations
 
+import contextlib
 import csv
+import os
 from pathlib import Path
 
 import numpy as np
@@ -48,15 +50,24 @@ def engine_columns(engine: str, arrays: dict) -> list:
     return cols
 
 
+class TracesNotWritten(OSError):
+    """``traces.csv`` could not take a block (a full disk, a file-size limit): the file was cut
+    back to its last whole row, which the message names."""
+
+
 class TraceWriter:
     """Appends blocks of macro steps to ``traces.csv`` (module docstring); the header is fixed by
-    the first block (engines that failed before it have no columns)."""
+    the first block (engines that failed before it have no columns). A block is written whole or
+    not at all: a write that fails part-way (a full disk) is cut back, so the file always ends on
+    a whole row."""
 
     def __init__(self, path: Path):
         self.path = Path(path)
         self.columns = None
         self.fh = None
         self.rows = 0
+        self.size = 0            # bytes of whole rows in the file
+        self.last_t = None       # the time of its last whole row [s]
 
     def write_block(self, block: dict) -> None:
         """``block``: ``{engine: arrays}`` of :meth:`cosim.samples.SampleCollector.take`; one row
@@ -67,8 +78,8 @@ class TraceWriter:
             return
         if self.columns is None:
             self.columns = [c for c, _, _ in series]
-            self.fh = open_new(self.path, "w", newline="", encoding="utf-8")
-            self.fh.write(",".join(["time_s"] + self.columns) + "\n")
+            self.fh = open_new(self.path, "wb", buffering=0)
+            self._append((",".join(["time_s"] + self.columns) + "\n").encode())
         index = {c: j for j, c in enumerate(self.columns)}
         series = [(index[c], np.round(t, TIME_DECIMALS), v) for c, t, v in series
                   if c in index]      # a column the first block did not have cannot happen with fixed engines
@@ -80,9 +91,23 @@ class TraceWriter:
         # prints every NaN as "nan", and no number contains it: those cells become empty.
         fmt = "%r" + ",%.10g" * len(self.columns) + "\n"
         text = "".join([fmt % tuple(r) for r in np.column_stack([times, table]).tolist()])
-        self.fh.write(text.replace("nan", ""))   # one write per block, then flush: a kill loses at most it
-        self.fh.flush()
+        self._append(text.replace("nan", "").encode())   # one write per block: a kill loses at most it
         self.rows += len(times)
+        self.last_t = float(times[-1])
+
+    def _append(self, data: bytes) -> None:
+        """Write ``data`` whole (unbuffered: the bytes are in the file when this returns), or cut
+        the file back to where it was and raise :class:`TracesNotWritten`."""
+        done = 0
+        try:
+            while done < len(data):
+                done += self.fh.write(memoryview(data)[done:])
+        except OSError as exc:
+            with contextlib.suppress(OSError):
+                os.ftruncate(self.fh.fileno(), self.size)
+            end = "no row" if self.last_t is None else f"its last whole row, t = {self.last_t:.6g} s"
+            raise TracesNotWritten(exc.errno, f"{self.path}: {exc.strerror}; the file ends at {end}") from None
+        self.size += len(data)
 
     def close(self) -> None:
         if self.fh is not None:

@@ -94,3 +94,27 @@ def test_an_empty_out_is_refused(tmp_path, capsys, monkeypatch):
         main(["run", "crank_rocker_373rpm", "--engines", "tmm", "--out", ""])
     assert exit_.value.code == 2 and "empty --out" in capsys.readouterr().err
     assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.skipif(not hasattr(__import__("resource"), "RLIMIT_FSIZE"), reason="needs RLIMIT_FSIZE")
+def test_a_file_size_limit_fails_the_run_with_whole_rows_kept(tmp_path):
+    """Under a file-size limit (as on a full disk) traces.csv used to end mid-row and the summary
+    stayed 'incomplete' behind a bare OSError; now the run fails with a message naming the file,
+    and the file ends on a whole row."""
+    import json
+    import resource
+
+    def limit():
+        resource.setrlimit(resource.RLIMIT_FSIZE, (200_000, 200_000))
+    out = tmp_path / "run"
+    res = subprocess.run([sys.executable, "-m", "cosim", "run", "crank_rocker_373rpm", "--engines", "tmm",
+                          "--revolutions", "8", "--no-record", "--out", str(out)], cwd=ROOT, capture_output=True,
+                         text=True, timeout=600, preexec_fn=limit)
+    assert res.returncode == 1, res.stderr[-2000:]
+    assert "Traceback" not in res.stderr
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["status"] == "failed" and "traces.csv" in summary["error"], summary.get("error")
+    text = (out / "traces.csv").read_text()
+    assert text.endswith("\n")
+    width = len(text.splitlines()[0].split(","))
+    assert all(len(line.split(",")) == width for line in text.splitlines())
