@@ -41,6 +41,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .run_guards import estimate_cost
 from .scenario import UREG, ScenarioError
 
 #: Model keys and their SI units.
@@ -303,6 +304,21 @@ def steady_march(td, crank, tolerance: float, max_revolutions: int) -> tuple:
     return outs, max_revolutions, change
 
 
+def fast_model(sc, settings: Settings = Settings()):
+    """The scenario at the fast model's mesh and step (what :func:`solve` runs)."""
+    return sc.with_overrides({"solver.tmm.segments": settings.segments, "solver.tmm.step": f"{settings.step_deg} deg"})
+
+
+def solve_cost(sc, settings: Settings = Settings()) -> dict:
+    """One :func:`solve`'s :func:`cosim.run_guards.estimate_cost`, at its most revolutions
+    (``settings.max_revolutions``: an upper bound; the FE rig settles in 11 at 373 rpm, 0.25 s
+    measured on one core). Its march steps through one stored revolution at a time: a revolution
+    is its macro step."""
+    fast = fast_model(sc, settings)
+    period = 2 * math.pi / abs(fast.drive.speed_rad_s)
+    return estimate_cost(fast, ["tmm"], settings.max_revolutions * period, period)
+
+
 def solve(sc, model: dict | None = None, settings: Settings = Settings()) -> dict:
     """Steady revolution of the transfer-matrix model of ``sc`` with the model values ``model``:
     ``{"status", "error", "angle_deg" (uniform grid), "gauges": {g: {"bending_ue", "axial_ue"}},
@@ -317,7 +333,7 @@ def solve(sc, model: dict | None = None, settings: Settings = Settings()) -> dic
     unknown = set(model) - set(MODEL_KEYS)
     if unknown:
         raise ScenarioError(f"unknown model keys {sorted(unknown)}")
-    sc = sc.with_overrides({"solver.tmm.segments": settings.segments, "solver.tmm.step": f"{settings.step_deg} deg"})
+    sc = fast_model(sc, settings)
     base = sc.mechanism
     laws = _joint_laws(model)
     mech = JointLoadedFourBar.from_mechanism(base, laws) if laws else base

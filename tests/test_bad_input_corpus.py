@@ -623,6 +623,14 @@ CLI = [
     (["new", "ok1", "--like", "no_such"], "no_such"),
     (["new", "ok2", "--out", "notdir"], "notdir"),
     (["identify", "crank_rocker_241rpm", "--validate", "nope"], "nope"),
+    # Issue 32: every subcommand's cost estimated before any work starts, named by its option.
+    (_SWEEP + ["--rpm", "100,200", "--method", "march", "--revolutions", "1e9"], "--revolutions"),  # ran unbounded
+    (_SWEEP + ["--rpm", "100", "--max-hours", "0"], "--max-hours"),
+    (["uncertainty", "crank_rocker_373rpm", "--samples", "5000", "--max-hours", "0.01"], "--samples"),
+    (["uncertainty", "crank_rocker_373rpm", "--max-hours", "-1"], "--max-hours"),
+    (["identify", "crank_rocker_241rpm", "--starts", "100000000"], "--starts"),       # was a MemoryError
+    (["identify", "crank_rocker_241rpm", "--max-hours", "nan"], "--max-hours"),
+    (["run", "gauges10k.toml", "--engines", "tmm", "--no-record"], "10002 gauges"),   # was 6.29 TiB asked for
     (["synthesize", "--case", "III"], "--case"),
 ]
 
@@ -636,6 +644,8 @@ def cli_dir(tmp_path, monkeypatch):
                        ("notdir", "x")):
         _write(tmp_path / name, text)
     (tmp_path / "empty").mkdir()
+    gauges = "".join(f'[gauges.g{i}]\nlink = "coupler"\nposition = "5 in"\n' for i in range(10_000))
+    _write(tmp_path / "gauges10k.toml", 'extends = "crank_rocker_373rpm"\n[scenario]\nname = "g10k"\n' + gauges)
     monkeypatch.chdir(tmp_path)
     return tmp_path
 

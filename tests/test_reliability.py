@@ -182,6 +182,20 @@ def test_the_estimate_passes_every_shipped_scenarios_default_run_and_the_limit_c
     check_cost(sc, ["tmm"], _duration(sc, 0.25), sc.engine_step_s("tmm"), max_hours=100)   # raised: accepted
 
 
+def test_the_estimate_counts_what_the_gauges_allocate():
+    """Issue 32: 10,000 gauges passed the estimate (0.23 GB of traces) and the TMM's set-up then
+    asked numpy for 6.29 TiB (its output functionals, 720 configurations x 20,005 outputs x
+    60,023 inputs); the estimate now holds that set-up and the run is refused naming the gauges."""
+    gauges = {f"g{i}": {"link": "coupler", "position": "5 in"} for i in range(10_000)}
+    sc = BASE.with_overrides({"gauges": gauges})
+    duration = _duration(sc, 0.25)
+    est = estimate_cost(sc, ["tmm"], duration, sc.engine_step_s("tmm"))
+    assert est["setup_bytes"] == pytest.approx(6.29 * 2 ** 40, rel=0.02)
+    with pytest.raises(ValueError) as err:
+        check_cost(sc, ["tmm"], duration, sc.engine_step_s("tmm"))
+    assert "10000 gauges" in str(err.value) and "GB a run may hold" in str(err.value)
+
+
 def test_a_fine_mesh_on_the_compiled_march_is_estimated_linear_in_its_segments():
     """The compiled march on stored factorizations costs ~12 us + 0.5 us per segment a step: 30
     revolutions at 512 segments per link are accepted (the numpy path's model, segments**1.7,
