@@ -134,6 +134,12 @@ UNITS = [
     (CR, {"drive.start_angle": "1 deg deg"}, "drive.start_angle"),    # was 0.0175 deg
     (CR, {"solver.tmm.step": "1 deg deg"}, "solver.tmm.step"),
     (CR, {"materials.aluminium.E": "10e6 psi*rad"}, "materials.aluminium.E"),
+    # Issue 32: angles whose fraction of a turn is lost in floating point (1e19 deg: doubles 32 rad apart).
+    (CR, {"linkage.ground_angle": "1e19 deg"}, "linkage.ground_angle"),     # was accepted
+    (CR, {"drive.start_angle": "-1e6 deg"}, "drive.start_angle"),          # was accepted
+    (SC, {"linkage.slide_angle": "1e19 deg"}, "linkage.slide_angle"),       # was accepted
+    (WS, {"linkage.crank_zero": "1e19 deg"}, "linkage.crank_zero"),         # was accepted
+    (ST, {"joints.13.direction": "1e19 deg"}, "joints.13.direction"),       # was accepted
 ]
 
 
