@@ -60,6 +60,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
+import logging
 import math
 import re
 import tomllib
@@ -83,6 +84,7 @@ if TYPE_CHECKING:
     from .structure_scenario import StaticScenario
 
 SCENARIO_DIR = Path(__file__).resolve().parent.parent / "scenarios"
+log = logging.getLogger(__name__)
 
 
 #: Mechanism types: four-bar or slider-crank main loops (motion), a general linkage in motion
@@ -478,6 +480,9 @@ def _main_loop(r: Reader, top: dict, kind: str, materials: dict, sections: dict,
     else:
         ground = r.quantity(lk["ground"], "linkage.ground", "m", positive=True)
         ground_angle = r.quantity(lk.get("ground_angle", "0 deg"), "linkage.ground_angle", "rad")
+        _check_change_point(r, {"links.crank.length": links["crank"].length_m,
+                                "links.coupler.length": links["coupler"].length_m,
+                                "links.rocker.length": links["rocker"].length_m, "linkage.ground": ground})
         mech = FourBarMechanism(links["crank"], links["coupler"], links["rocker"], ground, pivot, ground_angle, branch)
 
     def gauge_link(gk, gd):
@@ -491,6 +496,29 @@ def _main_loop(r: Reader, top: dict, kind: str, materials: dict, sections: dict,
                          gd["position"])
         return link, pos
     return mech, gauge_link
+
+
+#: A four-bar whose Grashof sum s + l - (p + q) lies within this fraction of its longest link of
+#: zero is a change-point linkage (refused); within NEAR_CHANGE_POINT of it, a warning at load.
+CHANGE_POINT, NEAR_CHANGE_POINT = 1e-9, 0.02
+
+
+def _check_change_point(r: Reader, lengths: dict) -> None:
+    """Refuse a change-point four-bar (s + l = p + q: once a revolution all four pivots line up
+    and the linkage may fold either way, where its kinematics and the transfer-matrix solve are
+    singular) and warn when the sum lies within :data:`NEAR_CHANGE_POINT` of the longest link
+    (a near-toggle: large joint forces and strains at that crank angle). Lengths in m."""
+    ordered = sorted(lengths.values())
+    margin = (ordered[0] + ordered[3]) - (ordered[1] + ordered[2])
+    what = ", ".join(f"{k} = {v:.6g} m" for k, v in lengths.items())
+    if abs(margin) <= CHANGE_POINT * ordered[3]:
+        raise r.fail("linkage", f"is a change-point linkage ({what}: shortest + longest = the other two, s + l = p + "
+                                "q): once a revolution all four pivots line up and the linkage may fold either way, "
+                                "which no engine can follow; change one of these lengths")
+    if abs(margin) <= NEAR_CHANGE_POINT * ordered[3]:
+        log.warning("scenario '%s': linkage near a change point (%s: s + l - (p + q) = %.3g m, %.2g %% of the "
+                    "longest link): the pivots nearly line up once a revolution, a toggle with large joint forces and "
+                    "strains there", r.path, what, margin, 100 * abs(margin) / ordered[3])
 
 
 def resolved(scenario: Scenario) -> dict:

@@ -156,6 +156,8 @@ GEOMETRY = [
     (CR, {"links.crank.length": "0 in"}, "links.crank.length"),
     (CR, {"links.coupler.length": "-10 in"}, "links.coupler.length"),
     (CR, {"links.crank.length": "12 in"}, "linkage"),
+    (CR, {"links.rocker.length": "8 in"}, "linkage"),          # 7/10/8/11, s + l = p + q: was a NaN in the TMM
+    (CR, {"links.crank.length": "6 in", "links.rocker.length": "7 in"}, "linkage"),     # 6/10/7/11: likewise
     (CR, {"linkage.branch": "closed"}, "linkage.branch"),
     (CR, {"linkage.pivot": ["0 in"]}, "linkage.pivot"),
     (CR, {"linkage.pivot": "0 in"}, "linkage.pivot"),

@@ -3,6 +3,7 @@ value), work that cannot finish refused with its estimate before anything is all
 and SIGTERM stop a run promptly keeping its data, and nothing read or written outside where it
 belongs. Layered: the loader in process first, then the run's checks, then the command line."""
 import json
+import logging
 import math
 import shutil
 import signal
@@ -409,3 +410,17 @@ def test_ctrl_c_with_each_engine_alone_exits_130_promptly(engine, tmp_path):
     assert summary["status"] == "interrupted" and summary["engines"][engine]["status"] == "interrupted"
     assert traces.read_text().count("\n") >= 3
     print(f"{engine}: exit 130 {stopped_in:.2f} s after SIGINT")
+
+
+def test_a_four_bar_near_its_change_point_loads_with_a_warning(caplog, monkeypatch):
+    """Issue 32: 7/10/8.1/11 in lies 0.1 in (0.9 % of the 11 in ground) from the change point
+    7 + 11 = 10 + 8; it can run, and the loader says it is near one, naming the lengths."""
+    monkeypatch.setattr(logging.getLogger("cosim"), "propagate", True)     # cosim.cli.setup_logging turns it off
+    with caplog.at_level("WARNING", logger="cosim"):
+        BASE.with_overrides({"links.rocker.length": "8.1 in"})
+    text = " ".join(r.getMessage() for r in caplog.records)
+    assert "near a change point" in text and "links.rocker.length = 0.20574 m" in text
+    caplog.clear()
+    with caplog.at_level("WARNING", logger="cosim"):
+        BASE.with_overrides({"links.rocker.length": "12 in"})
+    assert "change point" not in " ".join(r.getMessage() for r in caplog.records)
