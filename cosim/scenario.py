@@ -65,6 +65,7 @@ import math
 import re
 import tomllib
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 
@@ -77,7 +78,8 @@ from .scenario_reader import G0, Reader
 # The data types live in scenario_types; they stay importable from here, with the unit registry.
 from .scenario_types import (Assumption, CouplingSettings, DriveSpec, ExudynSettings, MujocoSettings,  # noqa: F401
                              OutputSettings, Scenario, ScenarioError, TMMSettings)
-from .overrides import Variants
+from .overrides import Variants, apply_overrides
+from .unknowns_table import declared, variant
 from .units import UREG  # noqa: F401
 
 if TYPE_CHECKING:
@@ -290,7 +292,7 @@ def from_dict(data: dict, path: str = "<dict>", default_name: str = "scenario") 
     _check_steps(r, drive, tmm, exudyn, mujoco, coupling)
     _check_stiffness(r, top, mech, drive)
     if "uncertainty" in top:
-        _check_uncertainty(r, top["uncertainty"], path, top)
+        _check_uncertainty(r, top["uncertainty"], path, top, tuple(gauges))
     return Scenario(sc_name, description, Path(path) if path != "<dict>" else None, sources, mech, drive,
                     tuple(gauges), gravity, tmm, exudyn, mujoco, output, tuple(r.assumptions), data, motor, coupling,
                     rig)
@@ -414,7 +416,7 @@ _UNKNOWN_KEYS = {"keys", "distribution", "unit", "low", "high", "mean", "std", "
                  "source"}
 
 
-def _check_uncertainty(r: Reader, data, path: str, top: dict) -> None:
+def _check_uncertainty(r: Reader, data, path: str, top: dict, gauges: tuple = ()) -> None:
     """The ``[uncertainty]`` table's keys at load (every command, ``run`` too); its values are
     read by :func:`cosim.unknowns.declared`, which names the key."""
     u = r.table(data, "uncertainty", _UNCERTAINTY_KEYS)
@@ -444,8 +446,50 @@ def _check_uncertainty(r: Reader, data, path: str, top: dict) -> None:
             except OverrideError as exc:
                 raise r.fail(f"uncertainty.parameters.{name}.keys", str(exc), k) from None
     if params:
-        from .unknowns import declared
-        declared({"uncertainty": u}, path)
+        _check_unknowns(r, top, declared({"uncertainty": u}, path)[2], gauges)
+
+
+def _bound_samples(spec) -> dict:
+    """The values an unknown takes at the edges of its range, by the key that declares them."""
+    if spec.discrete:
+        return {"values": list(spec.values)}
+    if spec.distribution == "normal":
+        return {"mean": [spec.mean - 2 * spec.std, spec.mean + 2 * spec.std]}
+    return {"low": [spec.low], "high": [spec.high]}
+
+
+def _check_unknowns(r: Reader, top: dict, unknowns: dict, gauges: tuple) -> None:
+    """Every unknown at the edges of its range is a scenario the loader accepts: a wrong unit,
+    value or key in ``[uncertainty]`` is refused at load under its own key (it passed ``cosim
+    run``, which ignores the table, and then failed every sample of ``cosim uncertainty``)."""
+    scenario = SimpleNamespace(gauges=gauges, name=r.path, path=r.path)      # what variant() reads of one
+    base = {k: v for k, v in top.items() if k != "uncertainty"}
+    # (unknown, key, value, side): the low edges are side 0, the high ones side 1, a choice's k-th value side k
+    edges = [(name, which, x, k if which == "values" else (which == "high") + k)
+             for name, spec in unknowns.items() for which, values in _bound_samples(spec).items()
+             for k, x in enumerate(values)]
+    sides = {}                                      # one load a side, every unknown at that edge together
+    for name, which, x, side in edges:
+        try:
+            sides.setdefault(side, {}).update(variant(scenario, unknowns, {name: x}).overrides)
+        except ScenarioError as exc:
+            raise r.fail(f"uncertainty.parameters.{name}.{which}", _short(str(exc)), x) from None
+    try:
+        for overrides in sides.values():
+            if overrides:
+                from_dict(apply_overrides(base, overrides), r.path)
+    except ScenarioError:                           # one at a time, to name the unknown
+        for name, which, x, _ in edges:
+            try:
+                from_dict(apply_overrides(base, variant(scenario, unknowns, {name: x}).overrides), r.path)
+            except ScenarioError as exc:
+                raise r.fail(f"uncertainty.parameters.{name}.{which}", f"at {x!r} {unknowns[name].unit} it makes a "
+                             f"scenario the loader refuses: {_short(str(exc))}", x) from None
+
+
+def _short(text: str, limit: int = 300) -> str:
+    """``text`` cut to ``limit`` characters (a message quoted inside another)."""
+    return text if len(text) <= limit else text[:limit - 3] + "..."
 
 
 def _main_loop(r: Reader, top: dict, kind: str, materials: dict, sections: dict, viscos: dict, segments: int):

@@ -84,6 +84,11 @@ KEYS = [
      "uncertainty.parameters.damping.keys"),                                                     # was accepted
     (CR, {"uncertainty.parameters": 5}, "uncertainty.parameters"),
     (CR, {"uncertainty.parameters.damping.distribution": "cauchy"}, "uncertainty.parameters.damping.distribution"),
+    # Issue 32: each unknown at the edges of its range must be a scenario the loader accepts.
+    (CR, {"uncertainty.parameters.damping.unit": ""}, "uncertainty.parameters.damping.low"),      # every sample failed
+    (CR, {"uncertainty.parameters.damping.high": "150 %"}, "uncertainty.parameters.damping.high"),  # was accepted
+    (CR, {"uncertainty.parameters.coupler_face.values": ["top", "side"]}, "uncertainty.parameters.coupler_face.values"),
+    (CR, {"uncertainty.parameters.modulus.low": "-1 psi"}, "uncertainty.parameters.modulus.low"),
 ]
 
 

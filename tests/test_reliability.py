@@ -188,7 +188,7 @@ def test_the_estimate_counts_what_the_gauges_allocate():
     asked numpy for 6.29 TiB (its output functionals, 720 configurations x 20,005 outputs x
     60,023 inputs); the estimate now holds that set-up and the run is refused naming the gauges."""
     gauges = {f"g{i}": {"link": "coupler", "position": "5 in"} for i in range(10_000)}
-    sc = BASE.with_overrides({"gauges": gauges})
+    sc = BASE.with_overrides({"uncertainty": None, "gauges": gauges})       # its unknowns name the replaced gauges
     duration = _duration(sc, 0.25)
     est = estimate_cost(sc, ["tmm"], duration, sc.engine_step_s("tmm"))
     assert est["setup_bytes"] == pytest.approx(6.29 * 2 ** 40, rel=0.02)
@@ -424,3 +424,11 @@ def test_a_four_bar_near_its_change_point_loads_with_a_warning(caplog, monkeypat
     with caplog.at_level("WARNING", logger="cosim"):
         BASE.with_overrides({"links.rocker.length": "12 in"})
     assert "change point" not in " ".join(r.getMessage() for r in caplog.records)
+
+
+def test_failed_samples_are_one_short_line():
+    """Issue 32: 130 samples failing with one long message printed a 67 kB line."""
+    from cosim.report import failed_samples_text
+    failed = [f"sample {i}: ScenarioError: " + "x" * 500 for i in range(130)] + ["sample 130: other"]
+    text = failed_samples_text(failed)
+    assert len(text) < 600 and text.startswith("131: 130 x ScenarioError") and "1 x other" in text
