@@ -123,6 +123,18 @@ def setup_logging(verbose: int = 0, quiet: bool = False) -> None:
     logger.propagate = False         # no second copy through a root handler
 
 
+def _max_hours_argument(parser) -> None:
+    from .run_guards import MAX_HOURS_HELP
+    parser.add_argument("--max-hours", type=float, metavar="H", help=MAX_HOURS_HELP)
+
+
+def _max_hours(args) -> float:
+    """``--max-hours``, checked positive and finite (default :data:`cosim.run_guards.MAX_HOURS`)."""
+    from .run_guards import MAX_HOURS
+    _positive(args, ("--max-hours",))
+    return MAX_HOURS if getattr(args, "max_hours", None) is None else args.max_hours
+
+
 def _verbosity_arguments(parser, top: bool = False) -> None:
     """``-v``/``-q`` on ``cosim`` itself and on each subcommand (either place works)."""
     suffix = "_top" if top else ""
@@ -173,9 +185,7 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--records", type=Path, metavar="DIR",
                    help="score against the records in DIR (<name>.csv + <name>.toml each, format in "
                         "cosim/records.py) instead of the shipped scenarios/records")
-    r.add_argument("--max-hours", type=float, metavar="H",
-                   help="refuse a run whose estimated wall time exceeds H hours (default 2; the estimate is "
-                        "steps x mesh size per engine, made before anything runs)")
+    _max_hours_argument(r)
     from .recording.options import add_viewer_arguments
     add_viewer_arguments(r, "run.rrd", run=True)
     _verbosity_arguments(r)
@@ -196,6 +206,7 @@ def build_parser() -> argparse.ArgumentParser:
                         "modes plus a static correction, README 'Reduced model'); default: the scenario's "
                         "solver.tmm.model")
     _executor_arguments(s, "points")
+    _max_hours_argument(s)
     s.add_argument("--out", type=out_folder, help="output folder (default: ./logs/<scenario>-sweep-<timestamp>)")
     s.add_argument("--no-campbell", dest="campbell", action="store_false",
                    help="skip the natural-frequency map and Campbell diagram (36 eigenvalue searches over a "
@@ -216,6 +227,7 @@ def build_parser() -> argparse.ArgumentParser:
     u.add_argument("--trajectories", type=int, help="Morris trajectories (default: the scenario's "
                                                     "morris_trajectories, else 8)")
     _executor_arguments(u, "samples")
+    _max_hours_argument(u)
     u.add_argument("--out", type=out_folder, help="output folder (default: ./logs/<scenario>-uncertainty-<timestamp>)")
     u.add_argument("--records", type=Path, metavar="DIR",
                    help="check the recorded peaks from DIR instead of the shipped scenarios/records")
@@ -320,7 +332,7 @@ def _dispatch(parser, args) -> int:
         folder, summary = run_sweep(args.scenario, rpm, _engines(args.engines), args.revolutions, args.workers,
                                     args.scheduler, args.out, record=viewer is not None, progress=not _quiet(args),
                                     method=args.method, resonance=args.campbell, records_dir=args.records,
-                                    model=args.model)
+                                    model=args.model, max_hours=_max_hours(args))
         out = sys.stderr if viewer is not None and viewer.stdout else sys.stdout     # --stdout: the .rrd
         print(sweep_table(summary), file=out)
         print(f"\nsweep {summary['status']}: {len(summary['points'])} points in {summary['wall_time_s']:.1f} s; "
@@ -333,7 +345,8 @@ def _dispatch(parser, args) -> int:
         viewer, save = _viewer(args)
         folder, summary = run_uncertainty(args.scenario, args.samples, args.seed, args.workers, args.scheduler,
                                           args.out, record=viewer is not None, progress=not _quiet(args),
-                                          records_dir=args.records, trajectories=args.trajectories)
+                                          records_dir=args.records, trajectories=args.trajectories,
+                                          max_hours=_max_hours(args))
         out = sys.stderr if viewer is not None and viewer.stdout else sys.stdout     # --stdout: the .rrd
         print(uncertainty_table(summary), file=out)
         print(f"\nwritten to {folder}", file=out)
@@ -411,8 +424,7 @@ def run_main(scenario: str, args=None) -> int:
         return 0
     engines = _engines(args.engines) if args.engines is not None else sc.output.engines
     _positive(args, ("--revolutions", "--linkage-fps", "--viewer-timeout"))
-    from .run_guards import MAX_HOURS
-    max_hours = MAX_HOURS if getattr(args, "max_hours", None) is None else args.max_hours
+    max_hours = _max_hours(args)
     options = RunOptions(engines=engines, mode=args.drive, revolutions=args.revolutions, out=args.out,
                          viewer="none" if viewer is None else viewer.viewer,
                          connect_url=None if viewer is None else viewer.url, save_path=save,

@@ -42,9 +42,10 @@ from pathlib import Path
 
 import numpy as np
 
+from .run_guards import MAX_HOURS, MAX_HOURS_HELP, check_study
 from .runlog import out_folder, run_folder, write_json
 from .scenario import ScenarioError, load
-from .unknowns import Settings, declared, read, solve, variant
+from .unknowns import Settings, declared, read, solve, solve_cost, variant
 
 log = logging.getLogger(__name__)
 PEAKS = (("+", "bending_max_ue"), ("-", "bending_min_ue"))
@@ -215,6 +216,18 @@ def fit_job(scenarios_raw, unknowns, continuous, choice, x0, targets, settings, 
             "wall_time_s": time.perf_counter() - tic}
 
 
+def _check_cost(cal, choices: int, starts: int, solves_per_fit: int, settings, workers, max_hours) -> None:
+    """Refuse an identification whose fits cannot finish (:func:`cosim.run_guards.check_study`):
+    ``choices`` x ``starts`` fits, each ``solves_per_fit`` solves (scipy's ``max_nfev``, which
+    leaves out the Jacobians' finite differences; fits stop well before it and reuse solves) of
+    every calibration scenario (the dearest's cost)."""
+    each = max((solve_cost(sc, settings) for sc in cal), key=lambda c: c["seconds"])
+    check_study(cal[0], "identify", {"option": "--starts", "value": starts,
+                                     "count": choices * starts * solves_per_fit * len(cal),
+                                     "what": f"solves ({choices} choice(s) x {starts} start(s), at most "
+                                             f"{solves_per_fit} evaluations a fit and scenario)"}, each, workers, max_hours)
+
+
 def _confidence(unknowns, continuous, best, m) -> tuple:
     """Per continuous unknown: value, 1-sigma, 95 % interval, flags; and the correlation matrix."""
     x = np.array(best["x"])
@@ -252,13 +265,17 @@ def _confidence(unknowns, continuous, best, m) -> tuple:
 
 def identify(calibration, validation=(), parameters=None, records_dir=None, out=None, settings: Settings = Settings(),
              starts: int = 3, workers=None, scheduler=None, sigma_relative: float = 0.10, sigma_absolute_ue: float = 5.0,
-             max_nfev: int | None = None, seed: int = 1, record: bool = True, progress: bool = True) -> tuple:
-    """Calibrate, then predict the held-out scenarios; returns ``(folder, result)``."""
+             max_nfev: int | None = None, seed: int = 1, record: bool = True, progress: bool = True,
+             max_hours: float = MAX_HOURS) -> tuple:
+    """Calibrate, then predict the held-out scenarios; returns ``(folder, result)``. ``max_hours``:
+    refuse an identification estimated to take longer (before any fit starts)."""
     from .uncertainty import parallel_map
     plan = check_inputs(calibration, validation, parameters, records_dir)
     cal, val, unknowns, names = plan["calibration"], plan["validation"], plan["unknowns"], plan["parameters"]
     continuous = [n for n in names if not unknowns[n].discrete]
     combos = _combos(unknowns, names, cal[0].gauges)
+    nfev = max_nfev or 40 * (len(continuous) + 1)
+    _check_cost(cal, len(combos), starts, nfev, settings, workers, max_hours)
     rng = np.random.default_rng(seed)
     x0s = [[0.5] * len(continuous)] + [rng.random(len(continuous)).tolist() for _ in range(max(0, starts - 1))]
     if not continuous:
@@ -269,7 +286,7 @@ def identify(calibration, validation=(), parameters=None, records_dir=None, out=
              len(x0s), folder)
     raws = [(sc.raw, str(sc.path or sc.name)) for sc in cal]
     jobs = [(raws, unknowns, continuous, c, x0, plan["targets"], settings, sigma_relative, sigma_absolute_ue,
-             max_nfev or 40 * (len(continuous) + 1)) for c in combos for x0 in x0s]
+             nfev) for c in combos for x0 in x0s]
     tic = time.perf_counter()
     fits = parallel_map(fit_job, jobs, workers, scheduler, desc="identify" if progress else None)
     ok = [f for f in fits if f["status"] == "completed"]
@@ -446,6 +463,7 @@ def add_parser(sub):
     p.add_argument("--out", type=out_folder, help="output folder (default: ./logs/<scenarios>-identify-<timestamp>)")
     p.add_argument("--workers", type=int, help="local worker processes (default: the number of cores)")
     p.add_argument("--scheduler", help="Dask scheduler address: run the fits there")
+    p.add_argument("--max-hours", type=float, metavar="H", help=MAX_HOURS_HELP)
     return p
 
 
@@ -466,11 +484,14 @@ def run_command(args, progress: bool = True) -> int:
     validation = [s.strip() for s in args.validate.split(",") if s.strip()]
     names = [s.strip() for s in args.parameters.split(",") if s.strip()] if args.parameters else None
     if args.starts < 1:
-        raise ValueError("--starts must be at least 1")
+        raise ValueError(f"--starts must be at least 1, got {args.starts}")
+    max_hours = MAX_HOURS if args.max_hours is None else args.max_hours
+    if not (math.isfinite(max_hours) and max_hours > 0):
+        raise ValueError(f"--max-hours must be a positive finite number, got {max_hours!r}")
     rel, absolute = _parse_sigma(args.sigma)
     folder, result = identify(args.scenarios, validation, names, args.records, args.out, starts=args.starts,
                               workers=args.workers, scheduler=args.scheduler, sigma_relative=rel,
-                              sigma_absolute_ue=absolute, progress=progress)
+                              sigma_absolute_ue=absolute, progress=progress, max_hours=max_hours)
     print(table(result))
     print(f"\nwritten to {folder}")
     return 0 if result["status"] == "completed" else 1

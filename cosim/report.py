@@ -281,5 +281,19 @@ def uncertainty_table(summary: dict) -> str:
         lines.append(f"  record {r.get('title') or r.get('record')} {r.get('gauge')} {r.get('peak')}peak "
                      f"{_fmt(r.get('recorded_ue'))} ue: {'inside' if r.get('inside') else 'outside'} the band")
     if summary.get("failed_samples"):
-        lines.append(f"  failed samples: {', '.join(summary['failed_samples'])}")
+        lines.append(f"  failed samples: {failed_samples_text(summary['failed_samples'])}")
     return "\n".join(lines)
+
+
+def failed_samples_text(failed: list, shown: int = 3, limit: int = 200) -> str:
+    """The failed samples ("sample i: error") as one short line: how many, and each distinct error
+    once (at most ``shown`` of them, cut to ``limit`` characters) with its count. 130 samples
+    failing alike printed a 67 kB line."""
+    groups = {}
+    for item in failed:
+        head, _, error = str(item).partition(": ")
+        groups.setdefault(error or head, []).append(head)
+    parts = [f"{len(heads)} x {e if len(e) <= limit else e[:limit - 3] + '...'}"
+             for e, heads in sorted(groups.items(), key=lambda kv: -len(kv[1]))[:shown]]
+    more = f"; {len(groups) - shown} other error(s)" if len(groups) > shown else ""
+    return f"{len(failed)}: " + "; ".join(parts) + more

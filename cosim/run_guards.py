@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import logging
 import math
+import os
 
 from .master import InputError
 from .scenario import Scenario
@@ -17,6 +18,9 @@ log = logging.getLogger(__name__)
 #: A run whose estimated wall time exceeds this is refused before anything is allocated
 #: (``RunOptions.max_hours``, ``cosim run --max-hours``).
 MAX_HOURS = 2.0
+#: The help of ``--max-hours`` (cosim run, sweep, uncertainty, identify).
+MAX_HOURS_HELP = (f"refuse work whose estimated wall time exceeds H hours (default {MAX_HOURS:g}; the estimate is "
+                  "steps x mesh size per engine and solve, made before anything runs)")
 #: A run whose traces would not fit in this much memory is refused (not raisable: the traces
 #: of every engine's step are held until the run ends).
 MAX_MEMORY_BYTES = 4e9
@@ -35,15 +39,16 @@ _EXUDYN_STEP_S, _EXUDYN_NODE_S, _MUJOCO_STEP_S = 1e-3, 2.5e-5, 1e-3
 
 def estimate_cost(sc: Scenario, engines, duration_s: float, macro_step_s: float) -> dict:
     """What a run of ``duration_s`` costs, per engine and in all, before anything is allocated:
-    ``{engine: {steps, size, seconds, bytes}, "seconds", "bytes", "text"}`` (size: mesh segments
-    for the TMM, nodes for exudyn, links for MuJoCo; bytes: the traces held in memory)."""
+    ``{engine: {steps, size, seconds, bytes, setup_bytes}, "seconds", "bytes", "setup_bytes", "text"}``
+    (size: mesh segments for the TMM, nodes for exudyn, links for MuJoCo; bytes: the traces held
+    in memory plus what the set-up allocates, :func:`tmm_setup_bytes`)."""
     try:
         links = list(sc.mechanism.links())
         segments = sum(int(link.total_segments) for link in links)
     except Exception:                # a mechanism without links() (none today): its size is unknown
         links, segments = [], _TMM_SEGMENTS
     n_links = max(1, len(links))
-    out, total_s, total_b, parts = {}, 0.0, 0.0, []
+    out, total_s, total_b, total_setup, parts = {}, 0.0, 0.0, 0.0, []
     for e in engines:
         steps = duration_s / sc.engine_step_s(e)
         if e == "tmm":
@@ -57,15 +62,36 @@ def estimate_cost(sc: Scenario, engines, duration_s: float, macro_step_s: float)
             size, per, what = n_links, _MUJOCO_STEP_S, "links"
         # each sample: time, angle, speed, torque, the gauges' two strains, every node's (x, y)
         sample_bytes = 8 * (4 + 2 * len(sc.gauges) + 2 * nodes)
-        seconds, nbytes = steps * per, steps * sample_bytes
-        out[e] = {"steps": steps, "size": size, "seconds": seconds, "bytes": nbytes}
-        total_s, total_b = total_s + seconds, total_b + nbytes
-        parts.append(f"{e} {steps:.3g} steps x {size} {what}")
+        setup = tmm_setup_bytes(sc, segments, n_links) if e == "tmm" else 0.0
+        seconds, nbytes = steps * per, steps * sample_bytes + setup
+        out[e] = {"steps": steps, "size": size, "seconds": seconds, "bytes": nbytes, "setup_bytes": setup}
+        total_s, total_b, total_setup = total_s + seconds, total_b + nbytes, total_setup + setup
+        parts.append(f"{e} {steps:.3g} steps x {size} {what}" + (f", {len(sc.gauges)} gauges" if setup else ""))
     out["macro_steps"] = duration_s / macro_step_s
-    out["seconds"], out["bytes"] = total_s, total_b
-    out["text"] = (f"{'; '.join(parts)}: about {duration_text(total_s)} and {total_b / 1e9:.3g} GB of traces "
+    out["seconds"], out["bytes"], out["setup_bytes"] = total_s, total_b, total_setup
+    held = f" (traces {(total_b - total_setup) / 1e9:.3g} GB, set-up {total_setup / 1e9:.3g} GB)" if total_setup else ""
+    out["text"] = (f"{'; '.join(parts)}: about {duration_text(total_s)} and {total_b / 1e9:.3g} GB{held} of memory "
                    f"over {duration_s:.4g} s simulated")
     return out
+
+
+def tmm_setup_bytes(sc: Scenario, segments: int, n_links: int) -> float:
+    """Memory the transfer-matrix engine's set-up allocates for a revolution of stored
+    configurations [bytes] that its memory budget (``tmm_core.transient.MAX_STEP_DATA_BYTES``)
+    does not bound: per configuration the outputs (drive torque, two strains a gauge) as affine
+    functionals of the joint forces and every gauge's 6 states
+    (``tmm_core.step_data.output_functionals``, ``(1 + 2G) x (joint forces + 6G + 1)`` doubles) and
+    the outputs' maps (``(1 + 2G) x (DOFs + 1)``). It grows as the gauges squared: 10,000 gauges
+    at 0.5 deg asked for 6.29 TiB."""
+    try:
+        per_revolution = 2 * math.pi / abs(sc.drive.speed_rad_s) / sc.engine_step_s("tmm")
+    except Exception:                # no crank speed: no revolution is stored
+        return 0.0
+    gauges = len(sc.gauges)
+    outputs = 1 + 2 * gauges
+    # ~3 force components a joint (n_links + 1 joints at most), 3 DOFs a node (segments + links)
+    joint_forces, dofs = 3 * (n_links + 1), 3 * (segments + n_links)
+    return 8.0 * per_revolution * outputs * (joint_forces + 6 * gauges + 1 + dofs + 1)
 
 
 def _tmm_step_s(sc: Scenario, segments: int, macro_per_step: float) -> float:
@@ -94,6 +120,8 @@ def check_cost(sc: Scenario, engines, duration_s: float, macro_step_s: float, ma
     worst = max(engines, key=lambda e: cost[e]["seconds"])
     hint = (f"a coarser solver.{worst}.step, fewer {'segments' if worst == 'tmm' else 'elements'}, or fewer "
             "revolutions (--revolutions, output.max_revolutions)")
+    if cost["setup_bytes"] > cost["bytes"] / 2:
+        hint = f"fewer gauges ([gauges] has {len(sc.gauges)}) or a coarser solver.tmm.step"
     if not cost["bytes"] <= MAX_MEMORY_BYTES:
         raise InputError(f"scenario '{sc.path or sc.name}': refused before it started: {cost['text']}, beyond the "
                          f"{MAX_MEMORY_BYTES / 1e9:g} GB a run may hold; use {hint}")
@@ -101,6 +129,29 @@ def check_cost(sc: Scenario, engines, duration_s: float, macro_step_s: float, ma
         raise InputError(f"scenario '{sc.path or sc.name}': refused before it started: {cost['text']}, beyond the "
                          f"limit of {max_hours:g} h; use {hint}, or raise the limit with --max-hours")
     return cost
+
+
+def check_study(sc: Scenario, command: str, solves: dict, each: dict, workers: int | None,
+                max_hours: float = MAX_HOURS) -> dict:
+    """The cost of ``cosim <command>``, refused like :func:`check_cost` before any work starts.
+    ``solves``: ``{"option": the option or key that sets their number, "value": its value,
+    "count": the solves, "what": what one is}``; ``each``: one solve's :func:`estimate_cost` (an
+    upper bound where it runs until steady). The solves share ``workers`` processes (default: the
+    cores): the wall time is count x each / workers, the memory each's times the solves at once."""
+    count = float(solves["count"])
+    at_once = max(1.0, min(count, float(workers or os.cpu_count() or 1)))
+    seconds, nbytes = count * each["seconds"] / at_once, each["bytes"] * at_once
+    text = (f"{count:.3g} {solves['what']} of ({each['text']}) on {at_once:.0f} worker(s): about "
+            f"{duration_text(seconds)} and {nbytes / 1e9:.3g} GB")
+    head = (f"scenario '{sc.path or sc.name}': cosim {command} refused before it started "
+            f"({solves['option']} = {solves['value']!r}): {text}")
+    if not nbytes <= MAX_MEMORY_BYTES:
+        raise InputError(f"{head}, beyond the {MAX_MEMORY_BYTES / 1e9:g} GB a command may hold; lower "
+                         f"{solves['option']}, use fewer workers (--workers) or fewer gauges")
+    if not seconds <= max_hours * 3600:
+        raise InputError(f"{head}, beyond the limit of {max_hours:g} h; lower {solves['option']}, or raise the "
+                         "limit with --max-hours")
+    return {"seconds": seconds, "bytes": nbytes, "text": text}
 
 
 def duration_text(seconds: float) -> str:

@@ -60,10 +60,12 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
+import logging
 import math
 import re
 import tomllib
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 
@@ -77,13 +79,15 @@ from .scenario_reader import G0, Reader
 # The data types live in scenario_types; they stay importable from here, with the unit registry.
 from .scenario_types import (Assumption, CouplingSettings, DriveSpec, ExudynSettings, MujocoSettings,  # noqa: F401
                              OutputSettings, Scenario, ScenarioError, TMMSettings)
-from .overrides import Variants
+from .overrides import Variants, apply_overrides
+from .unknowns_table import declared, variant
 from .units import UREG  # noqa: F401
 
 if TYPE_CHECKING:
     from .structure_scenario import StaticScenario
 
 SCENARIO_DIR = Path(__file__).resolve().parent.parent / "scenarios"
+log = logging.getLogger(__name__)
 
 
 #: Mechanism types: four-bar or slider-crank main loops (motion), a general linkage in motion
@@ -289,7 +293,7 @@ def from_dict(data: dict, path: str = "<dict>", default_name: str = "scenario") 
     _check_steps(r, drive, tmm, exudyn, mujoco, coupling)
     _check_stiffness(r, top, mech, drive)
     if "uncertainty" in top:
-        _check_uncertainty(r, top["uncertainty"], path, top)
+        _check_uncertainty(r, top["uncertainty"], path, top, tuple(gauges))
     return Scenario(sc_name, description, Path(path) if path != "<dict>" else None, sources, mech, drive,
                     tuple(gauges), gravity, tmm, exudyn, mujoco, output, tuple(r.assumptions), data, motor, coupling,
                     rig)
@@ -413,7 +417,7 @@ _UNKNOWN_KEYS = {"keys", "distribution", "unit", "low", "high", "mean", "std", "
                  "source"}
 
 
-def _check_uncertainty(r: Reader, data, path: str, top: dict) -> None:
+def _check_uncertainty(r: Reader, data, path: str, top: dict, gauges: tuple = ()) -> None:
     """The ``[uncertainty]`` table's keys at load (every command, ``run`` too); its values are
     read by :func:`cosim.unknowns.declared`, which names the key."""
     u = r.table(data, "uncertainty", _UNCERTAINTY_KEYS)
@@ -443,8 +447,50 @@ def _check_uncertainty(r: Reader, data, path: str, top: dict) -> None:
             except OverrideError as exc:
                 raise r.fail(f"uncertainty.parameters.{name}.keys", str(exc), k) from None
     if params:
-        from .unknowns import declared
-        declared({"uncertainty": u}, path)
+        _check_unknowns(r, top, declared({"uncertainty": u}, path)[2], gauges)
+
+
+def _bound_samples(spec) -> dict:
+    """The values an unknown takes at the edges of its range, by the key that declares them."""
+    if spec.discrete:
+        return {"values": list(spec.values)}
+    if spec.distribution == "normal":
+        return {"mean": [spec.mean - 2 * spec.std, spec.mean + 2 * spec.std]}
+    return {"low": [spec.low], "high": [spec.high]}
+
+
+def _check_unknowns(r: Reader, top: dict, unknowns: dict, gauges: tuple) -> None:
+    """Every unknown at the edges of its range is a scenario the loader accepts: a wrong unit,
+    value or key in ``[uncertainty]`` is refused at load under its own key (it passed ``cosim
+    run``, which ignores the table, and then failed every sample of ``cosim uncertainty``)."""
+    scenario = SimpleNamespace(gauges=gauges, name=r.path, path=r.path)      # what variant() reads of one
+    base = {k: v for k, v in top.items() if k != "uncertainty"}
+    # (unknown, key, value, side): the low edges are side 0, the high ones side 1, a choice's k-th value side k
+    edges = [(name, which, x, k if which == "values" else (which == "high") + k)
+             for name, spec in unknowns.items() for which, values in _bound_samples(spec).items()
+             for k, x in enumerate(values)]
+    sides = {}                                      # one load a side, every unknown at that edge together
+    for name, which, x, side in edges:
+        try:
+            sides.setdefault(side, {}).update(variant(scenario, unknowns, {name: x}).overrides)
+        except ScenarioError as exc:
+            raise r.fail(f"uncertainty.parameters.{name}.{which}", _short(str(exc)), x) from None
+    try:
+        for overrides in sides.values():
+            if overrides:
+                from_dict(apply_overrides(base, overrides), r.path)
+    except ScenarioError:                           # one at a time, to name the unknown
+        for name, which, x, _ in edges:
+            try:
+                from_dict(apply_overrides(base, variant(scenario, unknowns, {name: x}).overrides), r.path)
+            except ScenarioError as exc:
+                raise r.fail(f"uncertainty.parameters.{name}.{which}", f"at {x!r} {unknowns[name].unit} it makes a "
+                             f"scenario the loader refuses: {_short(str(exc))}", x) from None
+
+
+def _short(text: str, limit: int = 300) -> str:
+    """``text`` cut to ``limit`` characters (a message quoted inside another)."""
+    return text if len(text) <= limit else text[:limit - 3] + "..."
 
 
 def _main_loop(r: Reader, top: dict, kind: str, materials: dict, sections: dict, viscos: dict, segments: int):
@@ -479,6 +525,9 @@ def _main_loop(r: Reader, top: dict, kind: str, materials: dict, sections: dict,
     else:
         ground = r.quantity(lk["ground"], "linkage.ground", "m", positive=True)
         ground_angle = r.quantity(lk.get("ground_angle", "0 deg"), "linkage.ground_angle", "rad")
+        _check_change_point(r, {"links.crank.length": links["crank"].length_m,
+                                "links.coupler.length": links["coupler"].length_m,
+                                "links.rocker.length": links["rocker"].length_m, "linkage.ground": ground})
         mech = FourBarMechanism(links["crank"], links["coupler"], links["rocker"], ground, pivot, ground_angle, branch)
 
     def gauge_link(gk, gd):
@@ -492,6 +541,29 @@ def _main_loop(r: Reader, top: dict, kind: str, materials: dict, sections: dict,
                          gd["position"])
         return link, pos
     return mech, gauge_link
+
+
+#: A four-bar whose Grashof sum s + l - (p + q) lies within this fraction of its longest link of
+#: zero is a change-point linkage (refused); within NEAR_CHANGE_POINT of it, a warning at load.
+CHANGE_POINT, NEAR_CHANGE_POINT = 1e-9, 0.02
+
+
+def _check_change_point(r: Reader, lengths: dict) -> None:
+    """Refuse a change-point four-bar (s + l = p + q: once a revolution all four pivots line up
+    and the linkage may fold either way, where its kinematics and the transfer-matrix solve are
+    singular) and warn when the sum lies within :data:`NEAR_CHANGE_POINT` of the longest link
+    (a near-toggle: large joint forces and strains at that crank angle). Lengths in m."""
+    ordered = sorted(lengths.values())
+    margin = (ordered[0] + ordered[3]) - (ordered[1] + ordered[2])
+    what = ", ".join(f"{k} = {v:.6g} m" for k, v in lengths.items())
+    if abs(margin) <= CHANGE_POINT * ordered[3]:
+        raise r.fail("linkage", f"is a change-point linkage ({what}: shortest + longest = the other two, s + l = p + "
+                                "q): once a revolution all four pivots line up and the linkage may fold either way, "
+                                "which no engine can follow; change one of these lengths")
+    if abs(margin) <= NEAR_CHANGE_POINT * ordered[3]:
+        log.warning("scenario '%s': linkage near a change point (%s: s + l - (p + q) = %.3g m, %.2g %% of the "
+                    "longest link): the pivots nearly line up once a revolution, a toggle with large joint forces and "
+                    "strains there", r.path, what, margin, 100 * abs(margin) / ordered[3])
 
 
 def resolved(scenario: Scenario) -> dict:

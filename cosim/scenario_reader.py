@@ -26,6 +26,10 @@ MAX_MAGNITUDE, MIN_MAGNITUDE = 1e20, 1e-30
 #: A mesh finer than this is refused at load (its arrays alone would not fit; the run's cost is
 #: estimated and refused separately, cosim.run.estimate_cost).
 MAX_SEGMENTS = 10_000
+#: An angle beyond this many radians (~1600 turns) is refused: no key of a scenario needs more
+#: than a few turns, and a double that large keeps fewer digits for the fraction of a turn (at
+#: "1e19 deg", 1.7e17 rad, neighbouring doubles are 32 rad apart: the angle means nothing).
+MAX_ANGLE_RAD = 1e4
 #: A modal damping ratio at or above critical (100 %) is refused.
 MAX_DAMPING_RATIO = 1.0
 
@@ -142,6 +146,10 @@ class Reader:
             raise self.fail(key, f"is {q:.3g} {unit or '(dimensionless)'} in SI units, outside "
                                  f"{MIN_MAGNITUDE:g}..{MAX_MAGNITUDE:g}: no rig is that size (check the number and "
                                  "its unit)", raw)
+        if unit == "rad" and abs(q) > MAX_ANGLE_RAD:
+            raise self.fail(key, f"is {q:.3g} rad ({q / (2 * math.pi):.3g} turns), beyond {MAX_ANGLE_RAD:g} rad: an "
+                                 "angle this large loses its fraction of a turn in floating point; write it within "
+                                 "a turn (e.g. '30 deg')", raw)
         if positive and q <= 0:
             raise self.fail(key, "must be positive", raw)
         if nonnegative and q < 0:

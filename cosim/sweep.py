@@ -27,7 +27,9 @@ from pathlib import Path
 
 import numpy as np
 
+from .master import macro_step_for
 from .parallel import describe, executor
+from .run_guards import MAX_HOURS, check_study, estimate_cost
 from .runlog import run_folder, write_csv, write_json
 from .overrides import apply_overrides
 from .scenario import ScenarioError, from_dict, load
@@ -187,6 +189,37 @@ def periodic_point(sc, many: bool = False) -> dict:
     return d
 
 
+#: The periodic solve counted as this many revolutions of the march (its stored revolution of
+#: configurations plus the shooting's few iterations over it) in a sweep's estimate.
+PERIODIC_REVOLUTIONS = 3.0
+
+
+def sweep_point_cost(sc, rpms, engines, revolutions, method: str) -> dict:
+    """One point's :func:`cosim.run_guards.estimate_cost` at the sweep's lowest speed (the dearest
+    point: steps in seconds grow with the period, steps in degrees do not), an upper bound for
+    the others; ``revolutions`` None: the scenario's (until steady: its ``output.max_revolutions``)."""
+    slow = sc.with_overrides({"drive.speed": f"{float(np.min(rpms))!r} rpm", "drive.mode": "prescribed"})
+    period = 2 * math.pi / abs(slow.drive.speed_rad_s)
+    revs = revolutions or slow.output.revolutions or slow.output.max_revolutions
+    marched = [e for e in engines if not (e == "tmm" and method == "periodic")]
+    parts = []
+    if marched:
+        parts.append(estimate_cost(slow, marched, revs * period, macro_step_for(slow, marched, mode="prescribed")))
+    if len(marched) < len(engines):
+        step = slow.engine_step_s("tmm")
+        parts.append(estimate_cost(slow, ["tmm"], PERIODIC_REVOLUTIONS * period, step))
+    return {"seconds": sum(p["seconds"] for p in parts), "bytes": sum(p["bytes"] for p in parts),
+            "text": "; ".join(p["text"] for p in parts)}
+
+
+def _sweep_solves(rpm, rpms, revolutions) -> dict:
+    """What sets a sweep's size, for :func:`cosim.run_guards.check_study`'s message."""
+    if revolutions is not None:
+        return {"option": "--revolutions", "value": revolutions, "count": len(rpms), "what": "points"}
+    return {"option": "--rpm", "value": rpm if isinstance(rpm, str) else f"{len(rpms)} speeds", "count": len(rpms),
+            "what": "points"}
+
+
 def _rows(point: dict) -> list:
     rows = []
     for engine, e in point["engines"].items():
@@ -204,12 +237,13 @@ def _rows(point: dict) -> list:
 def run_sweep(scenario: str, rpm, engines=("tmm",), revolutions: float | None = None, workers: int | None = None,
               scheduler: str | None = None, out: Path | None = None, progress: bool = True,
               record: bool = True, method: str = "periodic", resonance: bool = True,
-              records_dir: Path | None = None, model: str | None = None) -> tuple:
+              records_dir: Path | None = None, model: str | None = None, max_hours: float = MAX_HOURS) -> tuple:
     """Run the sweep; returns ``(folder, summary)``. ``resonance``: also the natural-frequency map
     and Campbell diagram (four-bars; 36 eigenvalue searches, with a progress bar); ``records_dir``:
     where the recorded peaks drawn on the figure come from (default: the shipped records);
     ``model``: the TMM model of the periodic solves ('full' or 'reduced'; default: the
-    scenario's ``solver.tmm.model``)."""
+    scenario's ``solver.tmm.model``); ``max_hours``: refuse a sweep estimated to take longer
+    (:func:`cosim.run_guards.check_study`, before any point runs)."""
     sc = load(scenario)
     if model is not None:
         if model not in ("full", "reduced"):
@@ -224,6 +258,8 @@ def run_sweep(scenario: str, rpm, engines=("tmm",), revolutions: float | None = 
     for e in engines:
         if e not in ENGINES:
             raise ScenarioError(f"unknown engine {e!r}; choose from {', '.join(ENGINES)}")
+    check_study(sc, "sweep", _sweep_solves(rpm, rpms, revolutions), sweep_point_cost(sc, rpms, engines, revs, method),
+                workers, max_hours)
     from .figures import peaks_by_speed
     record_peaks = peaks_by_speed(getattr(sc, "rig", None), float(rpms.min()), float(rpms.max()), records_dir)
     folder = run_folder(f"{sc.name}-sweep", out)

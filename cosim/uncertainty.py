@@ -50,7 +50,8 @@ import numpy as np
 from .parallel import executor
 from .runlog import run_folder, write_csv, write_json
 from .scenario import ScenarioError, load
-from .unknowns import Settings, declared, read, solve_job, variant
+from .run_guards import MAX_HOURS, check_study
+from .unknowns import Settings, declared, read, solve_cost, solve_job, variant
 
 log = logging.getLogger(__name__)
 PEAKS = (("+", "bending_max_ue"), ("-", "bending_min_ue"))
@@ -144,10 +145,12 @@ def morris_ranking(problem, X, outputs: list, unknowns: dict, gauges, seed: int 
 def run_uncertainty(scenario: str, samples: int | None = None, seed: int | None = None, workers: int | None = None,
                     scheduler: str | None = None, out: Path | None = None, record: bool = True,
                     sensitivity: bool = True, progress: bool = True, records_dir: Path | None = None,
-                    trajectories: int | None = None, settings: Settings = Settings()) -> tuple:
+                    trajectories: int | None = None, settings: Settings = Settings(),
+                    max_hours: float = MAX_HOURS) -> tuple:
     """Band, Morris ranking, record check; returns ``(folder, summary)``. ``progress``: a bar
     over the solves (auto-off when stderr is not a terminal); ``records_dir``: where the records
-    checked against the band come from (default: the shipped records)."""
+    checked against the band come from (default: the shipped records); ``max_hours``: refuse a
+    run estimated to take longer (:func:`cosim.run_guards.check_study`, before any solve)."""
     sc = load(scenario)
     n_default, seed_default, unknowns, options = declared(sc.raw, str(sc.path))
     n = samples if samples is not None else n_default
@@ -157,6 +160,12 @@ def run_uncertainty(scenario: str, samples: int | None = None, seed: int | None 
         raise ScenarioError("an uncertainty run needs at least 2 samples")
     if sensitivity and r < 2:
         raise ScenarioError("a Morris ranking needs at least 2 trajectories")
+    # Each sample and each of a trajectory's k + 1 points is a solve, and so is the nominal.
+    option, value = ("--samples", n) if samples is not None else ("uncertainty.samples", n)
+    check_study(sc, "uncertainty", {"option": option, "value": value,
+                                    "count": 1 + n + (r * (len(unknowns) + 1) if sensitivity else 0),
+                                    "what": "solves (samples, Morris trajectories, the nominal)"},
+                solve_cost(sc, settings), workers, max_hours)
     folder = run_folder(f"{sc.name}-uncertainty", out)
     log.info("uncertainty of %s: %d samples%s; results to %s", sc.name, n,
              f" + Morris {r} trajectories" if sensitivity else "", folder)

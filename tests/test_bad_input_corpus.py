@@ -84,6 +84,11 @@ KEYS = [
      "uncertainty.parameters.damping.keys"),                                                     # was accepted
     (CR, {"uncertainty.parameters": 5}, "uncertainty.parameters"),
     (CR, {"uncertainty.parameters.damping.distribution": "cauchy"}, "uncertainty.parameters.damping.distribution"),
+    # Issue 32: each unknown at the edges of its range must be a scenario the loader accepts.
+    (CR, {"uncertainty.parameters.damping.unit": ""}, "uncertainty.parameters.damping.low"),      # every sample failed
+    (CR, {"uncertainty.parameters.damping.high": "150 %"}, "uncertainty.parameters.damping.high"),  # was accepted
+    (CR, {"uncertainty.parameters.coupler_face.values": ["top", "side"]}, "uncertainty.parameters.coupler_face.values"),
+    (CR, {"uncertainty.parameters.modulus.low": "-1 psi"}, "uncertainty.parameters.modulus.low"),
 ]
 
 
@@ -134,6 +139,12 @@ UNITS = [
     (CR, {"drive.start_angle": "1 deg deg"}, "drive.start_angle"),    # was 0.0175 deg
     (CR, {"solver.tmm.step": "1 deg deg"}, "solver.tmm.step"),
     (CR, {"materials.aluminium.E": "10e6 psi*rad"}, "materials.aluminium.E"),
+    # Issue 32: angles whose fraction of a turn is lost in floating point (1e19 deg: doubles 32 rad apart).
+    (CR, {"linkage.ground_angle": "1e19 deg"}, "linkage.ground_angle"),     # was accepted
+    (CR, {"drive.start_angle": "-1e6 deg"}, "drive.start_angle"),          # was accepted
+    (SC, {"linkage.slide_angle": "1e19 deg"}, "linkage.slide_angle"),       # was accepted
+    (WS, {"linkage.crank_zero": "1e19 deg"}, "linkage.crank_zero"),         # was accepted
+    (ST, {"joints.13.direction": "1e19 deg"}, "joints.13.direction"),       # was accepted
 ]
 
 
@@ -150,6 +161,8 @@ GEOMETRY = [
     (CR, {"links.crank.length": "0 in"}, "links.crank.length"),
     (CR, {"links.coupler.length": "-10 in"}, "links.coupler.length"),
     (CR, {"links.crank.length": "12 in"}, "linkage"),
+    (CR, {"links.rocker.length": "8 in"}, "linkage"),          # 7/10/8/11, s + l = p + q: was a NaN in the TMM
+    (CR, {"links.crank.length": "6 in", "links.rocker.length": "7 in"}, "linkage"),     # 6/10/7/11: likewise
     (CR, {"linkage.branch": "closed"}, "linkage.branch"),
     (CR, {"linkage.pivot": ["0 in"]}, "linkage.pivot"),
     (CR, {"linkage.pivot": "0 in"}, "linkage.pivot"),
@@ -623,6 +636,14 @@ CLI = [
     (["new", "ok1", "--like", "no_such"], "no_such"),
     (["new", "ok2", "--out", "notdir"], "notdir"),
     (["identify", "crank_rocker_241rpm", "--validate", "nope"], "nope"),
+    # Issue 32: every subcommand's cost estimated before any work starts, named by its option.
+    (_SWEEP + ["--rpm", "100,200", "--method", "march", "--revolutions", "1e9"], "--revolutions"),  # ran unbounded
+    (_SWEEP + ["--rpm", "100", "--max-hours", "0"], "--max-hours"),
+    (["uncertainty", "crank_rocker_373rpm", "--samples", "5000", "--max-hours", "0.01"], "--samples"),
+    (["uncertainty", "crank_rocker_373rpm", "--max-hours", "-1"], "--max-hours"),
+    (["identify", "crank_rocker_241rpm", "--starts", "100000000"], "--starts"),       # was a MemoryError
+    (["identify", "crank_rocker_241rpm", "--max-hours", "nan"], "--max-hours"),
+    (["run", "gauges10k.toml", "--engines", "tmm", "--no-record"], "10002 gauges"),   # was 6.29 TiB asked for
     (["synthesize", "--case", "III"], "--case"),
 ]
 
@@ -636,6 +657,8 @@ def cli_dir(tmp_path, monkeypatch):
                        ("notdir", "x")):
         _write(tmp_path / name, text)
     (tmp_path / "empty").mkdir()
+    gauges = "".join(f'[gauges.g{i}]\nlink = "coupler"\nposition = "5 in"\n' for i in range(10_000))
+    _write(tmp_path / "gauges10k.toml", 'extends = "crank_rocker_373rpm"\n[scenario]\nname = "g10k"\n' + gauges)
     monkeypatch.chdir(tmp_path)
     return tmp_path
 

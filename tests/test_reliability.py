@@ -3,6 +3,7 @@ value), work that cannot finish refused with its estimate before anything is all
 and SIGTERM stop a run promptly keeping its data, and nothing read or written outside where it
 belongs. Layered: the loader in process first, then the run's checks, then the command line."""
 import json
+import logging
 import math
 import shutil
 import signal
@@ -180,6 +181,20 @@ def test_the_estimate_passes_every_shipped_scenarios_default_run_and_the_limit_c
     est = estimate_cost(sc, ["tmm"], _duration(sc, 0.25), sc.engine_step_s("tmm"))
     assert est["tmm"]["steps"] == pytest.approx(180) and est["tmm"]["size"] == 15000
     check_cost(sc, ["tmm"], _duration(sc, 0.25), sc.engine_step_s("tmm"), max_hours=100)   # raised: accepted
+
+
+def test_the_estimate_counts_what_the_gauges_allocate():
+    """Issue 32: 10,000 gauges passed the estimate (0.23 GB of traces) and the TMM's set-up then
+    asked numpy for 6.29 TiB (its output functionals, 720 configurations x 20,005 outputs x
+    60,023 inputs); the estimate now holds that set-up and the run is refused naming the gauges."""
+    gauges = {f"g{i}": {"link": "coupler", "position": "5 in"} for i in range(10_000)}
+    sc = BASE.with_overrides({"uncertainty": None, "gauges": gauges})       # its unknowns name the replaced gauges
+    duration = _duration(sc, 0.25)
+    est = estimate_cost(sc, ["tmm"], duration, sc.engine_step_s("tmm"))
+    assert est["setup_bytes"] == pytest.approx(6.29 * 2 ** 40, rel=0.02)
+    with pytest.raises(ValueError) as err:
+        check_cost(sc, ["tmm"], duration, sc.engine_step_s("tmm"))
+    assert "10000 gauges" in str(err.value) and "GB a run may hold" in str(err.value)
 
 
 def test_a_fine_mesh_on_the_compiled_march_is_estimated_linear_in_its_segments():
@@ -407,3 +422,25 @@ def test_ctrl_c_with_each_engine_alone_exits_130_promptly(engine, tmp_path):
     assert summary["status"] == "interrupted" and summary["engines"][engine]["status"] == "interrupted"
     assert traces.read_text().count("\n") >= 3
     print(f"{engine}: exit 130 {stopped_in:.2f} s after SIGINT")
+
+
+def test_a_four_bar_near_its_change_point_loads_with_a_warning(caplog, monkeypatch):
+    """Issue 32: 7/10/8.1/11 in lies 0.1 in (0.9 % of the 11 in ground) from the change point
+    7 + 11 = 10 + 8; it can run, and the loader says it is near one, naming the lengths."""
+    monkeypatch.setattr(logging.getLogger("cosim"), "propagate", True)     # cosim.cli.setup_logging turns it off
+    with caplog.at_level("WARNING", logger="cosim"):
+        BASE.with_overrides({"links.rocker.length": "8.1 in"})
+    text = " ".join(r.getMessage() for r in caplog.records)
+    assert "near a change point" in text and "links.rocker.length = 0.20574 m" in text
+    caplog.clear()
+    with caplog.at_level("WARNING", logger="cosim"):
+        BASE.with_overrides({"links.rocker.length": "12 in"})
+    assert "change point" not in " ".join(r.getMessage() for r in caplog.records)
+
+
+def test_failed_samples_are_one_short_line():
+    """Issue 32: 130 samples failing with one long message printed a 67 kB line."""
+    from cosim.report import failed_samples_text
+    failed = [f"sample {i}: ScenarioError: " + "x" * 500 for i in range(130)] + ["sample 130: other"]
+    text = failed_samples_text(failed)
+    assert len(text) < 600 and text.startswith("131: 130 x ScenarioError") and "1 x other" in text
