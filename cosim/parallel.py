@@ -32,36 +32,36 @@ def executor(workers: int | None = None, scheduler: str | None = None):
         except BaseException:
             # Interrupted or failed: the jobs still running are of no use, and a long one (an
             # identification start) would hold the exit for a minute.
+            terminate_workers(pool)           # first: shutdown() forgets the pool's processes
             pool.shutdown(wait=False, cancel_futures=True)
-            terminate_workers(pool)
             raise
         finally:
             pool.shutdown(cancel_futures=True)
 
 
 def terminate_workers(pool: ProcessPoolExecutor) -> None:
-    """End a local pool's worker processes now (SIGTERM, then SIGKILL after a second). Python
-    3.14 has ``ProcessPoolExecutor.terminate_workers`` for this; before it, the pool's process
-    table is the only handle on its workers."""
-    if hasattr(pool, "terminate_workers"):
-        pool.terminate_workers()
+    """End a local pool's worker processes now, with SIGKILL: they hold no files, and a worker
+    forked a moment ago may still carry its parent's SIGTERM handler (a KeyboardInterrupt and a
+    traceback). Python 3.14 has ``ProcessPoolExecutor.kill_workers`` for this; before it, the
+    pool's process table is the only handle on its workers."""
+    if hasattr(pool, "kill_workers"):
+        pool.kill_workers()
         return
     procs = list((getattr(pool, "_processes", None) or {}).values())
     for proc in procs:
         if proc.is_alive():
-            proc.terminate()
-    for proc in procs:
-        proc.join(timeout=1.0)
-        if proc.is_alive():
             proc.kill()
+    for proc in procs:
+        proc.join(timeout=5.0)
 
 
 def start_worker(parent_pid: int) -> None:
     """Worker start: the worker leaves the parent's Ctrl-C to the parent, ends when the parent is
     gone, and uses one thread for BLAS and the compiled kernels.
 
-    * SIGINT ignored: a Ctrl-C in the terminal reaches the whole process group; the parent
-      decides (it cancels the jobs and ends the workers), and no worker prints a traceback.
+    * SIGINT ignored, SIGTERM the default: a Ctrl-C in the terminal reaches the whole process
+      group; the parent decides (it cancels the jobs and ends the workers), and no worker prints
+      a traceback.
     * A watchdog thread ends the worker once its parent has died (SIGKILL of the parent leaves
       no one to end it, and an idle worker would wait on its job queue forever).
     * One thread: the workers already fill the cores; threads on top of them oversubscribe the
@@ -69,6 +69,7 @@ def start_worker(parent_pid: int) -> None:
       magnitude (measured on 2 cores, two workers: six 216 x 216 eigenvalue problems 3.8 s with
       OpenBLAS's default threads, 0.03 s with one)."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)       # the parent's handler raises KeyboardInterrupt
     threading.Thread(target=_exit_with_parent, args=(parent_pid,), daemon=True, name="parent-watch").start()
     from threadpoolctl import threadpool_limits
     threadpool_limits(1, user_api="blas")

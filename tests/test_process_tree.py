@@ -88,3 +88,33 @@ def test_sigterm_of_a_sweep_exits_143_interrupted_without_workers_left(tmp_path)
         for p in workers | {proc.pid}:
             if _alive(p):
                 os.kill(p, signal.SIGKILL)
+
+
+def test_ctrl_c_of_an_identification_ends_promptly_without_workers_left(tmp_path):
+    """Ctrl-C used to wait for the running least-squares starts (45 s); the workers are ended
+    now and the command exits 130 within seconds, without a traceback."""
+    out = tmp_path / "identify"
+    proc = subprocess.Popen([sys.executable, "-m", "cosim", "identify", "crank_rocker_241rpm", "--starts", "4",
+                             "--workers", "2", "--out", str(out), "--quiet"], cwd=ROOT,
+                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    workers = set()
+    try:
+        deadline = time.time() + 240
+        while time.time() < deadline and len(workers) < 2:
+            assert proc.poll() is None, proc.stderr.read()[-2000:]
+            workers = _children(proc.pid)
+            time.sleep(0.1)
+        assert len(workers) >= 2, "the identification's workers did not start"
+        time.sleep(2.0)                       # the starts are running
+        tic = time.monotonic()
+        proc.send_signal(signal.SIGINT)
+        proc.wait(timeout=120)
+        stopped_in = time.monotonic() - tic
+        err = proc.stderr.read()
+        assert proc.returncode == 130 and "Traceback" not in err, (proc.returncode, err[-2000:])
+        assert stopped_in < 10, stopped_in
+        assert _gone_within(workers, 5.0)
+    finally:
+        for p in workers | {proc.pid}:
+            if _alive(p):
+                os.kill(p, signal.SIGKILL)
