@@ -315,6 +315,10 @@ def _load_history(side, data_path, meta, common) -> Record:
     acq = dict(acq)
     if "trigger_channel" in acq and (not isinstance(acq["trigger_channel"], str) or acq["trigger_channel"] not in data):
         raise record_error(side, f"key 'acquisition.trigger_channel' = {acq['trigger_channel']!r}: no such channel")
+    trig = next((c for c in channels if c.column == acq.get("trigger_channel")), None)
+    if trig is not None and trig.quantity != "trigger":      # it would be read as pulses and averaged as a gauge
+        raise record_error(side, f"key 'acquisition.trigger_channel' = {trig.column!r}: channel of quantity "
+                                 f"{trig.quantity!r}; the trigger channel has quantity = \"trigger\"")
     return Record(**common, index=(idx["column"], idx["unit"]), channels=tuple(channels), acquisition=acq, data=data)
 
 
