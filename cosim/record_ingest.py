@@ -23,10 +23,11 @@ from tmm_core import InputError
 from .records import Record, RecordError, quantity_value, record_error
 from .units import factor
 
-# Even sampling at the declared rate. The median step within 1 % of 1 / sample_rate: a DAQ's clock
-# is good to ppm and timestamps written with a few significant digits stay well inside 1 %, while
-# a wrong rate (2751 typed for 2500 Hz) is off by several %. Every step within 0.5-1.5x the median:
-# one dropped sample doubles a step, a duplicated or spliced row shortens one.
+# Even sampling at the declared rate. Every step within 0.5-1.5x the median step: one dropped
+# sample doubles a step, a duplicated or spliced row shortens one, while timestamps rounded to a
+# tenth of the step still pass. Then the mean step (span / intervals: immune to that rounding,
+# equal to the median when even) within 1 % of 1 / sample_rate: a DAQ's clock is good to ppm,
+# while a wrong rate (2751 typed for 2500 Hz) is off by several %.
 RATE_TOLERANCE = 0.01
 STEP_RANGE = (0.5, 1.5)
 MS_PER_S = 1000.0                     # a median step 1000x 1 / rate (within RATE_TOLERANCE): milliseconds
@@ -47,7 +48,7 @@ PERIOD_SPREAD = 0.20
 def check_time(t, rate_Hz: float | None, path, column: str) -> float:
     """Refuse a time column [s] that is not strictly increasing and evenly sampled at ``rate_Hz``
     (see RATE_TOLERANCE, STEP_RANGE); ``None``: no declared rate, only evenness is checked.
-    Returns the median step [s]."""
+    Returns the mean step [s]."""
     t = np.asarray(t, float)
     if t.size < 3:
         raise record_error(path, f"{t.size} samples: too few for a time-sampled recording", column=column)
@@ -58,23 +59,24 @@ def check_time(t, rate_Hz: float | None, path, column: str) -> float:
         raise record_error(path, f"time is not strictly increasing: {t[i]:.9g} s then {t[i + 1]:.9g} s (data rows "
                                  f"{i + 1} and {i + 2})", column=column)
     step = float(np.median(dt))
-    side = Path(path).with_suffix(".toml").name
-    if rate_Hz is not None:
-        ratio = step * rate_Hz
-        if abs(ratio / MS_PER_S - 1) <= RATE_TOLERANCE:
-            raise record_error(path, f"the median time step is {step:.6g}, {ratio:.4g}x the {1 / rate_Hz:.6g} s of "
-                                     f"acquisition.sample_rate = {rate_Hz:g} Hz in {side}: the time looks like "
-                                     "milliseconds; write it in seconds", column=column)
-        if abs(ratio - 1) > RATE_TOLERANCE:
-            raise record_error(path, f"the median time step {step:.6g} s ({1 / step:.6g} Hz) is "
-                                     f"{100 * (ratio - 1):+.1f} % off acquisition.sample_rate = {rate_Hz:g} Hz in "
-                                     f"{side} (at most {100 * RATE_TOLERANCE:g} %)", column=column)
     worst = int(np.argmax(np.abs(dt / step - 1)))
     if not STEP_RANGE[0] <= dt[worst] / step <= STEP_RANGE[1]:
         what = "a gap" if dt[worst] > step else "an uneven step"
         raise record_error(path, f"{what}: a step of {dt[worst]:.6g} s after t = {t[worst]:.9g} s (data row "
                                  f"{worst + 1}), {dt[worst] / step:.3g}x the median {step:.6g} s (evenly sampled: "
                                  f"every step within {STEP_RANGE[0]:g}-{STEP_RANGE[1]:g}x the median)", column=column)
+    step = float((t[-1] - t[0]) / (t.size - 1))
+    side = Path(path).with_suffix(".toml").name
+    if rate_Hz is not None:
+        ratio = step * rate_Hz
+        if abs(ratio / MS_PER_S - 1) <= RATE_TOLERANCE:
+            raise record_error(path, f"the mean time step is {step:.6g}, {ratio:.4g}x the {1 / rate_Hz:.6g} s of "
+                                     f"acquisition.sample_rate = {rate_Hz:g} Hz in {side}: the time looks like "
+                                     "milliseconds; write it in seconds", column=column)
+        if abs(ratio - 1) > RATE_TOLERANCE:
+            raise record_error(path, f"the mean time step {step:.6g} s ({1 / step:.6g} Hz) is "
+                                     f"{100 * (ratio - 1):+.1f} % off acquisition.sample_rate = {rate_Hz:g} Hz in "
+                                     f"{side} (at most {100 * RATE_TOLERANCE:g} %)", column=column)
     return step
 
 
@@ -239,7 +241,7 @@ def _sample_rate(record: Record, t, notes: list) -> float:
     step = check_time(t, declared, record.path, col)
     if declared is None:
         notes.append(f"acquisition.sample_rate not declared in {side.name}: taken as {1 / step:.6g} Hz from the "
-                     f"median step of column '{col}'")
+                     f"mean step of column '{col}'")
         return 1.0 / step
     return declared
 

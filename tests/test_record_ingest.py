@@ -133,10 +133,10 @@ FAULTS = {
     "trigger edges ramp": (_slow_edges, r"raw\.csv, column 'trig_V': not a trigger: a rising edge .* takes \d+ sample"),
     "time gap": (_gap, r"raw\.csv, column 'time_s': a gap: a step of 0\.0105 s after t = 0\.4995 s"),
     "wrong sample rate": (_with(rate=2200.0),
-                          r"raw\.csv, column 'time_s': the median time step 0\.0005 s \(2000 Hz\) is \+10\.0 % off "
+                          r"raw\.csv, column 'time_s': the mean time step 0\.0005 s \(2000 Hz\) is \+10\.0 % off "
                           r"acquisition\.sample_rate = 2200 Hz in raw\.toml"),
     "milliseconds": (_with(t=lambda c: 1000 * c["t"]),
-                     r"raw\.csv, column 'time_s': the median time step is 0\.5, 1000x .* looks like milliseconds"),
+                     r"raw\.csv, column 'time_s': the mean time step is 0\.5, 1000x .* looks like milliseconds"),
     "declared speed off the pulses": (_with(rpm=250.0),
                                       r"raw\.csv, column 'trig_V': pulses every 0\.2 s \(300 rpm\) but record\.speed = "
                                       r"250 rpm in raw\.toml"),
@@ -171,3 +171,15 @@ def test_a_missing_sample_rate_is_taken_from_the_time_column_and_said(tmp_path):
     out = ingest(load_record(side))
     assert out["sample_rate_Hz"] == pytest.approx(FS)
     assert any("sample_rate not declared" in n and "2000 Hz" in n for n in out["notes"])
+
+
+def test_timestamps_rounded_to_a_tenth_of_a_millisecond_still_ingest(tmp_path):
+    """2751 Hz (Wang's rig) written with 4 decimals: steps of 0.3 and 0.4 ms, their mean 1 / 2751 s."""
+    rate = 2751.0
+    t, top, bottom, trig = signals()
+    t = np.round(np.arange(t.size) / rate, 4)
+    theta = RPM * math.pi / 30 * np.arange(t.size) / rate
+    top = AMPLITUDE_UE * np.sin(theta) / CAL_UE_PER_V
+    trig = np.where(np.mod(np.degrees(theta) + 1e-9, 360.0) < PULSE_DEG, 5.0, 0.0)
+    out = ingest(load_record(write(tmp_path, t, top, -top, trig, rate=rate)))
+    assert np.max(out["g"]["bending_ue"]) == pytest.approx(AMPLITUDE_UE, rel=0.02)
