@@ -31,7 +31,9 @@ missing column, a non-monotonic index, a trigger with no pulses, a unit that is 
 length (or, for raw channels, has no calibration), a non-numeric cell or NaN. Nothing is dropped
 silently: a partially usable record is refused with the first bad line.
 
-Ingestion of raw recordings is :mod:`cosim.record_ingest`.
+Ingestion of raw recordings is :mod:`cosim.record_ingest` (which checks, beyond loading, that time is
+evenly sampled at the declared rate and that the trigger channel holds a once-per-revolution
+trigger); a trigger channel must be declared with ``quantity = "trigger"``.
 
 Owns: the record format and strict loading. Boundaries: no scoring
 (cosim.compare); units through cosim.units.

@@ -126,8 +126,8 @@ def _with(**edits):
 
 # case -> (builder, words naming the file, the column or key and the value found)
 FAULTS = {
-    "trigger names a gauge channel": (_with(trigger="top_V"),
-                                      r"raw\.toml: key 'acquisition\.trigger_channel' = 'top_V': channel of quantity 'raw'"),
+    "trigger names a gauge channel": (_with(trigger="top_V"), r"raw\.toml: key 'acquisition\.trigger_channel' = "
+                                                              r"'top_V': channel of quantity 'raw'"),
     "trigger column holds strain": (_with(trig=lambda c: c["top"]),
                                     r"raw\.csv, column 'trig_V': not a trigger: 6\d % of its samples"),
     "trigger edges ramp": (_slow_edges, r"raw\.csv, column 'trig_V': not a trigger: a rising edge .* takes \d+ sample"),
