@@ -31,7 +31,9 @@ missing column, a non-monotonic index, a trigger with no pulses, a unit that is 
 length (or, for raw channels, has no calibration), a non-numeric cell or NaN. Nothing is dropped
 silently: a partially usable record is refused with the first bad line.
 
-Ingestion of raw recordings is :mod:`cosim.record_ingest`.
+Ingestion of raw recordings is :mod:`cosim.record_ingest` (which checks, beyond loading, that time is
+evenly sampled at the declared rate and that the trigger channel holds a once-per-revolution
+trigger); a trigger channel must be declared with ``quantity = "trigger"``.
 
 Owns: the record format and strict loading. Boundaries: no scoring
 (cosim.compare); units through cosim.units.
@@ -315,6 +317,10 @@ def _load_history(side, data_path, meta, common) -> Record:
     acq = dict(acq)
     if "trigger_channel" in acq and (not isinstance(acq["trigger_channel"], str) or acq["trigger_channel"] not in data):
         raise record_error(side, f"key 'acquisition.trigger_channel' = {acq['trigger_channel']!r}: no such channel")
+    trig = next((c for c in channels if c.column == acq.get("trigger_channel")), None)
+    if trig is not None and trig.quantity != "trigger":      # it would be read as pulses and averaged as a gauge
+        raise record_error(side, f"key 'acquisition.trigger_channel' = {trig.column!r}: channel of quantity "
+                                 f"{trig.quantity!r}; the trigger channel has quantity = \"trigger\"")
     return Record(**common, index=(idx["column"], idx["unit"]), channels=tuple(channels), acquisition=acq, data=data)
 
 

@@ -540,6 +540,8 @@ RECORDS = [
     (H, _set("acquisition", {"trigger_channel": "nope"}), None, "acquisition.trigger_channel"),
     (H, _set("acquisition", 5), None, "acquisition"),                                       # was a TypeError
     (H, _set("acquisition", {"trigger_channel": ["x"]}), None, "acquisition.trigger_channel"),  # was a TypeError
+    (H, _set("acquisition", {"trigger_channel": "coupler_uin_in"}), None,      # a gauge as the trigger: was accepted
+     "key 'acquisition.trigger_channel' = 'coupler_uin_in': channel of quantity 'bending'"),
     (H, None, _sub("8,197.584", "8,abc"), "column 'input_uin_in'"),
     (H, None, _sub("8,197.584", "0,197.584"), "column 'crank_angle_deg'"),
     (H, None, _sub("8,197.584", "8,nan"), "column 'input_uin_in'"),
