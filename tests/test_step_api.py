@@ -10,7 +10,7 @@ from cosim.engines import make_engine
 from cosim.engines.base import DriveInput, constant_speed_profile
 from cosim.master import PRESCRIBED_MACRO_DEG, CoSimulation, macro_step_for
 from cosim.scenario import load
-from tmm_core import ConfigurationBatch, OutputLayout, StepMaps
+from tmm_core.configuration_batch import ConfigurationBatch, OutputLayout, StepMaps
 from tmm_core.time_step import anderson_coefficients
 
 FE = "crank_rocker_241rpm"
