@@ -35,7 +35,7 @@ class Revolution(NamedTuple):
     steps: int
     speed: float            # [rad/s]
     angles: np.ndarray      # crank angle of each configuration [rad]
-    batch: Any              # tmm_core.ConfigurationBatch
+    batch: Any              # tmm_core.configuration_batch.ConfigurationBatch
 
 
 class LookAhead(NamedTuple):
