@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .files import clear_link
 from .recording.layout import recording_id
 
 

@@ -108,7 +108,7 @@ def tick_labels(to_view, x_range, y_range, x_ticks=None) -> list:
     """``[(axis, value, text, strokes)]`` of the chart's tick values: each y value right of the
     frame's left edge and centred on its grid line, each x value centred under its tick.
     ``to_view(x, y)``: data to view units; ranges and ticks in data units."""
-    (x0, x1), (y0, y1) = x_range, y_range
+    x0, y0 = x_range[0], y_range[0]
     xt, yt = tick_values(x_range, y_range, x_ticks)
     xs = xt[1] - xt[0] if len(xt) > 1 else 1.0
     ys = yt[1] - yt[0] if len(yt) > 1 else 1.0
