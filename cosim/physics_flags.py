@@ -278,5 +278,5 @@ def attach_flags(sc, summary: dict, linkage_map: bool = True, progress: bool = F
     for name, fl in flags.items():
         summary["engines"][name]["flags"] = fl
         for f in fl:
-            log.info("%s: %s", name, f["message"])
+            log.debug("%s: %s", name, f["message"])      # the console prints them under its table
     return flags

@@ -103,11 +103,24 @@ class TraceWriter:
             while done < len(data):
                 done += self.fh.write(memoryview(data)[done:])
         except OSError as exc:
-            with contextlib.suppress(OSError):
-                os.ftruncate(self.fh.fileno(), self.size)
+            self._keep_whole_rows(data, done)
             end = "no row" if self.last_t is None else f"its last whole row, t = {self.last_t:.6g} s"
             raise TracesNotWritten(exc.errno, f"{self.path}: {exc.strerror}; the file ends at {end}") from None
         self.size += len(data)
+
+    def _keep_whole_rows(self, data: bytes, done: int) -> None:
+        """After a write of ``data`` failed with ``done`` bytes of it in the file: keep the whole
+        rows among them (as many as fit), cut the rest."""
+        keep = data.rfind(b"\n", 0, done) + 1
+        try:
+            os.ftruncate(self.fh.fileno(), self.size + keep)
+        except OSError:
+            return
+        self.size += keep
+        if keep:
+            start = data.rfind(b"\n", 0, keep - 1) + 1
+            with contextlib.suppress(ValueError):       # the header's first field is no time
+                self.last_t = float(data[start:keep].split(b",", 1)[0])
 
     def close(self) -> None:
         if self.fh is not None:

@@ -110,6 +110,9 @@ class RecorderProcess(Recorder):
                 return
             root = str(Path(__file__).resolve().parents[2])            # so the child imports this cosim
             env = dict(os.environ, PYTHONPATH=os.pathsep.join(filter(None, [root, os.environ.get("PYTHONPATH")])))
+            # rerun's own log lines (coloured, one per failed write) would repeat what the child
+            # reports as warnings; a user's RUST_LOG still wins.
+            env.setdefault("RUST_LOG", "off")
             level = logging.getLogger("cosim").getEffectiveLevel()
             # -P: not the working directory first on the child's path (another cosim there would be
             # imported instead of this one).

@@ -233,9 +233,12 @@ def finish(rec, urls: list, timeout_s: float) -> list:
     warnings = []
     try:
         rec.flush(timeout_sec=timeout_s if urls else 1e9)
-    except RuntimeError as exc:        # the viewer went away or is too slow: the file is still finished
-        warnings.append(f"the viewer at {', '.join(urls)} did not take the whole recording within {timeout_s:g} s "
-                        f"({exc}); the file is complete")
+    except RuntimeError as exc:
+        if urls:                        # the viewer went away or is too slow: the file is still finished
+            warnings.append(f"the viewer at {', '.join(urls)} did not take the whole recording within "
+                            f"{timeout_s:g} s ({exc}); the file is complete")
+        else:                           # the file itself failed (a full disk, a file-size limit)
+            warnings.append(f"the recording file could not be written whole ({exc}): it is cut short")
     rec.disconnect()                    # closes the file (footer) and the gRPC connections
     return warnings
 
