@@ -10,7 +10,9 @@
     cosim synthesize --case I|II ...             link lengths of a rigid crank-rocker (cosim.synthesis)
 
 Bad input (unknown scenario or engine, malformed range, bad scenario file) ends with a one-line
-``error: ...`` on stderr and exit status 2; a run in which an engine failed exits with 1. A
+``error: ...`` on stderr and exit status 2; a run in which an engine failed exits with 1, a sweep
+in which a point did not run too; a sweep whose points all ran but some have no solution
+(``completed with unsolved points``, a finding) exits with 0, as ``completed`` does. A
 stdout closed by its reader (``cosim compare ... | head``) ends quietly with exit status 141
 (128 + SIGPIPE, what ``git log | head`` or ``yes | head`` give, so ``set -o pipefail`` sees the
 same as with any other command whose output was cut short).
@@ -327,7 +329,7 @@ def _dispatch(parser, args) -> int:
         from .sweep import parse_rpm, run_sweep
         rpm = parse_rpm(args.rpm)
         _positive(args, ("--revolutions", "--workers"))
-        from .report import sweep_table
+        from .report import sweep_table, unsolved_count
         viewer, save = _viewer(args)
         folder, summary = run_sweep(args.scenario, rpm, _engines(args.engines), args.revolutions, args.workers,
                                     args.scheduler, args.out, record=viewer is not None, progress=not _quiet(args),
@@ -335,8 +337,8 @@ def _dispatch(parser, args) -> int:
                                     model=args.model, max_hours=_max_hours(args))
         out = sys.stderr if viewer is not None and viewer.stdout else sys.stdout     # --stdout: the .rrd
         print(sweep_table(summary), file=out)
-        print(f"\nsweep {summary['status']}: {len(summary['points'])} points in {summary['wall_time_s']:.1f} s; "
-              f"written to {folder}", file=out)
+        print(f"\nsweep {summary['status']}: {len(summary['points'])} points{unsolved_count(summary)} in "
+              f"{summary['wall_time_s']:.1f} s; written to {folder}", file=out)
         _show(folder / "sweep.rrd", viewer, save)
         return _exit_code(summary["status"])
     if args.command == "uncertainty":
@@ -372,7 +374,8 @@ def _dispatch(parser, args) -> int:
 
 def _exit_code(status: str) -> int:
     """A command's exit status from its summary's status: 0 when it completed (with failed samples
-    too: the band is a result), 128 + the signal when a signal interrupted it, 1 otherwise."""
+    or unsolved points too: the band, and a speed without a periodic solution, are results),
+    128 + the signal when a signal interrupted it, 1 otherwise."""
     if status.startswith("completed"):
         return 0
     return exit_status() if status == "interrupted" else 1
