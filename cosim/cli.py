@@ -30,15 +30,36 @@ numerics and no file formats: it calls run, sweep, uncertainty, identify, report
 """
 from __future__ import annotations
 
-import argparse
-import logging
-import os
-import sys
-from pathlib import Path
+import signal
 
-from . import __version__
-from .interrupts import exit_status, interrupt_on_sigterm
-from .runlog import out_folder
+
+def _exit_quietly(signum, frame):
+    """Ctrl-C while this module's imports load (the console script imports it before ``main``
+    can catch anything): end with 128 + the signal, no traceback."""
+    raise SystemExit(128 + signum)
+
+
+# Installed before the other imports and put back after them, only over Python's own handler on
+# the main thread (a SIGINT ignored by the shell stays ignored; a library import keeps its own).
+_IMPORTING = signal.getsignal(signal.SIGINT) is signal.default_int_handler
+if _IMPORTING:
+    try:
+        signal.signal(signal.SIGINT, _exit_quietly)
+    except ValueError:                 # not the main thread
+        _IMPORTING = False
+
+import argparse  # noqa: E402  (after the handler, on purpose)
+import logging  # noqa: E402
+import os  # noqa: E402
+import sys  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+from . import __version__  # noqa: E402
+from .interrupts import exit_status, interrupt_on_sigterm  # noqa: E402
+from .runlog import out_folder  # noqa: E402
+
+if _IMPORTING:
+    signal.signal(signal.SIGINT, signal.default_int_handler)
 
 SCENARIO_DIR = Path(__file__).resolve().parent.parent / "scenarios"
 

@@ -47,7 +47,8 @@ from .master import CoSimulation, InputError
 from .metrics import last_revolution, revolutions_completed, steadiness
 from .runlog import run_folder, write_json
 from .scenario import Scenario, load, resolved
-from .interrupts import Interrupts, mark_interrupted
+from .interrupted import mark_interrupted
+from .interrupts import Interrupts
 from .physics_flags import attach_flags, questionable
 from .run_guards import MAX_HOURS, check_cost, plausibility_notes
 from .run_progress import RunProgress, compile_notice
