@@ -10,7 +10,9 @@
     cosim synthesize --case I|II ...             link lengths of a rigid crank-rocker (cosim.synthesis)
 
 Bad input (unknown scenario or engine, malformed range, bad scenario file) ends with a one-line
-``error: ...`` on stderr and exit status 2; a run in which an engine failed exits with 1, a sweep
+``error: ...`` on stderr and exit status 2; a run in which an engine failed, or that ran out of
+memory, exits with 1; a run that completed with some of its files missing (``completed with
+missing outputs``: the recording's writer died, the parquet copy or the figure failed) with 3; a sweep
 in which a point did not run too; a sweep whose points all ran but some have no solution
 (``completed with unsolved points``, a finding) exits with 0, as ``completed`` does. A
 stdout closed by its reader (``cosim compare ... | head``) ends quietly with exit status 141
@@ -56,6 +58,7 @@ from pathlib import Path  # noqa: E402
 
 from . import __version__  # noqa: E402
 from .interrupts import exit_status, interrupt_on_sigterm  # noqa: E402
+from .run_outcome import MISSING_OUTPUTS  # noqa: E402
 from .runlog import out_folder  # noqa: E402
 
 if _IMPORTING:
@@ -316,6 +319,10 @@ def main(argv: list[str] | None = None) -> int:
         raise
 
 
+#: Exit status of a run whose engines completed but some of whose outputs (recording, parquet,
+#: figure, model.xml, scores) are missing (cosim.run_outcome): its results are computed, yet a
+#: script that goes on to read them must not take it for a whole run (0), nor for a failure (1).
+EXIT_MISSING_OUTPUTS = 3
 #: Exit status when stdout's reader closed the pipe: 128 + SIGPIPE (13), the shell's convention.
 EXIT_BROKEN_PIPE = 141
 
@@ -396,7 +403,10 @@ def _dispatch(parser, args) -> int:
 def _exit_code(status: str) -> int:
     """A command's exit status from its summary's status: 0 when it completed (with failed samples
     or unsolved points too: the band, and a speed without a periodic solution, are results),
-    128 + the signal when a signal interrupted it, 1 otherwise."""
+    :data:`EXIT_MISSING_OUTPUTS` when a run completed but some of its files are missing, 128 + the
+    signal when a signal interrupted it, 1 otherwise."""
+    if status == MISSING_OUTPUTS:
+        return EXIT_MISSING_OUTPUTS
     if status.startswith("completed"):
         return 0
     return exit_status() if status == "interrupted" else 1
