@@ -13,6 +13,7 @@ from pathlib import Path
 
 from .engines import MODELS
 from .files import SUMMARY_BYTES, FileRefused, read_text_bounded
+from .run_outcome import MISSING_OUTPUTS
 
 #: Where a user reads why the models and the measurement differ (pointed to when they differ much).
 MEASUREMENT_GAP_DOC = "README.md, section 'How far the bench is from the measurement'"
@@ -64,6 +65,10 @@ def status_notice(summary: dict, kept: str = "traces.csv holds every completed s
     status = summary.get("status")
     if status in ("completed", "completed with failed samples"):
         return None
+    if status == MISSING_OUTPUTS:
+        gone = ", ".join(str(m.get("what")) for m in summary.get("missing") or []) or "see the notes"
+        return (f"COMPLETED WITH MISSING OUTPUTS: the results below are whole, but {gone} is missing or may be "
+                "incomplete (the reasons are in the summary's missing and notes)")
     if status == "completed with unsolved points":
         u = summary.get("unsolved_points") or {}
         return (f"COMPLETED WITH UNSOLVED POINTS: {u.get('count', '?')} of {u.get('of', '?')} points have no "
@@ -76,7 +81,7 @@ def status_notice(summary: dict, kept: str = "traces.csv holds every completed s
     if status == "interrupted":
         return "INTERRUPTED: stopped by the user or a signal; the results below cover what ran"
     if status == "failed":
-        return "FAILED: see the errors below"
+        return "FAILED: " + (summary["error"] if summary.get("error") else "see the errors below")
     return f"status {status!r}"
 
 

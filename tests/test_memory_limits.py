@@ -63,6 +63,8 @@ def test_a_recording_writer_that_dies_makes_the_run_miss_an_output(tmp_path, mon
     assert _exit_code(s["status"]) == EXIT_MISSING_OUTPUTS == 3
     assert [m["what"] for m in s["missing"]] == ["run.rrd"] and "may be incomplete" in s["missing"][0]["reason"]
     assert (tmp_path / "r" / "traces.parquet").exists()
+    from cosim.report import comparison_table
+    assert "COMPLETED WITH MISSING OUTPUTS: the results below are whole, but run.rrd is missing" in comparison_table(s)
 
 
 @pytest.mark.slow
