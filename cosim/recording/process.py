@@ -134,7 +134,10 @@ class RecorderProcess(Recorder):
                 # macro step): a run killed later leaves its recording.
                 self._timer = threading.Timer(CHILD_START_AFTER_S, self._start_child)
                 self._timer.daemon = True
-                self._timer.start()
+                try:
+                    self._timer.start()
+                except RuntimeError:        # no thread to be had (memory): start the child now
+                    self._start_child()
             self._waiting_bytes += len(item)
             if message[0] == "close" or self._waiting_bytes >= CHILD_START_BYTES:
                 self._start_child()
