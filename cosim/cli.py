@@ -10,7 +10,11 @@
     cosim synthesize --case I|II ...             link lengths of a rigid crank-rocker (cosim.synthesis)
 
 Bad input (unknown scenario or engine, malformed range, bad scenario file) ends with a one-line
-``error: ...`` on stderr and exit status 2; a run in which an engine failed exits with 1. A
+``error: ...`` on stderr and exit status 2; a run in which an engine failed, or that ran out of
+memory, exits with 1; a run that completed with some of its files missing (``completed with
+missing outputs``: the recording's writer died, the parquet copy or the figure failed) with 3; a sweep
+in which a point did not run too; a sweep whose points all ran but some have no solution
+(``completed with unsolved points``, a finding) exits with 0, as ``completed`` does. A
 stdout closed by its reader (``cosim compare ... | head``) ends quietly with exit status 141
 (128 + SIGPIPE, what ``git log | head`` or ``yes | head`` give, so ``set -o pipefail`` sees the
 same as with any other command whose output was cut short).
@@ -28,15 +32,37 @@ numerics and no file formats: it calls run, sweep, uncertainty, identify, report
 """
 from __future__ import annotations
 
-import argparse
-import logging
-import os
-import sys
-from pathlib import Path
+import signal
 
-from . import __version__
-from .interrupts import exit_status, interrupt_on_sigterm
-from .runlog import out_folder
+
+def _exit_quietly(signum, frame):
+    """Ctrl-C while this module's imports load (the console script imports it before ``main``
+    can catch anything): end with 128 + the signal, no traceback."""
+    raise SystemExit(128 + signum)
+
+
+# Installed before the other imports and put back after them, only over Python's own handler on
+# the main thread (a SIGINT ignored by the shell stays ignored; a library import keeps its own).
+_IMPORTING = signal.getsignal(signal.SIGINT) is signal.default_int_handler
+if _IMPORTING:
+    try:
+        signal.signal(signal.SIGINT, _exit_quietly)
+    except ValueError:                 # not the main thread
+        _IMPORTING = False
+
+import argparse  # noqa: E402  (after the handler, on purpose)
+import logging  # noqa: E402
+import os  # noqa: E402
+import sys  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+from . import __version__  # noqa: E402
+from .interrupts import exit_status, interrupt_on_sigterm  # noqa: E402
+from .run_outcome import MISSING_OUTPUTS  # noqa: E402
+from .runlog import out_folder  # noqa: E402
+
+if _IMPORTING:
+    signal.signal(signal.SIGINT, signal.default_int_handler)
 
 SCENARIO_DIR = Path(__file__).resolve().parent.parent / "scenarios"
 
@@ -293,6 +319,10 @@ def main(argv: list[str] | None = None) -> int:
         raise
 
 
+#: Exit status of a run whose engines completed but some of whose outputs (recording, parquet,
+#: figure, model.xml, scores) are missing (cosim.run_outcome): its results are computed, yet a
+#: script that goes on to read them must not take it for a whole run (0), nor for a failure (1).
+EXIT_MISSING_OUTPUTS = 3
 #: Exit status when stdout's reader closed the pipe: 128 + SIGPIPE (13), the shell's convention.
 EXIT_BROKEN_PIPE = 141
 
@@ -327,7 +357,7 @@ def _dispatch(parser, args) -> int:
         from .sweep import parse_rpm, run_sweep
         rpm = parse_rpm(args.rpm)
         _positive(args, ("--revolutions", "--workers"))
-        from .report import sweep_table
+        from .report import sweep_table, unsolved_count
         viewer, save = _viewer(args)
         folder, summary = run_sweep(args.scenario, rpm, _engines(args.engines), args.revolutions, args.workers,
                                     args.scheduler, args.out, record=viewer is not None, progress=not _quiet(args),
@@ -335,8 +365,8 @@ def _dispatch(parser, args) -> int:
                                     model=args.model, max_hours=_max_hours(args))
         out = sys.stderr if viewer is not None and viewer.stdout else sys.stdout     # --stdout: the .rrd
         print(sweep_table(summary), file=out)
-        print(f"\nsweep {summary['status']}: {len(summary['points'])} points in {summary['wall_time_s']:.1f} s; "
-              f"written to {folder}", file=out)
+        print(f"\nsweep {summary['status']}: {len(summary['points'])} points{unsolved_count(summary)} in "
+              f"{summary['wall_time_s']:.1f} s; written to {folder}", file=out)
         _show(folder / "sweep.rrd", viewer, save)
         return _exit_code(summary["status"])
     if args.command == "uncertainty":
@@ -372,7 +402,11 @@ def _dispatch(parser, args) -> int:
 
 def _exit_code(status: str) -> int:
     """A command's exit status from its summary's status: 0 when it completed (with failed samples
-    too: the band is a result), 128 + the signal when a signal interrupted it, 1 otherwise."""
+    or unsolved points too: the band, and a speed without a periodic solution, are results),
+    :data:`EXIT_MISSING_OUTPUTS` when a run completed but some of its files are missing, 128 + the
+    signal when a signal interrupted it, 1 otherwise."""
+    if status == MISSING_OUTPUTS:
+        return EXIT_MISSING_OUTPUTS
     if status.startswith("completed"):
         return 0
     return exit_status() if status == "interrupted" else 1

@@ -1,20 +1,19 @@
-"""Signals during a run, and the run cut back to what was written when one arrives.
+"""Signals during a command: remembered, raised as KeyboardInterrupt, and the exit status.
 
 SIGINT and SIGTERM are remembered and raised as KeyboardInterrupt at the next macro step, even
-when an engine's own solver swallows the exception; after the interrupt every engine ends at
-the last macro step written to ``traces.csv``.
+when an engine's own solver swallows the exception (the run is then cut back to what was
+written: :mod:`cosim.interrupted`).
 
-Owns: the run's signal handling and the trimming of interrupted results. Boundaries: no files.
+This module imports the standard library only: the ``cosim`` command imports it before anything
+else, and an import of numpy or tmm_core here (3 s on a loaded machine) was a window in which
+Ctrl-C printed a traceback instead of ending quietly.
+
+Owns: the signal handling and the exit status after a signal. Boundaries: no files, no numerics.
 """
 from __future__ import annotations
 
 import contextlib
-import math
 import signal
-
-import numpy as np
-
-from .metrics import revolutions_completed
 
 
 #: The signals this process has been interrupted by, in order (the exit status follows the last).
@@ -30,6 +29,20 @@ def exit_status() -> int:
     """The exit status of a command ended by a signal, by the shell's convention 128 + the signal:
     130 after Ctrl-C (SIGINT, also when Python raised KeyboardInterrupt itself), 143 after SIGTERM."""
     return 128 + (_received[-1] if _received else signal.SIGINT)
+
+
+def caused_by_interrupt(exc: BaseException) -> bool:
+    """Whether a KeyboardInterrupt is in ``exc``'s chain of causes. A Ctrl-C while a compiled
+    extension initialises comes back as ``ImportError('initialization failed')`` caused by it
+    (pybind11 modules: mujoco); taken for a broken install, it dropped the engine and the run
+    went on as if no Ctrl-C had come."""
+    seen = set()
+    while exc is not None and id(exc) not in seen:
+        if isinstance(exc, KeyboardInterrupt):
+            return True
+        seen.add(id(exc))
+        exc = exc.__cause__ or exc.__context__
+    return False
 
 
 def _raise_interrupt(signum, frame):
@@ -74,59 +87,3 @@ class Interrupts:
         for sig, handler in self.previous.items():
             signal.signal(sig, handler)
         return False
-
-
-def trim_samples(obj, t_end: float) -> None:
-    """Drop the samples after ``t_end`` (an interrupted macro step that reached some engines but
-    was never written) from an EngineRun or MotorTrace, in place."""
-    t = getattr(obj, "t", None)
-    if t is None or not len(t) or t[-1] <= t_end:
-        return
-    keep = np.asarray(t) <= t_end * (1 + 1e-12) + 1e-15
-    n = len(t)
-
-    def cut(x):
-        if isinstance(x, np.ndarray) and x.ndim and len(x) == n:
-            return x[keep]
-        if isinstance(x, tuple):
-            return tuple(cut(v) for v in x)
-        if isinstance(x, dict):
-            return {k: cut(v) for k, v in x.items()}
-        return x
-    for name, value in list(vars(obj).items()):
-        setattr(obj, name, cut(value))
-
-
-def mark_interrupted(result, written_t, failures: dict) -> None:
-    """After a signal: every engine ends at the last macro step written to traces.csv (a step
-    some engines finished and others did not is dropped), and an engine whose solver turned the
-    interrupt into a failure (exudyn reports it as a Newton failure in a user function) is
-    interrupted, not failed. ``failures``: the engines that failed in a written step."""
-    for name, ch in result.channels.items():
-        if ch.status == "failed" and name not in failures:
-            ch.status, ch.error = "interrupted", None
-        elif ch.status in ("completed", "stopped"):
-            ch.status = "interrupted"
-        if written_t is not None:
-            trim_samples(ch.run, written_t)
-            if ch.motor is not None:
-                trim_samples(ch.motor, written_t)
-        else:
-            trim_samples(ch.run, -math.inf)
-        _cut_length(ch, result.macro_step_s, written_t)
-    sts = {ch.status for ch in result.channels.values()}
-    result.status = "failed" if "failed" in sts else "interrupted"
-    result.stop = "interrupted"
-    sim_time = max((ch.sim_time_s for ch in result.channels.values()), default=0.0)
-    result.t_end_s, result.sim_time_s = result.t_end_s - (result.sim_time_s - sim_time), sim_time
-
-
-def _cut_length(ch, macro_step_s: float, written_t) -> None:
-    """A channel's whole-run length (macro steps, simulated time [s], revolutions) cut back to
-    the last macro step written (``written_t`` [s], None: none was)."""
-    written = 0 if written_t is None else int(round((written_t - ch.t0) / macro_step_s))
-    if ch.macro_steps <= written:
-        return
-    ch.macro_steps, ch.sim_time_s = written, written * macro_step_s
-    a = ch.run.crank_angle
-    ch.revolutions_run = revolutions_completed([ch.angle0, float(a[-1])]) if len(a) else 0.0

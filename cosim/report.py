@@ -13,6 +13,7 @@ from pathlib import Path
 
 from .engines import MODELS
 from .files import SUMMARY_BYTES, FileRefused, read_text_bounded
+from .run_outcome import MISSING_OUTPUTS
 
 #: Where a user reads why the models and the measurement differ (pointed to when they differ much).
 MEASUREMENT_GAP_DOC = "README.md, section 'How far the bench is from the measurement'"
@@ -64,6 +65,14 @@ def status_notice(summary: dict, kept: str = "traces.csv holds every completed s
     status = summary.get("status")
     if status in ("completed", "completed with failed samples"):
         return None
+    if status == MISSING_OUTPUTS:
+        gone = ", ".join(str(m.get("what")) for m in summary.get("missing") or []) or "see the notes"
+        return (f"COMPLETED WITH MISSING OUTPUTS: the results below are whole, but {gone} is missing or may be "
+                "incomplete (the reasons are in the summary's missing and notes)")
+    if status == "completed with unsolved points":
+        u = summary.get("unsolved_points") or {}
+        return (f"COMPLETED WITH UNSOLVED POINTS: {u.get('count', '?')} of {u.get('of', '?')} points have no "
+                "solution (why: below the table)")
     if status == "incomplete":
         done = summary.get("progress")
         return ("INCOMPLETE: still running, or killed before it could finish" +
@@ -72,7 +81,7 @@ def status_notice(summary: dict, kept: str = "traces.csv holds every completed s
     if status == "interrupted":
         return "INTERRUPTED: stopped by the user or a signal; the results below cover what ran"
     if status == "failed":
-        return "FAILED: see the errors below"
+        return "FAILED: " + (summary["error"] if summary.get("error") else "see the errors below")
     return f"status {status!r}"
 
 
@@ -253,6 +262,7 @@ def sweep_table(summary: dict) -> str:
         lines.append(f"parametric resonance (|Floquet multiplier| > 1) at {summary['parametric_resonance_rpm']} rpm")
     if summary.get("points_without_solution"):
         lines.append(f"no solution at {summary['points_without_solution']} rpm")
+    lines += unsolved_lines(summary.get("unsolved_points"))
     if summary.get("points_not_steady"):
         lines.append(f"not steady at {summary['points_not_steady']} rpm (last two revolutions differ by more than "
                      "output.steady_tolerance): those peaks are a transient's, not a steady state's")
@@ -260,6 +270,28 @@ def sweep_table(summary: dict) -> str:
         lines.append(f"resonance candidate: mode {c['mode']} x harmonic {c['harmonic']} at "
                      f"{c['rpm'][0]:.0f}-{c['rpm'][1]:.0f} rpm")
     return "\n".join(lines)
+
+
+def unsolved_count(summary: dict) -> str:
+    """``"; N of M points without a solution"`` for a sweep's one-line result ("" when none)."""
+    u = summary.get("unsolved_points")
+    return f"; {u['count']} of {u['of']} points without a solution" if u else ""
+
+
+def unsolved_lines(unsolved: dict | None, shown: int = 3, limit: int = 200) -> list:
+    """A sweep's points without a solution (``summary["unsolved_points"]``): each distinct reason
+    once with its count (at most ``shown``, cut to ``limit`` characters), and what they mean."""
+    if not unsolved:
+        return []
+    lines = [f"{unsolved['count']} of {unsolved['of']} points without a solution:"]
+    for r in unsolved["reasons"][:shown]:
+        e = r["error"] if len(r["error"]) <= limit else r["error"][:limit - 3] + "..."
+        where = f"{r['rpm'][0]:g}" + (f" to {r['rpm'][-1]:g}" if len(r["rpm"]) > 1 else "")
+        lines.append(f"  {r['count']} x {e} (at {where} rpm)")
+    if len(unsolved["reasons"]) > shown:
+        lines.append(f"  {len(unsolved['reasons']) - shown} other error(s): see summary.json")
+    lines.append(f"  {unsolved['note']}")
+    return lines
 
 
 def uncertainty_table(summary: dict) -> str:

@@ -15,7 +15,8 @@
 * ``traces.parquet``: the traces as one long table, written when the run ends
   (:mod:`cosim.results`, ``cosim.load_run``);
 * ``strains.png`` / ``strains.svg``: strain against crank angle per gauge, engines and records
-  (:mod:`cosim.figures`); a figure that fails is a note in the summary, never a lost run;
+  (:mod:`cosim.figures`); a figure that fails is a note and a missing output in the summary
+  (status ``completed with missing outputs``, :mod:`cosim.run_outcome`), never a lost run;
 * ``summary.json``: ``scenario``, ``status``, per engine ``wall_time_s``, ``sim_time_s``,
   ``status``, ``error`` and, for the last revolution, ``gauges.<g>.{bending,axial}_{max,min}_ue``
   and the drive torque range, ``flags`` (:mod:`cosim.physics_flags`); in motor mode the speed
@@ -24,7 +25,8 @@
 ``summary.json`` is written at the start with ``status = "incomplete"`` and rewritten every few
 seconds, so a run that is killed leaves a summary that says so; an interrupted run (Ctrl-C,
 SIGTERM) writes ``"interrupted"``; a run in which an engine failed writes ``"failed"`` with the
-engine's message and keeps the other engines' results.
+engine's message and keeps the other engines' results; a run out of memory anywhere writes
+``"failed"`` with "out of memory while ..." (:mod:`cosim.run_outcome`).
 
 Owns: one run: folder, traces, recording, summary, scores, figures, interruption. Boundaries: no
 engine numerics and no recording internals (cosim.recording).
@@ -47,9 +49,11 @@ from .master import CoSimulation, InputError
 from .metrics import last_revolution, revolutions_completed, steadiness
 from .runlog import run_folder, write_json
 from .scenario import Scenario, load, resolved
-from .interrupts import Interrupts, mark_interrupted
+from .interrupted import mark_interrupted
+from .interrupts import Interrupts
 from .physics_flags import attach_flags, questionable
 from .run_guards import MAX_HOURS, check_cost, plausibility_notes
+from .run_outcome import attempt, fail_out_of_memory, final_status, missing, out_of_memory
 from .run_progress import RunProgress, compile_notice
 from .samples import SampleCollector
 from .traces import TraceWriter, TracesNotWritten
@@ -270,12 +274,21 @@ def run_scenario(scenario, options: RunOptions = RunOptions(), callback=None) ->
         for name in engines:
             summary["engines"][name] = {"status": "failed", "error": "stopped with the run: its traces could not "
                                                                      "be written"}
-    except BaseException:
+    except BaseException as exc:
         with contextlib.suppress(Exception):     # the steps computed before the error stay on disk
             take_block()
-        if recorder[0] is not None:
-            recorder[0].close()
-        raise
+        if not out_of_memory(exc):
+            # The summary must not stay 'incomplete' (a killed run's word) for a run that ended.
+            summary.update(status="failed", error=f"{type(exc).__name__}: {exc}")
+            with contextlib.suppress(Exception):
+                write_json(folder / "summary.json", summary)
+            if recorder[0] is not None:
+                recorder[0].close()
+            raise
+        status, write_failed = "failed", True   # no parquet copy or figure: no memory for them
+        log.error("%s", fail_out_of_memory(summary, notes, "running the engines", exc))
+        for name in engines:
+            summary["engines"][name] = {"status": "failed", "error": "stopped with the run: out of memory"}
     finally:
         writer.close()
         progress.close(completed=status not in (None, "interrupted"))
@@ -284,56 +297,90 @@ def run_scenario(scenario, options: RunOptions = RunOptions(), callback=None) ->
         summary["stop"] = {"steady": "every engine steady", "end": "revolution limit" if until_steady else
                            "fixed length"}.get(result.stop, result.stop)
     summary["finished"] = time.strftime("%Y-%m-%dT%H:%M:%S")
-    if result is not None:
-        summary["progress"] = 1.0 if status == "completed" else summary.get("progress", 0.0)
-        summary["sim_time_s"] = result.sim_time_s
-        for name, ch in result.channels.items():
-            summary["engines"][name] = _engine_summary(ch, sc, 0.0)
-        unsteady = [n for n, e in summary["engines"].items() if e.get("status") == "completed" and not e.get("steady")]
-        if unsteady:
-            notes.append(f"not steady: {', '.join(unsteady)} (the last two revolutions differ by more than "
-                         f"{100 * sc.output.steady_tolerance:.2g} %); its peaks are a transient, not a steady state")
-        implausible = plausibility_notes(sc, summary)
-        for text in implausible:
-            log.warning(text)
-        notes += implausible
-        # engines.<engine>.flags: buckling, toggle, resonance, rigid model; the linkage's own
-        # frequencies (seconds) only when the results are in question
-        attach_flags(sc, summary, linkage_map=questionable(summary, bool(implausible)), progress=options.progress)
-        try:
-            score_records(sc, result, summary, recorder[0], options.records)
-            if options.records is not None:
-                summary["records_dir"] = str(Path(options.records).resolve())
-                if not summary.get("records_used"):
-                    notes.append(f"no record in {options.records} is of rig {getattr(sc, 'rig', None)!r} at "
-                                 "this speed; nothing was scored")
-        except Exception as exc:          # scoring must never lose the run's own results
-            notes.append(f"scoring against records failed: {type(exc).__name__}: {exc}")
-    if recorder[0] is not None:
-        for name, e in summary["engines"].items():
-            if "steady" in e:
-                change = e.get("revolution_change")
-                recorder[0].log_text(f"{name}/steady_state", (
-                    "steady" if e["steady"] else "NOT STEADY: the last revolution is a transient") +
-                    ("" if change is None else f" (last two revolutions differ by {100 * change:.2f} % of the "
-                                               f"peak-to-peak; tolerance {100 * e['steady_tolerance']:.2g} %)"))
-        recorder[0].hand_over()         # the child finishes the file while the results are written
-    for name in engines:
-        summary["engines"].setdefault(name, {"status": "interrupted"})
-    _finish_exports(exports, engines, result, folder, summary, notes, options)
+    try:
+        if result is not None:
+            _summarise(sc, result, summary, notes, recorder[0], options)
+        if recorder[0] is not None:
+            _log_steadiness(recorder[0], summary)
+            recorder[0].hand_over()         # the child finishes the file while the results are written
+        for name in engines:
+            summary["engines"].setdefault(name, {"status": "interrupted"})
+        _finish_exports(exports, engines, result, folder, summary, notes, options)
+    except Exception as exc:              # out of memory after the loop: the run's data stay as written
+        if not out_of_memory(exc):
+            raise
+        log.error("%s", fail_out_of_memory(summary, notes, "summarising the results", exc))
     if writer.columns is not None and status == "interrupted":
         # Stop promptly (a signal asks for it): traces.csv is the run's file, which cosim.load_run
         # reads; the parquet copy and the figure are not made.
         notes.append("traces.parquet and the strain figure are not written for an interrupted run "
                      "(cosim.load_run reads traces.csv)")
-    elif writer.columns is not None and not write_failed:
+    elif writer.columns is not None and not write_failed and "out_of_memory" not in summary:
         _write_results(folder, sc, summary, notes, options)
     if recorder[0] is not None:
-        notes += [f"recording: {p}" for p in recorder[0].close()]
+        _close_recorder(recorder[0], summary, notes)
+    summary["status"] = final_status(status, summary)
     if notes:
         summary["notes"] = notes
     write_json(folder / "summary.json", summary)
     return RunResult(folder, summary, result, notes, recorder[0])
+
+
+def _summarise(sc: Scenario, result, summary: dict, notes: list, recorder, options: RunOptions) -> None:
+    """The engines' entries of the summary after the loop, steadiness and plausibility notes, the
+    physics flags and the scores against records (a scoring failure is a missing output)."""
+    status = summary["status"]
+    summary["progress"] = 1.0 if status == "completed" else summary.get("progress", 0.0)
+    summary["sim_time_s"] = result.sim_time_s
+    for name, ch in result.channels.items():
+        summary["engines"][name] = _engine_summary(ch, sc, 0.0)
+    unsteady = [n for n, e in summary["engines"].items() if e.get("status") == "completed" and not e.get("steady")]
+    if unsteady:
+        notes.append(f"not steady: {', '.join(unsteady)} (the last two revolutions differ by more than "
+                     f"{100 * sc.output.steady_tolerance:.2g} %); its peaks are a transient, not a steady state")
+    implausible = plausibility_notes(sc, summary)
+    for text in implausible:
+        log.warning(text)
+    notes += implausible
+    # engines.<engine>.flags: buckling, toggle, resonance, rigid model; the linkage's own
+    # frequencies (seconds) only when the results are in question
+    attach_flags(sc, summary, linkage_map=questionable(summary, bool(implausible)), progress=options.progress)
+    try:
+        score_records(sc, result, summary, recorder, options.records)
+        if options.records is not None:
+            summary["records_dir"] = str(Path(options.records).resolve())
+            if not summary.get("records_used"):
+                notes.append(f"no record in {options.records} is of rig {getattr(sc, 'rig', None)!r} at "
+                             "this speed; nothing was scored")
+    except Exception as exc:          # scoring must never lose the run's own results
+        if out_of_memory(exc):
+            raise
+        notes.append(f"scoring against records failed: {type(exc).__name__}: {exc}")
+        missing(summary, "scores", notes[-1])
+
+
+def _log_steadiness(recorder, summary: dict) -> None:
+    """Each engine's steady-state verdict as a text entry of the recording."""
+    for name, e in summary["engines"].items():
+        if "steady" in e:
+            change = e.get("revolution_change")
+            recorder.log_text(f"{name}/steady_state", (
+                "steady" if e["steady"] else "NOT STEADY: the last revolution is a transient") +
+                ("" if change is None else f" (last two revolutions differ by {100 * change:.2f} % of the "
+                                           f"peak-to-peak; tolerance {100 * e['steady_tolerance']:.2g} %)"))
+
+
+def _close_recorder(recorder, summary: dict, notes: list) -> None:
+    """Wait for the recording's writer; its warnings are notes, a file it could not finish (the
+    writer died, did not start, or stopped reading) a missing output."""
+    try:
+        notes += [f"recording: {p}" for p in recorder.close()]
+    except Exception as exc:
+        if not out_of_memory(exc):
+            raise
+        log.error("%s", fail_out_of_memory(summary, notes, "closing the recording", exc))
+    if getattr(recorder, "incomplete", None):
+        missing(summary, summary["files"].get("recording") or "run.rrd", recorder.incomplete)
 
 
 def _viewer_options(options: RunOptions):
@@ -387,40 +434,53 @@ def _finish_exports(exports: dict, engines: dict, result, folder: Path, summary:
     files = summary["files"]
     if "exudyn" in exports and (folder / exports["exudyn"]).exists():
         files["exudyn_solution"] = exports["exudyn"]
+    def mjcf():
+        engines["mujoco"].export_model(folder / "model.xml")
+        return "model.xml"
+
+    def gif():
+        from .recording.animation import write_gif
+        runs = {n: ch.run for n, ch in result.channels.items()}
+        stations = {n: e.node_stations() for n, e in engines.items() if _has_stations(e)}
+        return write_gif(folder / "linkage.gif", runs, stations, options.exaggeration).name
+
     if hasattr(engines.get("mujoco"), "export_model") and getattr(engines["mujoco"], "xml", None):
-        try:
-            engines["mujoco"].export_model(folder / "model.xml")
-            files["mujoco_model"] = "model.xml"
-        except Exception as exc:
-            notes.append(f"model.xml not written: {type(exc).__name__}: {exc}")
-    if options.animation and result is not None:
-        try:
-            from .recording.animation import write_gif
-            runs = {n: ch.run for n, ch in result.channels.items()}
-            stations = {n: e.node_stations() for n, e in engines.items() if _has_stations(e)}
-            files["animation"] = write_gif(folder / "linkage.gif", runs, stations, options.exaggeration).name
-        except Exception as exc:
-            notes.append(f"linkage.gif not drawn: {type(exc).__name__}: {exc}")
-            log.warning(notes[-1])
+        files["mujoco_model"] = attempt(summary, notes, MJCF, mjcf)
+    if options.animation and result is not None and "out_of_memory" not in summary:
+        files["animation"] = attempt(summary, notes, GIF, gif)
+    for key in ("mujoco_model", "animation"):
+        if key in files and files[key] is None:
+            del files[key]
+
+
+#: The run's outputs after the loop as :func:`cosim.run_outcome.attempt` names them: (file, what the
+#: run was doing, the note when it fails).
+MJCF = ("model.xml", "writing model.xml", "model.xml not written")
+GIF = ("linkage.gif", "drawing linkage.gif", "linkage.gif not drawn")
+PARQUET = ("traces.parquet", "writing traces.parquet", "traces.parquet not written")
+FIGURE = ("strains.png", "drawing the strain figure", "strain figure not drawn")
 
 
 def _write_results(folder: Path, sc: Scenario, summary: dict, notes: list, options: RunOptions) -> None:
     """traces.parquet and strains.png/.svg after the run. Neither may lose the run: a failure is
-    logged and written into the summary's notes (traces.csv stays the run's crash-safe file)."""
-    write_json(folder / "summary.json", summary)          # the figure reads the final verdicts
-    try:
+    a note and a missing output, running out of memory fails the run and stops here
+    (:func:`cosim.run_outcome.attempt`; traces.csv stays the run's crash-safe file)."""
+    def parquet():
         from .results import write_parquet
-        summary["files"]["traces_parquet"] = write_parquet(folder).name
-    except Exception as exc:
-        notes.append(f"traces.parquet not written: {type(exc).__name__}: {exc}")
-        log.warning(notes[-1])
-    if options.figures:
-        try:
-            from .figures import write_run_figures
-            summary["files"]["figures"] = [p.name for p in write_run_figures(folder, sc, options.records)]
-        except Exception as exc:
-            notes.append(f"strain figure not drawn: {type(exc).__name__}: {exc}")
-            log.warning(notes[-1])
+        return write_parquet(folder).name
+
+    def figures():
+        from .figures import write_run_figures
+        return [p.name for p in write_run_figures(folder, sc, options.records)]
+
+    write_json(folder / "summary.json", summary)          # the figure reads the final verdicts
+    files = summary["files"]
+    files["traces_parquet"] = attempt(summary, notes, PARQUET, parquet)
+    if options.figures and "out_of_memory" not in summary:
+        files["figures"] = attempt(summary, notes, FIGURE, figures)
+    for key in ("traces_parquet", "figures"):
+        if key in files and files[key] is None:
+            del files[key]
 
 
 def score_records(sc: Scenario, result, summary: dict, recorder=None, directory=None) -> None:

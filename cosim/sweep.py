@@ -29,6 +29,7 @@ import numpy as np
 
 from .master import macro_step_for
 from .parallel import describe, executor
+from .physics_flags import buckling_flags
 from .run_guards import MAX_HOURS, check_study, estimate_cost
 from .runlog import run_folder, write_csv, write_json
 from .overrides import apply_overrides
@@ -234,6 +235,68 @@ def _rows(point: dict) -> list:
     return rows
 
 
+#: A sweep's status when every point ran but at some an engine found no solution: the sweep is
+#: whole (those points are results, e.g. no periodic state near buckling), but not every speed has
+#: peaks, which a plain "completed" hid (1000 points, 584 of them unsolved, read as a success).
+UNSOLVED = "completed with unsolved points"
+
+
+def _unsolved(point: dict) -> bool:
+    """A point that ran but where some engine has no solution (``did_not_run`` is not counted)."""
+    return not point.get("did_not_run") and any(e.get("status") != "completed" for e in point["engines"].values())
+
+
+def sweep_status(points: list) -> str:
+    """``"failed"`` when a point did not run at all (a worker died or raised), :data:`UNSOLVED`
+    when every point ran but some have no solution, else ``"completed"``."""
+    if any(p.get("did_not_run") for p in points):
+        return "failed"
+    return UNSOLVED if any(_unsolved(p) for p in points) else "completed"
+
+
+def unsolved_points(sc, points: list) -> dict | None:
+    """The points without a solution: ``{"count", "of", "rpm", "reasons": [{"error", "count",
+    "rpm"}], "note"}`` (None when every point solved). Errors alike but for their numbers are one
+    reason; the note says whether the points lie beyond the last solved speed and what that speed
+    showed (its largest |Floquet multiplier| and links' share of their Euler load [%])."""
+    bad = sorted((p for p in points if _unsolved(p)), key=lambda p: p["rpm"])
+    if not bad:
+        return None
+    reasons = {}
+    for p in bad:
+        for e in p["engines"].values():
+            if e.get("status") != "completed":
+                text = str(e.get("error") or e.get("status"))
+                r = reasons.setdefault(re.sub(r"\d+(\.\d+)?([eE][-+]?\d+)?", "#", text),
+                                       {"error": text, "count": 0, "rpm": []})
+                r["count"] += 1
+                r["rpm"].append(p["rpm"])
+    return {"count": len(bad), "of": len(points), "rpm": [p["rpm"] for p in bad],
+            "reasons": sorted(reasons.values(), key=lambda r: -r["count"]), "note": _unsolved_note(sc, points, bad)}
+
+
+def _unsolved_note(sc, points: list, bad: list) -> str:
+    """Why the points may have no solution: past the last solved speed a periodic solve that
+    fails is a finding about the linkage (its response stops being periodic: near buckling or
+    past a parametric resonance), not a lost point; between solved speeds it is the solver's."""
+    solved = [p for p in points if not p.get("did_not_run") and not _unsolved(p)]
+    below = [p for p in solved if p["rpm"] < bad[0]["rpm"]]
+    if not below or any(p["rpm"] > bad[0]["rpm"] for p in solved):
+        return ("some speeds between solved ones have no solution: see the errors (a solver's failure there, or a "
+                "narrow band where the response is not periodic)")
+    last = max(below, key=lambda p: p["rpm"])
+    tmm = last["engines"].get("tmm") or {}
+    seen = []
+    if tmm.get("floquet_max") is not None:
+        seen.append(f"largest |Floquet multiplier| {tmm['floquet_max']:.3f}")
+    seen += [f"{f['message'].split(':')[1].strip()} ({100 * f['value']:.0f} % of its Euler load)"
+             for f in buckling_flags(sc, tmm.get("gauges"))]
+    return (f"every speed from {bad[0]['rpm']:g} rpm up has no solution; the highest solved speed below, "
+            f"{last['rpm']:g} rpm, shows {'; '.join(seen) or 'nothing flagged'}: beyond it the response is not "
+            "periodic (near buckling or past a parametric resonance); that is a finding about the linkage, not a "
+            "lost point (--method march shows the response there)")
+
+
 def run_sweep(scenario: str, rpm, engines=("tmm",), revolutions: float | None = None, workers: int | None = None,
               scheduler: str | None = None, out: Path | None = None, progress: bool = True,
               record: bool = True, method: str = "periodic", resonance: bool = True,
@@ -294,13 +357,11 @@ def run_sweep(scenario: str, rpm, engines=("tmm",), revolutions: float | None = 
                     saved = time.perf_counter()
                 if bar is not None:
                     bar.update(1)
-        # A point whose engine found no solution (e.g. a link past its buckling load) is a result;
-        # only a point that did not run at all fails the sweep.
-        summary["points_without_solution"] = sorted(
-            p["rpm"] for p in points if any(e.get("status") != "completed" for e in p["engines"].values()))
+        summary["points_without_solution"] = sorted(p["rpm"] for p in points if _unsolved(p))
         summary["points_not_steady"] = sorted(p["rpm"] for p in points if any(
             e.get("status") == "completed" and e.get("steady") is False for e in p["engines"].values()))
-        summary["status"] = "failed" if any(p.get("did_not_run") for p in points) else "completed"
+        summary["unsolved_points"] = unsolved_points(sc, points)
+        summary["status"] = sweep_status(points)
     except KeyboardInterrupt:
         summary["status"] = "interrupted"
     finally:

@@ -18,7 +18,7 @@ import pytest
 
 from cosim.cli import main
 from cosim.records import RecordError, load_record
-from cosim.interrupts import mark_interrupted
+from cosim.interrupted import mark_interrupted
 from cosim.run_guards import PLAUSIBLE_STRAIN, check_cost, estimate_cost, plausibility_notes
 from cosim.runlog import run_folder
 from cosim.scenario import SCENARIO_DIR, ScenarioError, load

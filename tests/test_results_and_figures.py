@@ -137,7 +137,9 @@ def test_a_failing_figure_is_a_note_and_never_loses_the_run(tmp_path, monkeypatc
     monkeypatch.setattr(cosim.figures, "write_run_figures", broken)
     res = run_scenario("crank_rocker_95rpm", RunOptions(engines=("tmm",), revolutions=0.3, out=tmp_path / "r",
                                                         viewer="none", progress=False))
-    assert res.summary["status"] == "completed"
+    # issue 32: a run missing one of its files no longer reads 'completed' (was the expected status)
+    assert res.summary["status"] == "completed with missing outputs"
+    assert res.summary["missing"][0]["what"] == "strains.png"
     assert any("strain figure not drawn: RuntimeError: no fonts today" in n for n in res.summary["notes"])
     saved = json.loads((tmp_path / "r" / "summary.json").read_text())
     assert saved["notes"] == res.summary["notes"] and (tmp_path / "r" / "traces.parquet").exists()

@@ -8,6 +8,7 @@ engine code.
 """
 from __future__ import annotations
 
+from ..interrupts import caused_by_interrupt
 from .base import DriveInput, Engine, EngineError, EngineOutput, EngineRun, EngineUnavailable, run_prescribed
 
 ENGINES = ("tmm", "exudyn", "mujoco")
@@ -42,6 +43,8 @@ def _require(module: str, spec: str) -> None:
     try:
         importlib.import_module(module)
     except Exception as exc:   # ImportError, or a broken binary wheel raising anything else
+        if caused_by_interrupt(exc):
+            raise KeyboardInterrupt(f"interrupted while importing {module}") from None
         raise EngineUnavailable(f"engine '{module}' is unavailable: importing {module} failed ({type(exc).__name__}: "
                                 f"{exc}); install it with `pip install \"{spec}\"` (make test/run does)") from None
 

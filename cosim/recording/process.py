@@ -36,6 +36,7 @@ Owns: the recorder in a child process. Boundaries: the rerun side is cosim.recor
 """
 from __future__ import annotations
 
+import contextlib
 import json
 import logging
 import os
@@ -116,21 +117,30 @@ class RecorderProcess(Recorder):
             level = logging.getLogger("cosim").getEffectiveLevel()
             # -P: not the working directory first on the child's path (another cosim there would be
             # imported instead of this one).
-            self._proc = subprocess.Popen([sys.executable, "-P", "-m", "cosim.recording.process", str(level)],
-                                          stdin=subprocess.PIPE, stdout=subprocess.PIPE, env=env,
-                                          start_new_session=True)
-            self._thread.start()
+            try:
+                self._proc = subprocess.Popen([sys.executable, "-P", "-m", "cosim.recording.process", str(level)],
+                                              stdin=subprocess.PIPE, stdout=subprocess.PIPE, env=env,
+                                              start_new_session=True)
+                self._thread.start()
+            except (OSError, RuntimeError) as exc:       # no memory (or processes) left for it
+                self._not_started = exc
+                if self._proc is not None:
+                    self._proc.kill()
+                    self._proc = None
 
     def _send(self, *message):
         item = pickle.dumps(message, protocol=pickle.HIGHEST_PROTOCOL)
         self._queue.put(item)
         if self._proc is None and message[0] not in _BEFORE_DATA:
-            if self._timer is None:
+            if self._timer is None and message[0] != "close":
                 # CHILD_START_AFTER_S after the first data even if no message follows (a long
                 # macro step): a run killed later leaves its recording.
                 self._timer = threading.Timer(CHILD_START_AFTER_S, self._start_child)
                 self._timer.daemon = True
-                self._timer.start()
+                try:
+                    self._timer.start()
+                except RuntimeError:        # no thread to be had (memory): start the child now
+                    self._start_child()
             self._waiting_bytes += len(item)
             if message[0] == "close" or self._waiting_bytes >= CHILD_START_BYTES:
                 self._start_child()
@@ -141,6 +151,10 @@ class RecorderProcess(Recorder):
         return self._proc is not None
 
     _timer = None                 # starts the child CHILD_START_AFTER_S after the first data
+    _not_started = None           # why the child could not be started (OSError, RuntimeError)
+    #: After :meth:`close`: why the file may be incomplete (the writer died, did not start, was
+    #: stopped, or stopped reading), None when it finished.
+    incomplete = None
     _waiting_bytes = 0            # bytes of data messages queued before the child started
 
     def _pump(self):
@@ -180,6 +194,11 @@ class RecorderProcess(Recorder):
         if not self._handed_over:
             self.hand_over()
         self._closed = True
+        if self._proc is None:
+            self.incomplete = (f"the recording writer could not be started ({self._not_started}); "
+                               f"{self.save_path} is not written")
+            log.warning("recording: %s", self.incomplete)
+            return [self.incomplete]
         deadline = time.monotonic() + self.close_timeout_s
         self._thread.join(timeout=self.close_timeout_s)
         problems, finished = [], False
@@ -191,22 +210,24 @@ class RecorderProcess(Recorder):
             if "warnings" in status:          # the file is finished: no need to wait for the exit
                 finished = True
                 break
+        broken = []                           # why the file may be incomplete
         if self.serving is None and not finished:
             try:
                 self._proc.wait(timeout=max(0.1, deadline - time.monotonic()))
             except subprocess.TimeoutExpired:
                 self._proc.kill()
-                problems.append(f"the recording writer did not finish within {self.close_timeout_s:g} s and was "
-                                f"stopped; {self.save_path} may be incomplete")
-            if self._proc.returncode not in (0, None) and not problems:
-                problems.append(f"the recording writer failed (exit status {self._proc.returncode}, its error is "
-                                f"above); {self.save_path} may be incomplete")
+                broken.append(f"the recording writer did not finish within {self.close_timeout_s:g} s and was "
+                              f"stopped; {self.save_path} may be incomplete")
+            if self._proc.returncode not in (0, None) and not broken:
+                broken.append(f"the recording writer failed (exit status {self._proc.returncode}, its error is "
+                              f"above); {self.save_path} may be incomplete")
         if self._broken is not None:
-            problems.append(f"the recording writer stopped reading ({self._broken}); {self.save_path} may be "
-                            "incomplete")
-        for p in problems:
+            broken.append(f"the recording writer stopped reading ({self._broken}); {self.save_path} may be "
+                          "incomplete")
+        self.incomplete = "; ".join(broken) or None
+        for p in problems + broken:
             log.warning("recording: %s", p)
-        return problems
+        return problems + broken
 
     serving = None              # the gRPC URL while the child serves (viewer 'serve')
 
@@ -312,6 +333,13 @@ def _child(level: int) -> int:
                  "text": writer.text}[kind](*args)
     except KeyboardInterrupt:
         pass
+    except Exception as exc:          # one line for the run's console, not a traceback
+        what = "out of memory" if isinstance(exc, MemoryError) else f"{type(exc).__name__}: {exc}"
+        logger.error("recording: the writer stopped: %s", what)
+        with contextlib.suppress(Exception):
+            if writer is not None:
+                writer.finish()       # the footer, if it can
+        return 1
     if writer is None:
         return 0
     try:
