@@ -44,7 +44,7 @@ import numpy as np
 
 from .run_guards import MAX_HOURS, MAX_HOURS_HELP, check_study
 from .runlog import out_folder, run_folder, write_json
-from .scenario import ScenarioError, load
+from .scenario import ScenarioError, check_unknowns, load
 from .unknowns import Settings, declared, read, solve, solve_cost, variant
 
 log = logging.getLogger(__name__)
@@ -104,6 +104,7 @@ def check_inputs(calibration, validation, parameters, records_dir=None) -> dict:
         raise IdentificationError("identify: a scenario is given twice")
     declared_by = {}
     for sc in cal + val:
+        check_unknowns(sc)                      # before any fit runs (each would fail alike)
         declared_by[sc.name] = declared(sc.raw, str(sc.path or sc.name))[2]
     unknowns = declared_by[cal[0].name]
     if parameters is None:

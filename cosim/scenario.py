@@ -447,7 +447,20 @@ def _check_uncertainty(r: Reader, data, path: str, top: dict, gauges: tuple = ()
             except OverrideError as exc:
                 raise r.fail(f"uncertainty.parameters.{name}.keys", str(exc), k) from None
     if params:
-        _check_unknowns(r, top, declared({"uncertainty": u}, path)[2], gauges)
+        declared({"uncertainty": u}, path)          # every value's kind and unit, named by its key
+
+
+def check_unknowns(sc: Scenario) -> None:
+    """Where the ``[uncertainty]`` table is read (``cosim uncertainty``, ``cosim identify``), before
+    any sample runs: every unknown at the edges of its range makes a scenario the loader accepts
+    (a wrong unit, value or gauge name is refused under its own key, not found by every sample
+    failing). Not at load: a variant that drops what an unknown varies (the gauges of a quick
+    engine test) is a scenario of its own, and the check loads the scenario a few times more."""
+    raw = sc.raw
+    if not isinstance(raw.get("uncertainty"), dict) or not raw["uncertainty"].get("parameters"):
+        return
+    path = str(sc.path or sc.name)
+    _check_unknowns(Reader(path), raw, declared(raw, path)[2], tuple(sc.gauges))
 
 
 def _bound_samples(spec) -> dict:

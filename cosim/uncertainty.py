@@ -49,7 +49,7 @@ import numpy as np
 
 from .parallel import executor
 from .runlog import run_folder, write_csv, write_json
-from .scenario import ScenarioError, load
+from .scenario import ScenarioError, check_unknowns, load
 from .run_guards import MAX_HOURS, check_study
 from .unknowns import Settings, declared, read, solve_cost, solve_job, variant
 
@@ -152,6 +152,7 @@ def run_uncertainty(scenario: str, samples: int | None = None, seed: int | None 
     checked against the band come from (default: the shipped records); ``max_hours``: refuse a
     run estimated to take longer (:func:`cosim.run_guards.check_study`, before any solve)."""
     sc = load(scenario)
+    check_unknowns(sc)                          # before any sample runs (each would fail alike)
     n_default, seed_default, unknowns, options = declared(sc.raw, str(sc.path))
     n = samples if samples is not None else n_default
     seed = seed if seed is not None else seed_default

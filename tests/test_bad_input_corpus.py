@@ -16,7 +16,7 @@ import tomli_w
 
 from cosim.cli import main
 from cosim.records import RECORD_DIR, RecordError, load_record
-from cosim.scenario import ScenarioError, load
+from cosim.scenario import ScenarioError, check_unknowns, load
 
 CR, SC, WS, ST, WC = ("crank_rocker_373rpm", "slider_crank_600rpm", "watt_sixbar_600rpm", "shin_multiloop_small",
                       "wang_composite_280rpm")
@@ -85,6 +85,16 @@ KEYS = [
     (CR, {"uncertainty.parameters": 5}, "uncertainty.parameters"),
     (CR, {"uncertainty.parameters.damping.distribution": "cauchy"}, "uncertainty.parameters.damping.distribution"),
     # Issue 32: each unknown at the edges of its range must be a scenario the loader accepts.
+]
+
+
+@pytest.mark.parametrize("name, overrides, key", KEYS)
+def test_keys(name, overrides, key):
+    refuses(name, overrides, key)
+
+
+# -- the [uncertainty] table's values, checked where they are read (cosim uncertainty, identify) --------
+UNKNOWNS = [
     (CR, {"uncertainty.parameters.damping.unit": ""}, "uncertainty.parameters.damping.low"),      # every sample failed
     (CR, {"uncertainty.parameters.damping.high": "150 %"}, "uncertainty.parameters.damping.high"),  # was accepted
     (CR, {"uncertainty.parameters.coupler_face.values": ["top", "side"]}, "uncertainty.parameters.coupler_face.values"),
@@ -92,9 +102,13 @@ KEYS = [
 ]
 
 
-@pytest.mark.parametrize("name, overrides, key", KEYS)
-def test_keys(name, overrides, key):
-    refuses(name, overrides, key)
+@pytest.mark.parametrize("name, overrides, key", UNKNOWNS)
+def test_unknowns(name, overrides, key):
+    """Each unknown at the edges of its range must make a scenario the loader accepts; checked
+    before the first sample or fit (every one of them failed alike)."""
+    with pytest.raises(ScenarioError) as err:
+        check_unknowns(_base(name).with_overrides(overrides))
+    assert f"key '{key}'" in str(err.value), str(err.value)
 
 
 # -- units: no unit, the wrong dimension, text pint cannot or must not read ------------------------
