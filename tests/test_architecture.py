@@ -1,0 +1,183 @@
+"""The house rules of issue 33 ("Rules that change"), checked over ``tmm_core`` and ``cosim``:
+
+* no import cycle, every import counted (those inside functions too);
+* functions of at most 80 lines of code (docstrings, comments and blank lines do not count:
+  documentation counts toward no limit) and at most 20 parameters.
+
+What breaks a rule today is listed below with its reason; the lists may only shrink. A new
+violation fails, and so does an entry that no longer violates (remove it: the rule then holds
+there for good)."""
+import ast
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parent.parent
+PACKAGES = ("tmm_core", "cosim")
+MAX_LINES, MAX_PARAMETERS = 80, 20
+
+#: Import cycles allowed for now, each a set of modules, with the reason.
+CYCLES = {
+    frozenset({"tmm_core.kernels", "tmm_core.kernels_factored", "tmm_core.kernels_static"}):
+        "the compiled layer binds its kernels through imports inside functions; issue 33 item 2 (one "
+        "binding module under tmm_core/compiled/)",
+    frozenset({"tmm_core.march", "tmm_core.transient"}):
+        "TimeDomain and March call each other; issue 33 item 1 (a frozen model with stage functions)",
+    frozenset({"cosim.linkage_scenario", "cosim.motor_design", "cosim.overrides", "cosim.scenario",
+               "cosim.scenario_reader", "cosim.scenario_types", "cosim.structure_scenario", "cosim.unknowns_table"}):
+        "Scenario inherits overrides.Variants, which calls the loader back; issue 35 item 1 (a loader package "
+        "with one-way imports)",
+    frozenset({"cosim.engines", "cosim.engines.base", "cosim.engines.exudyn", "cosim.engines.mujoco",
+               "cosim.engines.mujoco_tree", "cosim.engines.tmm", "cosim.master"}):
+        "engines.base.run_prescribed imports the master, which imports the engines; issue 35 item 1",
+}
+
+#: Functions over the limits for now: "module.function" -> reason.
+LONG_FUNCTIONS = {
+    "cosim.cli.build_parser": "every subcommand's options in one place; issue 35 (a parser per subcommand)",
+    "cosim.engines.exudyn._build": "the exudyn model builder; issue 35 item 3 (split by concept)",
+    "cosim.engines.mujoco._mjcf": "the MJCF writer; issue 35 item 3",
+    "cosim.identify.identify": "the identification pipeline, 16 parameters; issue 35 (typed options)",
+    "cosim.linkage_scenario.build_mechanism": "the general linkage format's builder; issue 35 item 3",
+    "cosim.motor_design.motor": "the [motor] table's reader; issue 35 item 3",
+    "cosim.run.run_scenario": "one run end to end; issue 35 item 3 (a short pipeline)",
+    "cosim.scenario.from_dict": "the scenario loader; issue 35 item 1 (a loader package)",
+    "cosim.structure_scenario.build": "the structure format's builder; issue 35 item 3",
+    "tmm_core.kernels.march": "the compiled march: numba kernels take arrays, not records; issue 33 item 5",
+    "tmm_core.kernels_factor.factor_configuration": "compiled factorization, 61 parameters; issue 33 item 5",
+    "tmm_core.kernels_maps.solve_loads_many": "compiled load solve on maps; issue 33 item 5",
+    "tmm_core.kernels_periodic.push": "compiled linearized step; issue 33 items 4-5 (one step)",
+    "tmm_core.kernels_reduced._second_order": "reduced model's second-order step; issue 33 items 4-5",
+    "tmm_core.kernels_reduced.revolution": "reduced model's revolution; issue 33 items 4-5",
+    "tmm_core.kernels_static.solve_batch": "compiled static solve, 32 parameters; issue 33 item 5",
+    "tmm_core.kernels_static.iterate_batch": "compiled beam-column iteration; issue 33 item 5",
+    "tmm_core.kernels_static.solve_range": "compiled static solve; issue 33 item 5",
+    "tmm_core.kernels_static.solve_loads": "compiled load solve, 63 parameters; issue 33 item 5",
+    "tmm_core.linkage_kinematics.solve": "Shin's module kinematics in closed form; issue 33",
+    "tmm_core.linkage_plan.plan_modules": "the module plan of a general linkage; issue 33",
+}
+
+
+def _modules() -> dict:
+    out = {}
+    for package in PACKAGES:
+        for path in (ROOT / package).rglob("*.py"):
+            parts = list(path.relative_to(ROOT).with_suffix("").parts)
+            if parts[-1] == "__init__":
+                parts = parts[:-1]
+            out[".".join(parts)] = path
+    return out
+
+
+MODULES = _modules()
+
+
+def _target(module: str, node: ast.ImportFrom | ast.Import, is_package: bool) -> list:
+    """The project modules an import statement of ``module`` loads."""
+    if isinstance(node, ast.Import):
+        return [a.name for a in node.names if a.name in MODULES]
+    base = module.split(".") if is_package else module.split(".")[:-1]
+    if node.level:
+        base = base[:len(base) - (node.level - 1)] if node.level > 1 else base
+        stem = ".".join(base + ([node.module] if node.module else []))
+    else:
+        stem = node.module or ""
+    found = [f"{stem}.{a.name}" for a in node.names if f"{stem}.{a.name}" in MODULES]
+    return found + ([stem] if stem in MODULES and len(found) < len(node.names) else [])
+
+
+def _graph() -> dict:
+    graph = {}
+    for module, path in MODULES.items():
+        tree = ast.parse(path.read_text(encoding="utf-8"))
+        targets = set()
+        for node in ast.walk(tree):
+            if isinstance(node, (ast.Import, ast.ImportFrom)):
+                targets.update(_target(module, node, path.name == "__init__.py"))
+        graph[module] = targets - {module}
+    return graph
+
+
+def _cycles(graph: dict) -> list:
+    """Strongly connected components of more than one module (Tarjan)."""
+    index, low, stack, on, out = {}, {}, [], set(), []
+
+    def visit(v):
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        on.add(v)
+        for w in graph.get(v, ()):
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            component = set()
+            while True:
+                w = stack.pop()
+                on.discard(w)
+                component.add(w)
+                if w == v:
+                    break
+            if len(component) > 1:
+                out.append(frozenset(component))
+    for v in sorted(graph):
+        if v not in index:
+            visit(v)
+    return out
+
+
+def _code_lines(lines: list, node) -> int:
+    body = node.body
+    doc = set()
+    if body and isinstance(body[0], ast.Expr) and isinstance(getattr(body[0], "value", None), ast.Constant) \
+            and isinstance(body[0].value.value, str):
+        doc = set(range(body[0].lineno, body[0].end_lineno + 1))
+    return sum(1 for i in range(node.lineno, node.end_lineno + 1)
+               if i not in doc and lines[i - 1].strip() and not lines[i - 1].strip().startswith("#"))
+
+
+def _parameters(node) -> int:
+    a = node.args
+    n = len(a.posonlyargs) + len(a.args) + len(a.kwonlyargs) + bool(a.vararg) + bool(a.kwarg)
+    return n - (1 if a.args and a.args[0].arg in ("self", "cls") else 0)
+
+
+def _oversized() -> dict:
+    out = {}
+    for module, path in MODULES.items():
+        text = path.read_text(encoding="utf-8")
+        lines = text.splitlines()
+        for node in ast.walk(ast.parse(text)):
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                size, params = _code_lines(lines, node), _parameters(node)
+                if size > MAX_LINES or params > MAX_PARAMETERS:
+                    out[f"{module}.{node.name}"] = (size, params)
+    return out
+
+
+def test_no_new_import_cycle():
+    cycles = _cycles(_graph())
+    new = [sorted(c) for c in cycles if not any(c <= allowed for allowed in CYCLES)]
+    assert not new, f"import cycles not allowed: {new}"
+    gone = [sorted(a) for a in CYCLES if not any(c & a for c in cycles)]
+    assert not gone, f"these cycles are gone: remove them from CYCLES: {gone}"
+
+
+def test_functions_within_80_lines_and_20_parameters():
+    found = _oversized()
+    new = {k: v for k, v in found.items() if k not in LONG_FUNCTIONS}
+    assert not new, f"over {MAX_LINES} lines of code or {MAX_PARAMETERS} parameters (lines, parameters): {new}"
+    fixed = sorted(set(LONG_FUNCTIONS) - set(found))
+    assert not fixed, f"within the limits now: remove them from LONG_FUNCTIONS: {fixed}"
+
+
+def test_the_cycle_finder_finds_a_cycle():
+    assert _cycles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [frozenset("abc")]
+
+
+@pytest.mark.parametrize("source, lines", [("def f():\n    '''doc\n    more'''\n    # why\n\n    return 1\n", 2)])
+def test_documentation_counts_toward_no_limit(source, lines):
+    node = ast.parse(source).body[0]
+    assert _code_lines(source.splitlines(), node) == lines
