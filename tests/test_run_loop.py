@@ -88,19 +88,55 @@ def test_toward_steady_is_one_once_every_engine_is_below_the_tolerance():
     assert toward_steady({}, {}, 5e-3) == 0.0
 
 
-def test_a_cold_kernel_cache_is_detected_from_numbas_index_files(tmp_path):
+def test_a_cold_kernel_cache_is_detected_and_any_compiled_source_keys_it(tmp_path, monkeypatch):
+    """The compiled layer's cache folder is keyed by all its sources: an edit of a helper file
+    (numba checks only the defining file, so it loaded stale kernels) makes the cache cold."""
     pytest.importorskip("numba")
-    source = tmp_path / "kernels.py"
-    source.write_text("def march():\n    pass\n")
-    assert cache_is_cold(source)
-    index = tmp_path / "__pycache__" / "kernels.march-1.py311.nbi"
-    index.parent.mkdir()
-    version = importlib.metadata.version("numba").encode()
-    # numba's index: its version, then the source's SHA-256 stamp and the overloads (pickled)
-    index.write_bytes(version + b"\x00" + hashlib.sha256(source.read_bytes()).digest())
-    assert not cache_is_cold(source)
-    source.write_text("def march():\n    return 1\n")      # an edited source is compiled again
-    assert cache_is_cold(source)
+    import shutil
+
+    from tmm_core import kernel_cache
+    sources = tmp_path / "src"
+    sources.mkdir()
+    for name in kernel_cache.COMPILED_SOURCES:
+        shutil.copy(kernel_cache.HERE / name, sources / name)
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path / "cache"))
+    assert cache_is_cold(sources)
+    index = kernel_cache.cache_dir(sources) / "src_0123" / "kernels.march-1.py311.nbi"
+    index.parent.mkdir(parents=True)
+    index.write_bytes(b"index")
+    assert not cache_is_cold(sources)
+    old = kernel_cache.cache_dir(sources)
+    with open(sources / "kernels_dense.py", "a", encoding="utf-8") as fh:
+        fh.write("\n# an edit\n")
+    assert cache_is_cold(sources) and kernel_cache.cache_dir(sources) != old
+    kernel_cache.cache_dir(sources).mkdir()
+    kernel_cache.remove_stale(kernel_cache.cache_dir(sources))
+    assert not old.exists() and kernel_cache.cache_dir(sources).exists()
+
+
+def test_numba_caches_the_kernels_in_the_keyed_folder():
+    numba = pytest.importorskip("numba")
+    from tmm_core import kernel_cache
+    assert kernel_cache.numba_module() is numba
+    assert numba.config.CACHE_DIR == str(kernel_cache.cache_dir())
+
+
+def test_the_kernels_compile_from_the_keyed_sources_only():
+    """Every kernel file is a keyed source, and the keyed sources import nothing else of tmm_core
+    at module level but the errors and the cache's own module (whose code numba does not
+    compile)."""
+    import ast
+
+    from tmm_core import kernel_cache
+    names = set(kernel_cache.COMPILED_SOURCES)
+    assert {p.name for p in kernel_cache.HERE.glob("kernels*.py")} - {"kernel_cache.py"} <= names
+    for name in names:
+        tree = ast.parse((kernel_cache.HERE / name).read_text(encoding="utf-8"))
+        for node in tree.body:
+            if isinstance(node, ast.ImportFrom) and node.level == 1:
+                targets = [node.module] if node.module else [a.name for a in node.names]
+                for target in targets:
+                    assert f"{target}.py" in names or target in ("errors", "kernel_cache"), (name, target)
 
 
 # -- post-run analyses are bounded in time (issue 31 f) ----------------------------------------

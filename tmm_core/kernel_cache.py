@@ -1,17 +1,29 @@
-"""Whether numba's on-disk cache already holds the compiled time-domain kernels.
+"""Numba's on-disk cache of the compiled kernels: where it lives, when it is stale, whether it is
+cold.
 
-The first run on a machine (or after the kernels' source changed) compiles them, which takes
-one to two minutes on a small machine; a caller can say so before it starts instead of sitting
-silent. Kept apart from :mod:`tmm_core.kernels` because numba invalidates a module's cache whenever its
-source file changes.
+Numba checks a cached kernel against the source file that defines it only, while the kernels
+call (and inline) functions of other files: after an edit of ``kernels_dense.py`` a kernel of
+``kernels_static.py`` would be loaded stale from the cache. So the whole compiled layer shares one
+cache folder keyed by the SHA-256 of its sources and numba's version
+(:data:`COMPILED_SOURCES`): an edit of any of them, or another numba, starts an empty folder by
+itself, and the folders of other keys beside the package are removed. Every kernel module gets numba through
+:func:`numba_module`, which points numba's cache there before the first kernel is made.
 
-Owns: the cold-cache check and the compile-time estimate. Boundaries: never imports numba.
+The first run on a machine (or after the kernels' source changed) compiles them, which takes one
+to two minutes on a small machine; :func:`cache_is_cold` lets a caller say so before it starts
+instead of sitting silent.
+
+Owns: the compiled layer's cache folder and key, the cold-cache check and the compile-time
+estimate. Boundaries: imports numba only in :func:`numba_module`.
 """
 from __future__ import annotations
 
+import contextlib
+import functools
 import hashlib
 import importlib.metadata
 import os
+import shutil
 from pathlib import Path
 
 #: Wall time [s] of compiling the time-domain kernels when numba's cache is empty, measured on a
@@ -19,30 +31,81 @@ from pathlib import Path
 #: about 2 s were the run itself.
 COMPILE_ESTIMATE_S = 100.0
 
-_KERNELS = Path(__file__).with_name("kernels.py")
+HERE = Path(__file__).resolve().parent
+#: The files numba compiles the kernels from: every ``kernels*.py``, the compiled structure
+#: solve, and ``matrices.py`` (its constants are compiled into them). A test checks that the
+#: kernels import nothing else of tmm_core at module level but the errors and this module.
+COMPILED_SOURCES = ("kernels.py", "kernels_dense.py", "kernels_factor.py", "kernels_factored.py", "kernels_maps.py",
+                    "kernels_periodic.py", "kernels_reduced.py", "kernels_static.py", "structure_compiled.py",
+                    "matrices.py")
+PREFIX = "kernels-"
 
 
-def cache_is_cold(source: Path = _KERNELS) -> bool:
-    """True when numba's on-disk cache holds no compiled march for ``source`` as it is now, so
-    the first use compiles every kernel (~COMPILE_ESTIMATE_S). A cache index
-    ``<module>.march-*.nbi`` counts when it carries this numba's version and the source's SHA-256
-    (the stamp numba checks: a changed source or another numba is recompiled). Cheap: a few
-    small files read where numba writes them (``__pycache__`` beside the source;
-    ``NUMBA_CACHE_DIR``; the user's cache when the source folder is read-only). False without
-    numba (nothing is compiled)."""
+def _numba_version() -> str | None:
     try:
-        version = importlib.metadata.version("numba").encode()
+        return importlib.metadata.version("numba")
     except importlib.metadata.PackageNotFoundError:
-        return False
-    digest = hashlib.sha256(source.read_bytes()).digest()
-    folders = [source.parent / "__pycache__"]
+        return None
+
+
+def sources_key(folder: Path = HERE) -> str:
+    """16 hex digits of the SHA-256 of the compiled sources (names and bytes) and numba's version."""
+    h = hashlib.sha256((_numba_version() or "").encode())
+    for name in COMPILED_SOURCES:
+        h.update(name.encode() + b"\0" + (folder / name).read_bytes())
+    return h.hexdigest()[:16]
+
+
+def cache_root() -> Path:
+    """Where the keyed folders live: ``NUMBA_CACHE_DIR`` when the user set it, else the package's
+    ``__pycache__`` when it can be written, else the user's cache (an installed, read-only
+    package)."""
     if os.environ.get("NUMBA_CACHE_DIR"):
-        folders = [Path(os.environ["NUMBA_CACHE_DIR"])]
-    elif not os.access(source.parent, os.W_OK):
-        folders.append(Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache")) / "numba")
-    for folder in folders:
-        for index in folder.rglob(f"{source.stem}.march-*.nbi") if folder.is_dir() else ():
-            data = index.read_bytes()
-            if digest in data and version in data:
-                return False
-    return True
+        return Path(os.environ["NUMBA_CACHE_DIR"])
+    if os.access(HERE, os.W_OK):
+        return HERE / "__pycache__"
+    return Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache")) / "flexlink-bench"
+
+
+def cache_dir(folder: Path = HERE) -> Path:
+    """The compiled layer's cache folder for its sources (in ``folder``) as they are now."""
+    return cache_root() / f"{PREFIX}{sources_key(folder)}"
+
+
+def remove_stale(current: Path) -> None:
+    """Remove the keyed folders beside ``current`` (caches of sources that have since changed),
+    and the per-file cache numba kept beside the sources before there were keyed folders."""
+    if not current.parent.is_dir():
+        return
+    for folder in current.parent.glob(f"{PREFIX}*"):
+        if folder.is_dir() and folder.name != current.name and len(folder.name) == len(current.name):
+            shutil.rmtree(folder, ignore_errors=True)
+    if current.parent == HERE / "__pycache__":
+        for stem in COMPILED_SOURCES:
+            for old in current.parent.glob(f"{Path(stem).stem}.*.nb[ic]"):
+                old.unlink(missing_ok=True)
+
+
+@functools.lru_cache(maxsize=1)
+def numba_module():
+    """numba, with its cache pointed at :func:`cache_dir` (once per process, before any kernel
+    is made: numba reads the folder when a kernel is decorated). Import numba only through this."""
+    import numba
+    folder = cache_dir()
+    with contextlib.suppress(OSError):
+        folder.mkdir(parents=True, exist_ok=True)
+        if folder.parent == HERE / "__pycache__":      # this checkout's own: a shared folder may
+            remove_stale(folder)                        # hold other checkouts' current caches
+    numba.config.CACHE_DIR = str(folder)
+    return numba
+
+
+def cache_is_cold(folder: Path = HERE) -> bool:
+    """True when the cache folder of the compiled sources (in ``folder``) as they are now holds
+    no compiled march (``kernels.march-*.nbi``), so the first use compiles every kernel
+    (~COMPILE_ESTIMATE_S). Cheap: a directory listing. False without numba (nothing is
+    compiled)."""
+    if _numba_version() is None:
+        return False
+    cache = cache_dir(folder)
+    return not (cache.is_dir() and any(cache.rglob("kernels.march-*.nbi")))

@@ -27,6 +27,8 @@ import importlib.util
 
 import numpy as np
 
+from .kernel_cache import numba_module
+
 # numba is imported (and the kernels compiled or loaded from its cache) on first use only: the
 # command line and the numpy path do not pay for it. Without numba the numpy path still works.
 AVAILABLE = importlib.util.find_spec("numba") is not None
@@ -39,7 +41,7 @@ _COMPILED = {}
 def compiled_march():
     """The compiled :func:`march` (numba, cached on disk)."""
     if "march" not in _COMPILED:
-        import numba
+        numba = numba_module()
         # Reassociation lets LLVM vectorise the map products (dot-product reductions); no other
         # fast-math flag: the march tests for non-finite values.
         jit = numba.njit(cache=True, fastmath={"reassoc", "contract"})

@@ -20,6 +20,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import kernels_factor, kernels_static
+from .kernel_cache import numba_module
 
 _COMPILED = {}
 numba_prange = range      # numba.prange once compiled
@@ -37,7 +38,7 @@ INTEGER = ("firsts", "piv")
 def compiled_factored():
     """``(factor_batch, factored_solve)`` compiled (numba, cached on disk)."""
     if "batch" not in _COMPILED:
-        import numba
+        numba = numba_module()
         kernels_static.compiled_solve()           # compiles and binds the factorization and the load solve
         globals()["factor_configuration"] = kernels_factor.factor_configuration
         globals()["factor_scratch"] = kernels_factor.factor_scratch

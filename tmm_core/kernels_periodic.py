@@ -26,8 +26,8 @@ n_state right-hand sides (measured 0.7-1 s per revolution of 720 steps on the FE
 216 states; one to three per periodic solve). Here (same rig, one thread, warm): 0.05 s for the
 linear pass, 0.14 s per monodromy, of which about half is the per-step solve for W.
 
-Kernels are compiled on first use and cached on disk (numba ``cache=True``); after editing a
-kernel, delete ``tmm_core/__pycache__/*kernels_periodic*`` (numba's cache checks only this file).
+Kernels are compiled on first use and cached on disk (numba ``cache=True``, in the compiled
+layer's keyed folder: an edit of any kernel file starts a fresh cache, :mod:`tmm_core.kernel_cache`).
 
 Owns: the compiled linearized revolutions. Boundaries: the numpy path in tmm_core.periodic is
 the reference; the step's maps and data come from :meth:`tmm_core.TimeDomain.kernel_data`.
@@ -37,6 +37,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import kernels
+from .kernel_cache import numba_module
 
 AVAILABLE = kernels.AVAILABLE
 _COMPILED = {}
@@ -45,7 +46,7 @@ _COMPILED = {}
 def compiled(name):
     """The compiled kernel ``name`` (:func:`push`, :func:`velocities`; numba, cached on disk)."""
     if name not in _COMPILED:
-        import numba
+        numba = numba_module()
         _COMPILED[name] = numba.njit(cache=True)(globals()[name])
     return _COMPILED[name]
 

@@ -26,8 +26,8 @@ terms of every segment stacked in ``L``/``R``, the geometric stiffness ``Z = P G
 products (BLAS through ``np.dot``, single-threaded at these sizes). The outputs are linear in the
 stage state (maps built once by the caller) plus the shortening of the gauge segments.
 
-Compiled on first use and cached on disk (numba ``cache=True``); numba's cache checks only this
-file, so after editing it clear ``tmm_core/__pycache__/kernels_reduced*.nbi/.nbc``.
+Compiled on first use and cached on disk (numba ``cache=True``, in the compiled layer's keyed
+folder: an edit of any kernel file starts a fresh cache, :mod:`tmm_core.kernel_cache`).
 
 Owns: the compiled revolution of the reduced model. Boundaries: the equations and the data (stage
 matrices, output maps) come from tmm_core.reduced_periodic; no numpy fallback here.
@@ -37,6 +37,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import kernels
+from .kernel_cache import numba_module
 
 AVAILABLE = kernels.AVAILABLE
 _COMPILED = {}
@@ -62,7 +63,7 @@ _HELPERS = ("_dot", "_lu_factor", "_lu_solve", "_subtract_rows", "_lu_solve_many
 def compiled_revolution():
     """The compiled :func:`revolution` (numba, cached on disk)."""
     if "revolution" not in _COMPILED:
-        import numba
+        numba = numba_module()
         # error_model "numpy": a singular Newton matrix gives inf/nan (the step then fails to
         # converge, as in the numpy path) instead of raising ZeroDivisionError in the kernel.
         jit = numba.njit(cache=True, error_model="numpy")

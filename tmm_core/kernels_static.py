@@ -56,6 +56,7 @@ import os
 import numpy as np
 
 from . import kernels, kernels_dense, kernels_factor, kernels_maps, matrices
+from .kernel_cache import numba_module
 from .kernels_dense import iteration_converged, iteration_start, lu_solve, state_change
 from .kernels_factor import factor_configuration, factor_scratch
 from .kernels_maps import maps_scratch, solve_loads_many
@@ -78,9 +79,8 @@ INV_FACT = np.array(matrices.INV_FACT)        # the Stumpff series' 1/k! (the nu
 
 # The helpers compiled and bound into the modules of the kernels (numba resolves global names
 # when it compiles a function, so the compiled objects must be where the kernels look them up).
-# numba's disk cache checks only the defining file of each function: after editing
-# kernels_dense.py, kernels_factor.py or kernels_maps.py, clear the __pycache__ *.nbi/*.nbc of
-# this package.
+# The disk cache is keyed by all the kernel files (tmm_core.kernel_cache): an edit of any of them
+# starts a fresh one by itself.
 _DENSE = ("stumpff", "inv3", "mm3", "ldl_inertia", "lu_factor", "lu_solve", "segment_blocks", "full6", "state_change",
           "iteration_converged", "iteration_start")
 
@@ -88,7 +88,7 @@ _DENSE = ("stumpff", "inv3", "mm3", "ldl_inertia", "lu_factor", "lu_solve", "seg
 def compiled_solve():
     """The compiled :func:`solve_batch` (numba, cached on disk)."""
     if "solve" not in _COMPILED:
-        import numba
+        numba = numba_module()
         jit = numba.njit(cache=True, error_model="numpy")
         for name in _DENSE:
             compiled = jit(getattr(kernels_dense, name))

@@ -17,6 +17,7 @@ import numpy as np
 
 from . import kernels_static
 from .errors import BucklingError, ConvergenceError, InputError, SingularStructureError, require_finite
+from .kernel_cache import numba_module
 from .matrices import frame_rotation
 
 AVAILABLE = kernels_static.AVAILABLE
@@ -320,7 +321,7 @@ def _output_array(given, shape):
 def _thread_chunks(B: int, solves: int) -> int:
     """Parts of a batch of ``B`` configurations for the compiled threads (one, without a parallel
     region, for fewer than 64 solves: a region's start costs ~0.4 ms)."""
-    import numba
+    numba = numba_module()
     threads = kernels_static.THREADS
     threads = numba.get_num_threads() if threads is None else max(1, min(int(threads), numba.config.NUMBA_NUM_THREADS))
     return max(1, min(B, threads if solves >= 64 else 1))
