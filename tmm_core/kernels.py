@@ -16,46 +16,28 @@ estimated axial forces leave the dynamic system indefinite) is handed back: the 
 before it and returns its index, and the caller solves that step with the numpy path (which
 refactorizes at the step's own axial forces) and resumes.
 
-Kernels are compiled on first use and cached on disk (numba ``cache=True``). Integrator codes:
+Kernels are compiled on first use by :mod:`tmm_core.kernel_binding` and cached on disk. Integrator codes:
 0 Newmark (average acceleration), 1 Houbolt, 2 generalized-alpha.
 
 Owns: the compiled march. Boundaries: the numpy path (tmm_core.time_step) stays the reference.
 """
 from __future__ import annotations
 
-import importlib.util
-
 import numpy as np
 
-from .kernel_cache import numba_module
+from . import kernel_cache
+from .kernels_factored import factored_solve  # the compiled one once bound (tmm_core.kernel_binding)
 
-# numba is imported (and the kernels compiled or loaded from its cache) on first use only: the
-# command line and the numpy path do not pay for it. Without numba the numpy path still works.
-AVAILABLE = importlib.util.find_spec("numba") is not None
+# numba is imported (and the kernels compiled or loaded from its cache) on first use only, by
+# tmm_core.kernel_binding: the command line and the numpy path do not pay for it. Without numba
+# the numpy path still works.
+AVAILABLE = kernel_cache.AVAILABLE
 
 NEWMARK, HOUBOLT, GENERALIZED_ALPHA = 0, 1, 2
 INTEGRATOR_CODES = {"newmark": NEWMARK, "houbolt": HOUBOLT, "generalized_alpha": GENERALIZED_ALPHA}
-_COMPILED = {}
 
 
-def compiled_march():
-    """The compiled :func:`march` (numba, cached on disk)."""
-    if "march" not in _COMPILED:
-        numba = numba_module()
-        # Reassociation lets LLVM vectorise the map products (dot-product reductions); no other
-        # fast-math flag: the march tests for non-finite values.
-        jit = numba.njit(cache=True, fastmath={"reassoc", "contract"})
-        # The inner functions are compiled first and put in the module's namespace, where numba
-        # looks up the names march calls.
-        from . import kernels_factored
-        globals()["factored_solve"] = kernels_factored.compiled_factored()[1]
-        for name in ("_history", "_advance", "_shape_products", "_affine", "_anderson_coefficients"):
-            globals()[name] = jit(globals()[name])
-        _COMPILED["march"] = jit(march)
-    return _COMPILED["march"]
-
-
-def _history(code, params, dt, d, v, a, acc, d1, d2, h_a, h_v):
+def history(code, params, dt, d, v, a, acc, d1, d2, h_a, h_v):
     """Integrator history parts of acceleration and velocity (``a = c_a d + h_a``)."""
     n = d.shape[0]
     if code == NEWMARK:
@@ -74,7 +56,7 @@ def _history(code, params, dt, d, v, a, acc, d1, d2, h_a, h_v):
             h_a[i] = ((1 - am) * a_hist + am * a[i] - af * acc[i]) / (1 - af)
 
 
-def _advance(code, params, dt, c_a, c_v, z, d, v, a, acc, d1, d2, h_a, h_v):
+def advance(code, params, dt, c_a, c_v, z, d, v, a, acc, d1, d2, h_a, h_v):
     """Integrator update in place to the new displacements ``z`` (history computed before)."""
     n = d.shape[0]
     if code == GENERALIZED_ALPHA:
@@ -96,7 +78,7 @@ def _advance(code, params, dt, c_a, c_v, z, d, v, a, acc, d1, d2, h_a, h_v):
             d[i] = z[i]
 
 
-def _shape_products(start, end, L, z, delta, G):
+def shape_products(start, end, L, z, delta, G):
     """Shortening 1/2 d^T G d and the four components of G d per segment (second_order.py)."""
     for s in range(L.shape[0]):
         i0, i1, l = start[s], end[s], L[s]
@@ -109,7 +91,7 @@ def _shape_products(start, end, L, z, delta, G):
         delta[s] = 0.5 * (dw * g0 + t0 * g1 + t1 * g3)
 
 
-def _affine(Mx, k, v, out):
+def affine(Mx, k, v, out):
     """``out = Mx[k, :, :n] @ v + Mx[k, :, n]`` (``n = len(v)``): one augmented affine map of the
     batch (:class:`tmm_core.configuration_batch.StepMaps`) at configuration ``k``."""
     n = v.shape[0]
@@ -120,12 +102,7 @@ def _affine(Mx, k, v, out):
         out[i] = s_
 
 
-def factored_solve(k, f, layout, stored, work, zn, N, y):
-    """Placeholder: :func:`tmm_core.kernels_factored.factored_solve`, bound at compile time."""
-    raise NotImplementedError
-
-
-def _anderson_coefficients(dR, h, r, gamma, Q, R):
+def anderson_coefficients(dR, h, r, gamma, Q, R):
     """Least-squares coefficients ``gamma[:h]`` of ``dR[:h].T gamma = r`` by modified
     Gram-Schmidt QR (h <= 4 columns; ``dR`` and ``Q`` hold a history column per row, so that the
     inner loops run over contiguous memory). A column whose remaining norm is below 1e-12 of the
@@ -219,7 +196,7 @@ def march(code, params, dt, c_a, c_v, idx,
     scale_P = 1e-9 * np.max(seg_EA)
     for j in range(idx.shape[0]):
         k = idx[j]
-        _history(code, params, dt, d, v, a, acc, d1, d2, h_a, h_v)
+        history(code, params, dt, d, v, a, acc, d1, d2, h_a, h_v)
         # Loads: D'Alembert of the configuration, inertia history, Coriolis, Kelvin-Voigt history.
         for i in range(n):
             loads[i] = rigid[k, i] - m[i] * (h_a[i] + aM[i] * h_v[i])
@@ -241,10 +218,10 @@ def march(code, params, dt, c_a, c_v, idx,
             # helper on every iteration cost the maps' march ~2 us a step.)
             if factored:
                 factored_solve(k, loads, flayout, fstored, fwork, zn, N, y)
-                _affine(Ocx, k, y, outv)
+                affine(Ocx, k, y, outv)
             else:
-                _affine(Zx, k, loads, zn)
-                _affine(Ox, k, loads, outv)
+                affine(Zx, k, loads, zn)
+                affine(Ox, k, loads, outv)
         else:
             for s in range(ns):
                 damp[s] = seg_beta[s] * EAL[s] * (h_v[seg_end[s]] - h_v[seg_start[s]])
@@ -258,7 +235,7 @@ def march(code, params, dt, c_a, c_v, idx,
             for it in range(max_iterations):
                 for i in range(n):
                     zt[i] = x[i]
-                _shape_products(seg_start, seg_end, seg_L, zt, delta, G)
+                shape_products(seg_start, seg_end, seg_L, zt, delta, G)
                 for i in range(n):
                     f[i] = 0.0
                 for s in range(ns):
@@ -281,8 +258,8 @@ def march(code, params, dt, c_a, c_v, idx,
                 if factored:
                     factored_solve(k, f, flayout, fstored, fwork, zn, N, y)
                 else:
-                    _affine(Zx, k, f, zn)
-                    _affine(Ax, k, f, N)
+                    affine(Zx, k, f, zn)
+                    affine(Ax, k, f, N)
                 for s in range(ns):
                     Pn[s] = N[s] + damp[s] + F[s]
                 finite = True
@@ -304,11 +281,11 @@ def march(code, params, dt, c_a, c_v, idx,
                 if dz < tol_z and dPr < tol_P:
                     converged = True
                     if factored:
-                        _affine(Ocx, k, y, outv)           # y: the last solve's, for these loads
+                        affine(Ocx, k, y, outv)           # y: the last solve's, for these loads
                     else:
-                        _affine(Ox, k, f, outv)
+                        affine(Ox, k, f, outv)
                     if shortening:
-                        _shape_products(seg_start, seg_end, seg_L, zn, delta, G)
+                        shape_products(seg_start, seg_end, seg_L, zn, delta, G)
                         for gi in range(gauge_seg.shape[0]):
                             sg = gauge_seg[gi]
                             outv[2 + 2 * gi] += delta[sg] / seg_L[sg]
@@ -334,7 +311,7 @@ def march(code, params, dt, c_a, c_v, idx,
                     prev_g[i] = gx[i]
                     x[i] = gx[i]
                 if hist > 0:
-                    _anderson_coefficients(dR, hist, r, gamma, Q, R)
+                    anderson_coefficients(dR, hist, r, gamma, Q, R)
                     for c in range(hist):
                         if not np.isfinite(gamma[c]):
                             hist = 0            # an overflowing history: start the mixing afresh
@@ -350,7 +327,7 @@ def march(code, params, dt, c_a, c_v, idx,
                 return j
             for s in range(ns):
                 P[s] = Pn[s]
-        _advance(code, params, dt, c_a, c_v, zn, d, v, a, acc, d1, d2, h_a, h_v)
+        advance(code, params, dt, c_a, c_v, zn, d, v, a, acc, d1, d2, h_a, h_v)
         for o in range(no):
             out_hist[j, o] = outv[o]
         if z_hist.shape[0] > 0:

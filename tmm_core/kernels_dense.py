@@ -1,12 +1,12 @@
 """Small dense helpers of the compiled factorization (:mod:`tmm_core.kernels_static`): Stumpff
 functions, 3x3 inverse and product, LDL^T inertia, LU with partial pivoting, the sparse blocks of a
 segment's field matrix, and the beam-column iteration's change and stopping rule. Plain Python here;
-:func:`tmm_core.kernels_static.compiled_solve` compiles them (numba, cached on disk) and binds the
+:func:`tmm_core.kernel_binding.static_solve` compiles them (numba, cached on disk) and binds the
 compiled objects where the kernels look them up.
 
 Owns: the small dense numba helpers of the compiled factorization (Stumpff functions, 3x3
 algebra, LDL^T inertia, LU). Boundaries: no structure knowledge; compiled by
-tmm_core.kernels_static.compiled_solve.
+tmm_core.kernel_binding.static_solve.
 """
 from __future__ import annotations
 

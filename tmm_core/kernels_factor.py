@@ -1,7 +1,7 @@
 """The factorization phase of the compiled solve (:func:`tmm_core.kernels_static.solve_range`) for
 one configuration: the Riccati condensation of every member (:func:`tmm_core.riccati.factor_chain`),
 the assembled joint system, its inertia and pivots (LDL^T) and its LU factors. Compiled by
-:func:`tmm_core.kernels_static.compiled_solve`.
+:func:`tmm_core.kernel_binding.static_solve`.
 
 Owns: the factorization phase of one configuration in the compiled kernel. Boundaries: no loads
 (tmm_core.kernels_static.solve_loads).

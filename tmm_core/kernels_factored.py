@@ -20,9 +20,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import kernels_factor, kernels_static
-from .kernel_cache import numba_module
 
-_COMPILED = {}
 numba_prange = range      # numba.prange once compiled
 factor_configuration = kernels_factor.factor_configuration
 factor_scratch = kernels_factor.factor_scratch
@@ -33,22 +31,6 @@ solve_loads = kernels_static.solve_loads
 STORED = {"lead": 5, "prefix": 5, "lcol": 3, "B0": 4, "T220": 4, "SP": 4, "TL": 4, "Gis": 5, "Xs": 5, "BGis": 5,
           "HGis": 5, "Cs": 5, "Ds": 5, "Af": 4, "Bf": 4, "firsts": 2, "Kfull": 3, "lu": 3, "piv": 2}
 INTEGER = ("firsts", "piv")
-
-
-def compiled_factored():
-    """``(factor_batch, factored_solve)`` compiled (numba, cached on disk)."""
-    if "batch" not in _COMPILED:
-        numba = numba_module()
-        kernels_static.compiled_solve()           # compiles and binds the factorization and the load solve
-        globals()["factor_configuration"] = kernels_factor.factor_configuration
-        globals()["factor_scratch"] = kernels_factor.factor_scratch
-        globals()["solve_loads"] = kernels_static.solve_loads
-        globals()["numba_prange"] = numba.prange
-        jit = numba.njit(cache=True, error_model="numpy")
-        globals()["factor_range"] = jit(factor_range)
-        _COMPILED["solve"] = globals()["factored_solve"] = numba.njit(cache=True, error_model="numpy", inline="always")(factored_solve)
-        _COMPILED["batch"] = numba.njit(cache=True, error_model="numpy", parallel=True)(factor_batch)
-    return _COMPILED["batch"], _COMPILED["solve"]
 
 
 def factor_batch(inv_fact, seg_off, L, EA, EI, rigid, factor, P, qloc, Kn, angle, ends, free, count, negative, pivots,

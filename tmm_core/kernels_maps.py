@@ -24,7 +24,7 @@ Alexander-Lawrence, 4 segments per link, 360 positions, 46 load sets: 11.3 -> 3.
 Owns: the many-load-set compact solve (:func:`solve_loads_many`) and its scratch
 (:func:`maps_scratch`). Boundaries: the factorization is :mod:`tmm_core.kernels_factor`, the
 one-load-set solve and the batch loop :mod:`tmm_core.kernels_static`, which compiles this module's
-functions (:func:`tmm_core.kernels_static.compiled_solve`); an edit here starts a fresh cache
+functions (:func:`tmm_core.kernel_binding.static_solve`); an edit here starts a fresh cache
 by itself (:mod:`tmm_core.kernel_cache`).
 """
 from __future__ import annotations

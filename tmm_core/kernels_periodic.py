@@ -36,19 +36,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import kernels
-from .kernel_cache import numba_module
+from . import kernel_cache
+from .kernel_binding import single
 
-AVAILABLE = kernels.AVAILABLE
-_COMPILED = {}
-
-
-def compiled(name):
-    """The compiled kernel ``name`` (:func:`push`, :func:`velocities`; numba, cached on disk)."""
-    if name not in _COMPILED:
-        numba = numba_module()
-        _COMPILED[name] = numba.njit(cache=True)(globals()[name])
-    return _COMPILED[name]
+AVAILABLE = kernel_cache.AVAILABLE
 
 
 def integrator_coefficients(integrator, dt: float):
@@ -263,7 +254,7 @@ def trajectory_velocities(integrator, state, zs, dt: float) -> np.ndarray:
     zs = np.ascontiguousarray(zs, dtype=float)
     S = np.array([np.asarray(state[s], dtype=float) for s in slots])
     vs = np.empty_like(zs)
-    compiled("velocities")(S, Hc, Gc, ez, c_v, zs, vs)
+    single(velocities)(S, Hc, Gc, ez, c_v, zs, vs)
     return vs
 
 
@@ -344,7 +335,7 @@ def linear_shooting(td, cfg, keys, N: int, dt: float):
     marched, dependent, C = _dependent_keys(slots, keys, coef[0], coef[1])
     S = _initial_states(slots, keys, n, marched, extra=1)
     empty = np.zeros((0, n))
-    compiled("push")(S, *coef, np.arange(1, N + 1) % N, 1, *data, False, c_v, empty, empty, np.zeros((0, len(td.segments.length))))
+    single(push)(S, *coef, np.arange(1, N + 1) % N, 1, *data, False, c_v, empty, empty, np.zeros((0, len(td.segments.length))))
     X = _stacked(S, slots, keys)
     return _expand(X[:, 1:], marched, dependent, C, n), X[:, 0].copy()
 
@@ -357,5 +348,5 @@ def monodromy(td, cfg, keys, trajectory, dt: float) -> np.ndarray:
     zs, vs, Ps = (np.ascontiguousarray(np.array([t[i] for t in trajectory]), dtype=float) for i in (1, 2, 3))
     marched, dependent, C = _dependent_keys(slots, keys, coef[0], coef[1])
     S = _initial_states(slots, keys, td.n_dof, marched)
-    compiled("push")(S, *coef, idx, 0, *data, True, c_v, zs, vs, Ps)
+    single(push)(S, *coef, idx, 0, *data, True, c_v, zs, vs, Ps)
     return _expand(_stacked(S, slots, keys), marched, dependent, C, td.n_dof)

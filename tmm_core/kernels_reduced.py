@@ -36,11 +36,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import kernels
-from .kernel_cache import numba_module
+from . import kernel_cache
 
-AVAILABLE = kernels.AVAILABLE
-_COMPILED = {}
+AVAILABLE = kernel_cache.AVAILABLE
 #: Refactorize while the chord iteration contracts slower than this (update ratio).
 CHORD_CONTRACTION = 0.03
 #: The stage Newton iteration's tolerance (update relative to the stage accelerations) and
@@ -56,24 +54,7 @@ STALL_FACTOR = 1e3
 #: was at most this (the chord iteration then contracts by about this factor: the Newton matrix
 #: moves in proportion to the state).
 CHORD_START = 0.1
-_HELPERS = ("_dot", "_lu_factor", "_lu_solve", "_subtract_rows", "_lu_solve_many", "_second_order", "_stage_states",
-            "_newton_matrix")
-
-
-def compiled_revolution():
-    """The compiled :func:`revolution` (numba, cached on disk)."""
-    if "revolution" not in _COMPILED:
-        numba = numba_module()
-        # error_model "numpy": a singular Newton matrix gives inf/nan (the step then fails to
-        # converge, as in the numpy path) instead of raising ZeroDivisionError in the kernel.
-        jit = numba.njit(cache=True, error_model="numpy")
-        for name in _HELPERS:
-            globals()[name] = jit(globals()[name])
-        _COMPILED["revolution"] = jit(revolution)
-    return _COMPILED["revolution"]
-
-
-def _lu_factor(a, piv):
+def lu_factor(a, piv):
     """In-place LU with partial pivoting of the square ``a`` (LAPACK getrf's pivots, rows swapped
     whole); ``piv[k]`` is the row swapped with row k. Blocked by 4 columns: the trailing update
     subtracts four pivot rows in one pass over each row (half the memory traffic of one at a
@@ -124,7 +105,7 @@ def _lu_factor(a, piv):
                         a[i, j] -= l_ * a[k, j]
 
 
-def _dot(x, y, lo, hi):
+def dot(x, y, lo, hi):
     """``sum x[lo:hi] y[lo:hi]`` with four partial sums (a single running sum waits on the
     latency of every addition: 3x slower)."""
     s0 = 0.0
@@ -144,8 +125,8 @@ def _dot(x, y, lo, hi):
     return (s0 + s1) + (s2 + s3)
 
 
-def _lu_solve(lu, piv, b):
-    """``b <- A^{-1} b`` in place for one right-hand side (``lu``, ``piv`` from _lu_factor)."""
+def lu_solve(lu, piv, b):
+    """``b <- A^{-1} b`` in place for one right-hand side (``lu``, ``piv`` from lu_factor)."""
     n = lu.shape[0]
     for k in range(n):
         p = piv[k]
@@ -154,14 +135,14 @@ def _lu_solve(lu, piv, b):
             b[k] = b[p]
             b[p] = t
     for i in range(n):
-        b[i] -= _dot(lu[i], b, 0, i)
+        b[i] -= dot(lu[i], b, 0, i)
     for i in range(n - 1, -1, -1):
-        b[i] = (b[i] - _dot(lu[i], b, i + 1, n)) / lu[i, i]
+        b[i] = (b[i] - dot(lu[i], b, i + 1, n)) / lu[i, i]
 
 
-def _lu_solve_many(lu, piv, B):
+def lu_solve_many(lu, piv, B):
     """``B <- A^{-1} B`` in place for the columns of ``B``: row operations on contiguous rows,
-    four rows of the factor at a time (as in _lu_factor)."""
+    four rows of the factor at a time (as in lu_factor)."""
     n, m = B.shape
     for k in range(n):
         p = piv[k]
@@ -171,16 +152,16 @@ def _lu_solve_many(lu, piv, B):
                 B[k, j] = B[p, j]
                 B[p, j] = t
     for i in range(n):                       # forward: L Y = B (unit diagonal)
-        _subtract_rows(lu, i, B, 0, i)
+        subtract_rows(lu, i, B, 0, i)
     for i in range(n - 1, -1, -1):           # backward: U X = Y
-        _subtract_rows(lu, i, B, i + 1, n)
+        subtract_rows(lu, i, B, i + 1, n)
         inv = 1.0 / lu[i, i]
         row = B[i]
         for j in range(m):
             row[j] *= inv
 
 
-def _subtract_rows(lu, i, B, lo, hi):
+def subtract_rows(lu, i, B, lo, hi):
     """``B[i] -= sum(lu[i, k] B[k] for lo <= k < hi)``, four rows of ``B`` per pass over ``B[i]``."""
     m = B.shape[1]
     row = B[i]
@@ -199,7 +180,7 @@ def _subtract_rows(lu, i, B, lo, hi):
         k += 1
 
 
-def _stage_states(h, A, A2, c, eta, v, acc, es, vs):
+def stage_states(h, A, A2, c, eta, v, acc, es, vs):
     """Collocation state at the three stages: ``eta'_i = eta' + h sum_j A_ij acc_j``,
     ``eta_i = eta + h c_i eta' + h^2 sum_j (A^2)_ij acc_j``."""
     r = eta.shape[0]
@@ -212,7 +193,7 @@ def _stage_states(h, A, A2, c, eta, v, acc, es, vs):
             es[i, j] = eta[j] + hc * v[j] + (a2[0] * acc[0, j] + a2[1] * acc[1, j] + a2[2] * acc[2, j])
 
 
-def _second_order(Tp, Tdp, eta, v, jac, seg_w, seg_u, G, k, beta, q, dq, g, w4, N, Lt, Re, Rv, Z, Ne, Nv):
+def second_order(Tp, Tdp, eta, v, jac, seg_w, seg_u, G, k, beta, q, dq, g, w4, N, Lt, Re, Rv, Z, Ne, Nv):
     """Second-order term at one stage point (basis ``Tp``, ``Tdp`` = T' theta', (n, r)) for the
     coordinates ``eta``, ``v``: ``N`` (r,) and, with ``jac``, ``Ne = dN/deta``, ``Nv = dN/deta'``
     (r, r). Segment ``s``: bending DOFs ``seg_w[s]`` (w0, theta0, w1, theta1), axial DOFs
@@ -293,7 +274,7 @@ def _second_order(Tp, Tdp, eta, v, jac, seg_w, seg_u, G, k, beta, q, dq, g, w4, 
         np.dot(Lt.T, Rv, Nv)
 
 
-def _newton_matrix(h, A, A2, Mr, Cr, Kr, Ne, Nv, P0, J):
+def newton_matrix(h, A, A2, Mr, Cr, Kr, Ne, Nv, P0, J):
     """The Newton matrix of the stage equations of the step whose stage points start at ``P0``:
     block ``(i, j)`` = ``h A_ij (C_i + Nv_i) + h^2 (A^2)_ij (K_i + Ne_i)`` (+ ``M_i`` if i = j)."""
     r = Ne.shape[1]
@@ -379,21 +360,21 @@ def revolution(x0, nonlinear, want_jac, want_out, have_guess, chord, chord_start
         prev = -1.0                       # last update's size; -1: no update on this matrix yet
         converged = False
         for it in range(iterations):
-            _stage_states(h, A, A2, c, eta, v, acc, es, vs)
+            stage_states(h, A, A2, c, eta, v, acc, es, vs)
             for i in range(3):
                 p = P0 + i
                 if nonlinear:
-                    _second_order(T[p], Td[p], es[i], vs[i], refresh, seg_w, seg_u, G, k, beta, q, dq, g, w4,
+                    second_order(T[p], Td[p], es[i], vs[i], refresh, seg_w, seg_u, G, k, beta, q, dq, g, w4,
                                   Nn[i], Lt, Re, Rv, Z, Ne[i], Nv[i])
                 for a in range(r):
-                    s = _dot(Mr[p, a], acc[i], 0, r) + _dot(Cr[p, a], vs[i], 0, r) + _dot(Kr[p, a], es[i], 0, r)
+                    s = dot(Mr[p, a], acc[i], 0, r) + dot(Cr[p, a], vs[i], 0, r) + dot(Kr[p, a], es[i], 0, r)
                     res[i * r + a] = -(s - fr[p, a] + Nn[i, a])
             if refresh:
-                _newton_matrix(h, A, A2, Mr, Cr, Kr, Ne, Nv, P0, J)
-                _lu_factor(J, piv)
+                newton_matrix(h, A, A2, Mr, Cr, Kr, Ne, Nv, P0, J)
+                lu_factor(J, piv)
                 refreshed = True
                 counts[1] += 1
-            _lu_solve(J, piv, res)
+            lu_solve(J, piv, res)
             counts[0] += 1
             dmax = 0.0
             amax = 0.0
@@ -451,7 +432,7 @@ def revolution(x0, nonlinear, want_jac, want_out, have_guess, chord, chord_start
                                             h2 * A2[2, 2] * acc[2, j])
             v[j] = v0[j] + (h * A[2, 0] * acc[0, j] + h * A[2, 1] * acc[1, j] + h * A[2, 2] * acc[2, j])
         if want_out:
-            _stage_states(h, A, A2, c, eta0, v0, acc, es, vs)
+            stage_states(h, A, A2, c, eta0, v0, acc, es, vs)
             for i in range(3):
                 p = P0 + i
                 for o in range(no):
@@ -483,7 +464,7 @@ def revolution(x0, nonlinear, want_jac, want_out, have_guess, chord, chord_start
                         ke = Kr[p, a, b] + Ne[i, a, b]
                         Rm[i * r + a, b] = ke
                         Rm[i * r + a, r + b] = (Cr[p, a, b] + Nv[i, a, b]) + hc * ke
-            _lu_solve_many(J, piv, Rm)
+            lu_solve_many(J, piv, Rm)
             S[:, :] = 0.0
             for a in range(r):
                 S[a, a] = 1.0

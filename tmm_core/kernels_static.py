@@ -51,18 +51,15 @@ faster (16 segments per link: 10x and 6x).
 from __future__ import annotations
 
 import math
-import os
 
 import numpy as np
 
-from . import kernels, kernels_dense, kernels_factor, kernels_maps, matrices
-from .kernel_cache import numba_module
+from . import kernel_cache, matrices
 from .kernels_dense import iteration_converged, iteration_start, lu_solve, state_change
 from .kernels_factor import factor_configuration, factor_scratch
 from .kernels_maps import maps_scratch, solve_loads_many
 
-AVAILABLE = kernels.AVAILABLE
-_COMPILED = {}
+AVAILABLE = kernel_cache.AVAILABLE
 #: Threads of the compiled batch solve (None: numba's default, the number of cores). The
 #: configurations of a batch are independent; results do not depend on the thread count.
 THREADS: int | None = None
@@ -76,48 +73,6 @@ THREADING_LAYER = "workqueue"
 numba_prange = range      # numba.prange once compiled
 
 INV_FACT = np.array(matrices.INV_FACT)        # the Stumpff series' 1/k! (the numpy path's table)
-
-# The helpers compiled and bound into the modules of the kernels (numba resolves global names
-# when it compiles a function, so the compiled objects must be where the kernels look them up).
-# The disk cache is keyed by all the kernel files (tmm_core.kernel_cache): an edit of any of them
-# starts a fresh one by itself.
-_DENSE = ("stumpff", "inv3", "mm3", "ldl_inertia", "lu_factor", "lu_solve", "segment_blocks", "full6", "state_change",
-          "iteration_converged", "iteration_start")
-
-
-def compiled_solve():
-    """The compiled :func:`solve_batch` (numba, cached on disk)."""
-    if "solve" not in _COMPILED:
-        numba = numba_module()
-        jit = numba.njit(cache=True, error_model="numpy")
-        for name in _DENSE:
-            compiled = jit(getattr(kernels_dense, name))
-            for namespace in (vars(kernels_dense), vars(kernels_factor), globals()):
-                if name in namespace:
-                    namespace[name] = compiled
-        kernels_factor.factor_configuration = jit(kernels_factor.factor_configuration)
-        kernels_factor.factor_scratch = jit(kernels_factor.factor_scratch)
-        globals()["factor_configuration"] = kernels_factor.factor_configuration
-        globals()["factor_scratch"] = kernels_factor.factor_scratch
-        for name in ("sweep_member", "copy_sweep", "maps_scratch", "solve_loads_many"):
-            setattr(kernels_maps, name, jit(getattr(kernels_maps, name)))
-        globals()["maps_scratch"] = kernels_maps.maps_scratch
-        globals()["solve_loads_many"] = kernels_maps.solve_loads_many
-        globals()["solve_loads"] = jit(solve_loads)
-        globals()["solve_range"] = jit(solve_range)
-        globals()["numba_prange"] = numba.prange
-        if "NUMBA_THREADING_LAYER" not in os.environ:
-            numba.config.THREADING_LAYER = THREADING_LAYER
-        _COMPILED["solve"] = numba.njit(cache=True, error_model="numpy", parallel=True)(solve_batch)
-        _COMPILED["iterate"] = numba.njit(cache=True, error_model="numpy", parallel=True)(iterate_batch)
-    return _COMPILED["solve"]
-
-
-def compiled_iterate():
-    """The compiled :func:`iterate_batch` (numba, cached on disk)."""
-    compiled_solve()
-    return _COMPILED["iterate"]
-
 
 def solve_batch(inv_fact, seg_off, L, EA, EI, rigid, factor, P, qloc, Kn, Fn, angle, ends, free, count,
                 states, q_out, reaction, negative, pivots, status, zout, nout, gnode, gstate, iteration, weights,

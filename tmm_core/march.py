@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import kernels
+from . import kernel_binding, kernels
 from .errors import InputError
 from .ked import CrankMotion, KEDResult, quasi_static
 from .time_step import ANDERSON_DEPTH, AXIAL_FORCE_TOLERANCE
@@ -131,7 +131,7 @@ class March:
         iterations = np.zeros(len(indices), dtype=np.int64)
         j = 0
         while j < len(indices):
-            done = kernels.compiled_march()(
+            done = kernel_binding.march()(
                 code, params, self.dt, c_a, c_v, indices[j:], *data, td.m_vec, td.aM_vec, td.beta_node, seg.start,
                 seg.end, seg.length, seg.EA, seg.beta, td.seg_blocks, td.gauge_segment, td.coupling.coriolis,
                 td.has_kv, dynamic, "shortening" in td.dynamic_terms, "axial_force" in td.dynamic_terms,

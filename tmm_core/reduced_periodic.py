@@ -48,7 +48,7 @@ import numpy as np
 from scipy.interpolate import CubicHermiteSpline
 from scipy.linalg import lu_factor, lu_solve
 
-from . import kernels_reduced
+from . import kernel_binding, kernels_reduced
 from .errors import ConvergenceError, InputError
 from .ked import CrankMotion
 from .periodic import PeriodicResult
@@ -275,7 +275,7 @@ class ReducedModel:
             self._factors = (np.empty((self.N, 3 * r, 3 * r)), np.empty((self.N, 3 * r), dtype=np.int64),
                              np.zeros(self.N, dtype=np.bool_))
         counts = np.zeros(2, dtype=np.int64)
-        failed = kernels_reduced.compiled_revolution()(
+        failed = kernel_binding.reduced_revolution()(
             x0, bool(nonlinear), bool(jacobian), bool(outputs), self.stage_acc is not None, self.chord,
             kernels_reduced.CHORD_START, kernels_reduced.CHORD_CONTRACTION, guess,
             self.h, RADAU_A, self.A2, RADAU_C, *args, kernels_reduced.STAGE_TOL, kernels_reduced.STAGE_ITERATIONS,

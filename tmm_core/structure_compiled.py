@@ -15,7 +15,7 @@ from typing import Mapping
 
 import numpy as np
 
-from . import kernels_static
+from . import kernel_binding, kernels_static
 from .errors import BucklingError, ConvergenceError, InputError, SingularStructureError, require_finite
 from .kernel_cache import numba_module
 from .matrices import frame_rotation
@@ -282,7 +282,7 @@ def _run(prep, P, check_buckling, count_inertia, node_loads, compact_nodes, iter
     pivots = np.empty((B, 2))
     status = np.zeros(B, dtype=np.int64)
     iterations, last_change = np.ones(B, dtype=np.int64), np.zeros(B)
-    solve = kernels_static.compiled_solve()
+    solve = kernel_binding.static_solve()[0]
     chunks = _thread_chunks(B, B * Fn.shape[1])
     linear_states = None if cond_limit is None else np.empty((B, 1, Nn, 2, 6))
     if linear_states is not None:       # written by the call (not the default's shared array)
@@ -294,7 +294,7 @@ def _run(prep, P, check_buckling, count_inertia, node_loads, compact_nodes, iter
             iterations, last_change)
     if linear_states is not None:
         buckling = bool(check_buckling)
-        if not kernels_static.compiled_iterate()(*args, linear_states, float(cond_limit), buckling, chunks):
+        if not kernel_binding.static_solve()[1](*args, linear_states, float(cond_limit), buckling, chunks):
             return None
     elif chunks == 1:
         kernels_static.solve_range(0, B, *args)      # no parallel region: its start costs ~0.4 ms
@@ -350,7 +350,7 @@ def factor_prepared(prep: Prepared, P: np.ndarray, *, cond_limit: float = 1e12):
     negative = np.zeros((B, 2), dtype=np.int64)
     pivots = np.empty((B, 2))
     status = np.zeros(B, dtype=np.int64)
-    factor_batch, _ = kernels_factored.compiled_factored()
+    factor_batch, _ = kernel_binding.factored()
     args = (kernels_static.INV_FACT, lay.seg_off, lay.L, lay.EA, lay.EI, lay.rigid, prep.factor, P, prep.qloc, prep.Kn,
             prep.angle, lay.ends, lay.free, np.ones(M, dtype=np.bool_), negative, pivots, status, stored)
     chunks = _thread_chunks(B, B)
