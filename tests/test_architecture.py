@@ -20,8 +20,6 @@ MAX_LINES, MAX_PARAMETERS = 80, 20
 
 #: Import cycles allowed for now, each a set of modules, with the reason.
 CYCLES = {
-    frozenset({"tmm_core.march", "tmm_core.transient"}):
-        "TimeDomain and March call each other; issue 33 item 1 (a frozen model with stage functions)",
     frozenset({"cosim.linkage_scenario", "cosim.motor_design", "cosim.overrides", "cosim.scenario",
                "cosim.scenario_reader", "cosim.scenario_types", "cosim.structure_scenario", "cosim.unknowns_table"}):
         "Scenario inherits overrides.Variants, which calls the loader back; issue 35 item 1 (a loader package "

@@ -18,7 +18,6 @@ from .ked import Coupling, CrankMotion, KEDResult, quasi_static, rigid_body_load
 from .kinematics import (FourBarGeometry, FourBarMotion, LinkMotion, SliderCrankGeometry, SliderCrankMotion,
                          fourbar_motion, slider_crank_motion)
 from .linkage import LinkageMechanism, as_linkage
-from .march import time_domain
 from .materials import Damping, StandardLinearSolid
 from .mechanism import FourBarMechanism, Link, PointMass, SliderCrankMechanism
 from .periodic import PeriodicResult, floquet_multipliers, periodic_steady_state
@@ -29,7 +28,7 @@ from .reduced_periodic import periodic_steady_state_reduced
 from .sections import Material, Section
 from .statics import StaticSolution, external_resultant, solve_static
 from .structure import Joint, LoadCase, Member, Structure
-from .transient import TimeDomain
+from .transient import TimeDomain, time_domain
 
 __all__ = [
     # errors

@@ -10,7 +10,7 @@ import numpy as np
 
 from . import kernel_binding, kernels
 from .errors import InputError
-from .ked import CrankMotion, KEDResult, quasi_static
+from .ked import quasi_static
 from .time_step import ANDERSON_DEPTH, AXIAL_FORCE_TOLERANCE
 
 class March:
@@ -164,13 +164,3 @@ class March:
         self.state = td.integrator.advance(self.state, z, self.dt)
         self.z, self.out = z, out
         return z, out
-
-
-def time_domain(mech, crank: CrankMotion, **kw) -> KEDResult:
-    """Convenience wrapper: ``TimeDomain(mech, ...).run(crank, ...)``; keyword arguments are split
-    between the constructor and :meth:`TimeDomain.run`."""
-    run_keys = {"start", "steady_tol", "min_revolutions", "record_displacements", "callback", "chunk"}
-    run_kw = {k: v for k, v in kw.items() if k in run_keys}
-    init_kw = {k: v for k, v in kw.items() if k not in run_keys}
-    from .transient import TimeDomain
-    return TimeDomain(mech, **init_kw).run(crank, **run_kw)

@@ -29,6 +29,7 @@ from .errors import ConvergenceError, DynamicStabilityError, InputError, require
 from .integrators import get_integrator
 from .ked import (Coupling, CrankMotion, KEDResult, coupling_stiffness, linear_axial_forces, node_mass_arrays,
                   quasi_static, rigid_body_loads, segment_forces)
+from .march import March
 from .matrices import field_matrix
 from .mechanism import FourBarMechanism
 from .post import Gauge
@@ -329,7 +330,6 @@ class TimeDomain(StepSolver):
     def begin(self, dt: float, angle: float, speed: float, acceleration: float = 0.0, *, start: str = "rest",
               initial: Mapping[str, np.ndarray] | None = None):
         """Start an incremental march at a crank state (step ``dt`` [s]); see :class:`March`."""
-        from .march import March
         return March(self, float(require_positive("time step dt_s", dt)), float(angle), float(speed),
                      float(acceleration), start, initial)
 
@@ -498,3 +498,12 @@ class TimeDomain(StepSolver):
         a0 = (dp - 2 * d0 + d1) / dt**2
         out0 = np.concatenate([qs.drive_torque[2:3]] + [np.r_[b[2], a[2]] for b, a in qs.gauges.values()])
         return d0, v0, a0, (d1, d2), out0
+
+
+def time_domain(mech, crank: CrankMotion, **kw) -> KEDResult:
+    """Convenience wrapper: ``TimeDomain(mech, ...).run(crank, ...)``; keyword arguments are split
+    between the constructor and :meth:`TimeDomain.run`."""
+    run_keys = {"start", "steady_tol", "min_revolutions", "record_displacements", "callback", "chunk"}
+    run_kw = {k: v for k, v in kw.items() if k in run_keys}
+    init_kw = {k: v for k, v in kw.items() if k not in run_keys}
+    return TimeDomain(mech, **init_kw).run(crank, **run_kw)
