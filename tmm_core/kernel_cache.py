@@ -33,13 +33,12 @@ from pathlib import Path
 COMPILE_ESTIMATE_S = 100.0
 
 HERE = Path(__file__).resolve().parent
-#: The files numba compiles the kernels from: every ``kernels*.py``, the compiled structure
-#: solve, ``matrices.py`` (its constants are compiled into them) and the binding (its numba
-#: options are part of what is compiled). A test checks that the
+#: The files numba compiles the kernels from: every ``kernels*.py``, ``matrices.py`` (its
+#: constants are compiled into them) and the binding (its numba options are part of what is
+#: compiled); the compiled structure solve's Python driver (``structure_compiled.py``) is not. A test checks that the
 #: kernels import nothing else of tmm_core at module level but the errors and this module.
 COMPILED_SOURCES = ("kernels.py", "kernels_dense.py", "kernels_factor.py", "kernels_factored.py", "kernels_maps.py",
-                    "kernels_periodic.py", "kernels_reduced.py", "kernels_static.py", "structure_compiled.py",
-                    "matrices.py", "kernel_binding.py")
+                    "kernels_periodic.py", "kernels_reduced.py", "kernels_static.py", "matrices.py", "kernel_binding.py")
 PREFIX = "kernels-"
 #: Whether numba is installed: without it the numpy reference path runs everything.
 AVAILABLE = importlib.util.find_spec("numba") is not None

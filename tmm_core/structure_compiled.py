@@ -15,10 +15,13 @@ from typing import Mapping
 
 import numpy as np
 
-from . import kernel_binding, kernels_static
+from . import kernel_binding, kernels_factored, kernels_static
+from .buckling import buckling_message, clamped_clamped_buckling_count
 from .errors import BucklingError, ConvergenceError, InputError, SingularStructureError, require_finite
 from .kernel_cache import numba_module
 from .matrices import frame_rotation
+from .statics import StaticSolution, change_scales, change_weights
+from .structure import LinearSolution, LoadCase, MemberResult, factorize, support_reactions
 
 AVAILABLE = kernels_static.AVAILABLE
 
@@ -59,7 +62,6 @@ def layout(structure, joint_positions: Mapping[str, np.ndarray]) -> Layout:
         return _LAYOUTS[structure]
     except (KeyError, TypeError):
         pass
-    from .structure import LoadCase, factorize
     one = {k: np.asarray(v, dtype=float).reshape(-1, 2)[0] for k, v in joint_positions.items()}
     f = factorize(structure, LoadCase(one), check_buckling=False, check_singular=False, count_inertia=False)
     members = structure.members
@@ -215,7 +217,6 @@ def iterate_prepared(prep: Prepared, *, tol: float, max_iter: int, check_bucklin
     forces, (states, q, reaction, inertia count) of the last solve as :func:`solve_prepared`,
     solves made (B,), last relative change (B,))``. Raises :class:`ConvergenceError` where a
     configuration has a non-finite iterate or does not converge in ``max_iter`` solves."""
-    from .statics import change_weights, change_scales
     lay = prep.layout
     weights = change_weights(max(m.length for m in prep.structure.members))
     recount = count_inertia is None and check_buckling
@@ -334,7 +335,6 @@ def factor_prepared(prep: Prepared, P: np.ndarray, *, cond_limit: float = 1e12):
     :data:`tmm_core.kernels_factored.STORED` with the batch axis first. Raises
     :class:`SingularStructureError` as :func:`solve_prepared` (no buckling check: the caller
     reads the inertia count)."""
-    from . import kernels_factored
     P = np.array(np.broadcast_to(np.asarray(P, dtype=float), prep.factor.shape))
     s = _tension_parameter(prep, P)
     lay = prep.layout
@@ -400,7 +400,6 @@ def _tension_parameter(prep, P):
 def _checked(prep, P, s, out, check_buckling, cond_limit):
     """``(states, q, reaction, inertia count)`` of a compiled call, after its checks (singular
     structure, pivot ratio, buckling at the axial forces ``P``, tension parameters ``s``)."""
-    from .buckling import buckling_message, clamped_clamped_buckling_count
     states, q, reaction, negative, pivots, status = out[:6]
     lay = prep.layout
     if np.any(status == 1):
@@ -424,7 +423,6 @@ def _checked(prep, P, s, out, check_buckling, cond_limit):
 
 def linear_solution(prep: Prepared, P, states, q, reaction, negative):
     """The :class:`tmm_core.structure.LinearSolution` of a :func:`solve_prepared` result."""
-    from .structure import LinearSolution, MemberResult, support_reactions
     lay = prep.layout
     B = prep.factor.shape[0]
     out = {}
@@ -470,7 +468,6 @@ def solve_static(structure, case, *, beam_column: bool = False, tol: float = 1e-
     """Compiled equivalent of :func:`tmm_core.statics.solve_static` (linear or beam-column, not
     large deflection): the same successive linear solutions, relaxation and stopping rule for
     every configuration, in one compiled call (:func:`iterate_prepared`)."""
-    from .statics import StaticSolution
     prep = prepare(structure, case)
     if not beam_column:
         P = np.zeros(prep.factor.shape)
