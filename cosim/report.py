@@ -106,8 +106,10 @@ def _fmt(x, digits=1):
 def comparison_table(summary: dict) -> str:
     """Gauge extremes of the last revolution per engine (microstrain), drive torque range, wall
     and simulated time; records and scores where the summary has them."""
-    revolutions = (f"until steady (at most {summary.get('revolutions')} revolutions)" if summary.get("until_steady")
-                   else f"revolutions {summary.get('revolutions')}")
+    count = summary.get("revolutions")
+    count = f"{count:g}" if isinstance(count, (int, float)) and not isinstance(count, bool) else count
+    revolutions = (f"until steady (at most {count} revolutions)" if summary.get("until_steady")
+                   else f"revolutions {count}")
     lines = [f"scenario {summary.get('scenario')}  status {summary.get('status')}  mode {summary.get('mode')}  "
              f"{revolutions}" + (f"  (stop: {summary['stop']})" if summary.get("stop") else "")]
     notice = status_notice(summary)
