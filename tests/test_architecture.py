@@ -67,6 +67,25 @@ WIDE_ENTRY_POINTS = {
 }
 MAX_PUBLIC_PARAMETERS = 8
 
+#: Each compiled entry point beside the numpy reference it mirrors and the test that holds them
+#: equal (to 1e-12 relative unless the test says otherwise): (compiled, numpy reference, test).
+PAIRS = (
+    ("kernel_binding.static_solve: kernels_static.solve_batch", "structure.solve_linear, statics.solve_static",
+     "tests/test_kernels.py::test_compiled_factorization_equals_numpy_for_a_beam_column_solve"),
+    ("kernel_binding.static_solve: kernels_static.iterate_batch", "ked.quasi_static (numpy beam-column iteration)",
+     "tests/test_kernels.py::test_compiled_quasi_static_revolution_equals_numpy"),
+    ("kernels_maps.solve_loads_many (load-to-response maps)", "step_data.numpy_maps",
+     "tests/test_kernels.py::test_compiled_configuration_maps_equal_numpy"),
+    ("kernel_binding.factored: kernels_factored.factor_batch, factored_solve", "time_step.StepSolver (numpy step)",
+     "tests/test_kernels.py::test_compiled_march_on_stored_factorizations_equals_numpy_over_a_revolution"),
+    ("kernel_binding.march: kernels.march", "time_step.StepSolver (numpy step), integrators",
+     "tests/test_kernels.py::test_compiled_march_equals_numpy_for_every_integrator_and_the_quasi_static_axial_force"),
+    ("kernel_binding.single: kernels_periodic.push, velocities", "periodic (batched numpy linearized step)",
+     "tests/test_periodic.py::test_compiled_linearized_revolutions_match_numpy"),
+    ("kernel_binding.reduced_revolution: kernels_reduced.revolution", "reduced_periodic.ReducedModel (numpy)",
+     "tests/test_reduced.py::test_compiled_revolution_matches_the_numpy_reference"),
+)
+
 
 def _modules() -> dict:
     out = {}
@@ -211,3 +230,14 @@ def test_public_entry_points_take_few_parameters():
     assert not new, f"public entry points over {MAX_PUBLIC_PARAMETERS} parameters: {new}"
     fixed = sorted(set(WIDE_ENTRY_POINTS) - set(wide))
     assert not fixed, f"within the limit now: remove them from WIDE_ENTRY_POINTS: {fixed}"
+
+
+def test_every_compiled_entry_point_has_its_reference_and_equality_test():
+    """The compiled/reference pairs (:data:`PAIRS`, listed in the README's Layout) name tests
+    that exist, and every stage tmm_core.kernel_binding compiles is among them."""
+    for compiled, reference, test in PAIRS:
+        path, name = test.split("::")
+        assert f"def {name}(" in (ROOT / path).read_text(encoding="utf-8"), test
+    named = " ".join(compiled for compiled, _, _ in PAIRS)
+    for stage in ("static_solve", "factored", "march", "single", "reduced_revolution"):
+        assert f"kernel_binding.{stage}" in named, stage
