@@ -27,7 +27,7 @@ import numpy as np
 from tmm_core import FourBarMechanism
 from tmm_core.closed_forms import euler_load_N, first_bending_frequency_Hz
 
-from .engines import MODELS
+from .engines import is_rigid
 from .resonance import frequency_map
 from .synthesis import grashof_class
 
@@ -62,11 +62,6 @@ MAP_SECONDS = 45.0
 
 def flag(kind: str, message: str, value: float, threshold: float) -> dict:
     return {"kind": kind, "message": message, "value": float(value), "threshold": float(threshold)}
-
-
-def is_rigid(engine: str) -> bool:
-    """Whether the engine's model has no elastic deflection (:data:`cosim.engines.MODELS`)."""
-    return MODELS.get(engine, "").startswith("rigid")
 
 
 def end_conditions(mechanism, link) -> str:

@@ -11,7 +11,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from .engines import MODELS
+from .engines import MODELS, is_rigid
 from .files import SUMMARY_BYTES, FileRefused, read_text_bounded
 from .run_outcome import MISSING_OUTPUTS
 
@@ -201,7 +201,7 @@ def _measurement_gap_line(scores: list) -> str | None:
               if isinstance(s.get(k), (int, float)) and s[k] == s[k]]
     if not errors or max(errors) <= LARGE_PEAK_ERROR:
         return None
-    rigid = sorted({s.get("engine") for s in scores if MODELS.get(s.get("engine"), "").startswith("rigid")})
+    rigid = sorted({s.get("engine") for s in scores if is_rigid(s.get("engine"))})
     return (f"peak errors up to {100 * max(errors):.0f} %: the models and the records differ by more than the "
             f"models differ from each other; why, and what the declared unknowns can and cannot explain: "
             f"{MEASUREMENT_GAP_DOC}" + (f". {', '.join(rigid)}: the rigid model (no elastic response), which is why "

@@ -271,9 +271,7 @@ def run_scenario(scenario, options: RunOptions = RunOptions(), callback=None) ->
         summary["error"] = f"stopped: traces.csv could not be written: {exc.strerror}"
         notes.append(f"{summary['error']}; the traces kept are whole rows; no parquet copy or figure is made")
         log.error("%s", exc.strerror)
-        for name in engines:
-            summary["engines"][name] = {"status": "failed", "error": "stopped with the run: its traces could not "
-                                                                     "be written"}
+        _stopped_with_the_run(summary, engines, "its traces could not be written")
     except BaseException as exc:
         with contextlib.suppress(Exception):     # the steps computed before the error stay on disk
             take_block()
@@ -287,8 +285,7 @@ def run_scenario(scenario, options: RunOptions = RunOptions(), callback=None) ->
             raise
         status, write_failed = "failed", True   # no parquet copy or figure: no memory for them
         log.error("%s", fail_out_of_memory(summary, notes, "running the engines", exc))
-        for name in engines:
-            summary["engines"][name] = {"status": "failed", "error": "stopped with the run: out of memory"}
+        _stopped_with_the_run(summary, engines, "out of memory")
     finally:
         writer.close()
         progress.close(completed=status not in (None, "interrupted"))
@@ -324,6 +321,13 @@ def run_scenario(scenario, options: RunOptions = RunOptions(), callback=None) ->
         summary["notes"] = notes
     write_json(folder / "summary.json", summary)
     return RunResult(folder, summary, result, notes, recorder[0])
+
+
+def _stopped_with_the_run(summary: dict, engines, why: str) -> None:
+    """Every engine's entry when the run itself could not go on (``why``): failed with it, its
+    numbers not summarised."""
+    for name in engines:
+        summary["engines"][name] = {"status": "failed", "error": f"stopped with the run: {why}"}
 
 
 def _summarise(sc: Scenario, result, summary: dict, notes: list, recorder, options: RunOptions) -> None:

@@ -200,7 +200,7 @@ def sweep_point_cost(sc, rpms, engines, revolutions, method: str) -> dict:
     point: steps in seconds grow with the period, steps in degrees do not), an upper bound for
     the others; ``revolutions`` None: the scenario's (until steady: its ``output.max_revolutions``)."""
     slow = sc.with_overrides({"drive.speed": f"{float(np.min(rpms))!r} rpm", "drive.mode": "prescribed"})
-    period = 2 * math.pi / abs(slow.drive.speed_rad_s)
+    period = slow.revolution_period_s
     revs = revolutions or slow.output.revolutions or slow.output.max_revolutions
     marched = [e for e in engines if not (e == "tmm" and method == "periodic")]
     parts = []

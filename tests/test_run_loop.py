@@ -1,7 +1,5 @@
 """The run loop's console numbers (issue 31): the whole run's length in summary.json and the
 printed table, however few revolutions the master holds in memory."""
-import hashlib
-import importlib.metadata
 import logging
 import math
 from types import SimpleNamespace

@@ -22,6 +22,11 @@ MODELS = {"tmm": "flexible: transfer-matrix beams",
           "mujoco": "rigid bodies, quasi-static strain"}
 
 
+def is_rigid(engine: str) -> bool:
+    """Whether the engine's model has no elastic deflection (:data:`MODELS`)."""
+    return MODELS.get(engine, "").startswith("rigid")
+
+
 def make_engine(name: str) -> Engine:
     """A fresh engine by name; raises :class:`EngineUnavailable` if its library cannot be imported."""
     if name == "tmm":

@@ -88,6 +88,11 @@ class ViewerOptions:
         return LOCALHOST if ipaddress.ip_address(self.bind).is_unspecified else self.bind
 
     @property
+    def served_url(self) -> str:
+        """The gRPC address of ``serve`` as this machine reaches it."""
+        return f"rerun+http://{self.served_host}:{self.grpc_port}/proxy"
+
+    @property
     def exposed(self) -> bool:
         """Whether the servers listen beyond this machine (any address but a loopback one)."""
         return not ipaddress.ip_address(self.bind).is_loopback
@@ -170,7 +175,7 @@ def attach(rec, file_path, options: ViewerOptions) -> list:
             log.warning("--serve: cannot serve on port %d (%s); the recording goes to %s only",
                         options.grpc_port, exc, file_path)
         else:
-            url = f"rerun+http://{options.served_host}:{options.grpc_port}/proxy"
+            url = options.served_url
             # The SDK's own web server listens on every interface and takes no address (rerun
             # issue 5882): the viewer binary serves the page instead, bound as asked.
             start_web_viewer(options, url)
@@ -286,7 +291,7 @@ def show_file(path, options: ViewerOptions, save_copy=None) -> list:
             rec.log_file_from_path(str(path))
             warnings += finish(rec, [url], options.timeout_s)
     elif options.viewer == "serve":
-        url = f"rerun+http://{options.served_host}:{options.grpc_port}/proxy"
+        url = options.served_url
         announce_serving(str(path), options, url, "; Ctrl-C stops")
         proc = subprocess.Popen([exe, "--serve-web", str(path), "--bind", options.bind, "--port", str(options.grpc_port),
                                  "--web-viewer-port", str(options.web_port)], stdout=subprocess.DEVNULL,
