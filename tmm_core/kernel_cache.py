@@ -9,8 +9,8 @@ cache folder keyed by the SHA-256 of its sources and numba's version
 itself, and the folders of other keys beside the package are removed. Every kernel module gets numba through
 :func:`numba_module`, which points numba's cache there before the first kernel is made.
 
-The first run on a machine (or after the kernels' source changed) compiles them, which takes one
-to two minutes on a small machine; :func:`cache_is_cold` lets a caller say so before it starts
+The first run on a machine (or after the kernels' source changed) compiles them, which takes
+about a minute on a small machine; :func:`cache_is_cold` lets a caller say so before it starts
 instead of sitting silent.
 
 Owns: the compiled layer's cache folder and key, the cold-cache check and the compile-time
@@ -27,10 +27,11 @@ import os
 import shutil
 from pathlib import Path
 
-#: Wall time [s] of compiling the time-domain kernels when numba's cache is empty, measured on a
-#: shared 2-core machine: the first prescribed run of the FE rig took 100 and 107 s, of which
-#: about 2 s were the run itself.
-COMPILE_ESTIMATE_S = 100.0
+#: Time [s] of compiling the time-domain kernels when numba's cache is empty, on an idle 2-core
+#: machine: the first prescribed TMM run of the FE rig takes about 46 s of process CPU, of which
+#: about 2 s are the run itself (compiling is single-threaded, so wall time is the same on an
+#: idle machine and longer on a loaded one).
+COMPILE_ESTIMATE_S = 50.0
 
 HERE = Path(__file__).resolve().parent
 #: The files numba compiles the kernels from: every ``kernels*.py``, ``matrices.py`` (its
