@@ -99,12 +99,13 @@ def _tmm_step_s(sc: Scenario, segments: int, macro_per_step: float) -> float:
     qualifies and a revolution's stored factorizations fit the time domain's memory budget (the
     engine's own test, :meth:`tmm_core.TimeDomain.configurations`), else the numpy path."""
     try:
-        from tmm_core import kernels, structure_compiled, transient
+        from tmm_core import transient
+        from tmm_core.compiled import march as compiled_march, statics as compiled_statics
         budget = transient.MAX_STEP_DATA_BYTES
         per_revolution = 2 * math.pi / abs(sc.drive.speed_rad_s) / sc.engine_step_s("tmm")
         structure = sc.mechanism.structure()
-        compiled = (kernels.AVAILABLE and structure_compiled.supported(structure)
-                    and per_revolution * structure_compiled.stored_bytes_per_configuration(
+        compiled = (compiled_march.AVAILABLE and compiled_statics.supported(structure)
+                    and per_revolution * compiled_statics.stored_bytes_per_configuration(
                         [m.n_segments for m in structure.members]) <= budget)
     except Exception:                # no crank speed, no structure: the numpy path's estimate
         compiled = False

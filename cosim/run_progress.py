@@ -20,7 +20,7 @@ import logging
 import math
 import time
 
-from tmm_core.kernel_cache import COMPILE_ESTIMATE_S, cache_is_cold
+from tmm_core.compiled.cache import COMPILE_ESTIMATE_S, cache_is_cold
 
 log = logging.getLogger(__name__)
 

@@ -40,14 +40,14 @@ LONG_FUNCTIONS = {
     "cosim.run.run_scenario": "one run end to end; issue 35 item 3 (a short pipeline)",
     "cosim.scenario.from_dict": "the scenario loader; issue 35 item 1 (a loader package)",
     "cosim.structure_scenario.build": "the structure format's builder; issue 35 item 3",
-    "tmm_core.kernels.march": "the compiled march: numba kernels take arrays, not records; issue 33 item 5",
-    "tmm_core.kernels_factor.factor_configuration": "compiled factorization, 61 parameters; issue 33 item 5",
-    "tmm_core.kernels_maps.solve_loads_many": "compiled load solve on maps; issue 33 item 5",
-    "tmm_core.kernels_periodic.push": "compiled linearized step; issue 33 items 4-5 (one step)",
-    "tmm_core.kernels_reduced.second_order": "reduced model's second-order step; issue 33 items 4-5",
-    "tmm_core.kernels_reduced.revolution": "reduced model's revolution; issue 33 items 4-5",
-    "tmm_core.kernels_static.solve_range": "compiled static solve; issue 33 item 5",
-    "tmm_core.kernels_static.solve_loads": "compiled load solve, 63 parameters; issue 33 item 5",
+    "tmm_core.compiled.march.march": "the compiled march: numba kernels take arrays, not records; issue 33 item 5",
+    "tmm_core.compiled.riccati.factor_configuration": "compiled factorization, 61 parameters; issue 33 item 5",
+    "tmm_core.compiled.step_data.solve_loads_many": "compiled load solve on maps; issue 33 item 5",
+    "tmm_core.compiled.periodic.push": "compiled linearized step; issue 33 items 4-5 (one step)",
+    "tmm_core.compiled.reduced_periodic.second_order": "reduced model's second-order step; issue 33 items 4-5",
+    "tmm_core.compiled.reduced_periodic.revolution": "reduced model's revolution; issue 33 items 4-5",
+    "tmm_core.compiled.structure.solve_range": "compiled static solve; issue 33 item 5",
+    "tmm_core.compiled.structure.solve_loads": "compiled load solve, 63 parameters; issue 33 item 5",
     "tmm_core.linkage_kinematics.solve": "Shin's module kinematics in closed form; issue 33",
     "tmm_core.linkage_plan.plan_modules": "the module plan of a general linkage; issue 33",
 }
@@ -68,20 +68,20 @@ MAX_PUBLIC_PARAMETERS = 8
 #: Each compiled entry point beside the numpy reference it mirrors and the test that holds them
 #: equal (to 1e-12 relative unless the test says otherwise): (compiled, numpy reference, test).
 PAIRS = (
-    ("kernel_binding.static_solve: kernels_static.solve_range", "structure.solve_linear, statics.solve_static",
+    ("compiled.structure.solve_range (binding.static_solve)", "structure.solve_linear, statics.solve_static",
      "tests/test_kernels.py::test_compiled_factorization_equals_numpy_for_a_beam_column_solve"),
-    ("kernel_binding.static_solve: kernels_static.solve_range, iteration_start (beam-column iteration)",
+    ("compiled.structure.solve_range, compiled.dense.iteration_start (binding.static_solve; beam-column iteration)",
      "ked.quasi_static (numpy beam-column iteration)",
      "tests/test_kernels.py::test_compiled_quasi_static_revolution_equals_numpy"),
-    ("kernels_maps.solve_loads_many (load-to-response maps)", "step_data.numpy_maps",
+    ("compiled.step_data.solve_loads_many (load-to-response maps)", "step_data.numpy_maps",
      "tests/test_kernels.py::test_compiled_configuration_maps_equal_numpy"),
-    ("kernel_binding.factored: kernels_factored.factor_range, factored_solve", "time_step.StepSolver (numpy step)",
+    ("compiled.time_step.factor_range, factored_solve (binding.factored)", "time_step.StepSolver (numpy step)",
      "tests/test_kernels.py::test_compiled_march_on_stored_factorizations_equals_numpy_over_a_revolution"),
-    ("kernel_binding.march: kernels.march", "time_step.StepSolver (numpy step), integrators",
+    ("compiled.march.march (binding.march)", "time_step.StepSolver (numpy step), integrators",
      "tests/test_kernels.py::test_compiled_march_equals_numpy_for_every_integrator_and_the_quasi_static_axial_force"),
-    ("kernel_binding.single: kernels_periodic.push, velocities", "periodic (batched numpy linearized step)",
+    ("compiled.periodic.push, velocities (binding.single)", "periodic (batched numpy linearized step)",
      "tests/test_periodic.py::test_compiled_linearized_revolutions_match_numpy"),
-    ("kernel_binding.reduced_revolution: kernels_reduced.revolution", "reduced_periodic.ReducedModel (numpy)",
+    ("compiled.reduced_periodic.revolution (binding.reduced_revolution)", "reduced_periodic.ReducedModel (numpy)",
      "tests/test_reduced.py::test_compiled_revolution_matches_the_numpy_reference"),
 )
 
@@ -233,10 +233,15 @@ def test_public_entry_points_take_few_parameters():
 
 def test_every_compiled_entry_point_has_its_reference_and_equality_test():
     """The compiled/reference pairs (:data:`PAIRS`, listed in the README's Layout) name tests
-    that exist, and every stage tmm_core.kernel_binding compiles is among them."""
+    that exist, and every stage tmm_core.compiled.binding compiles is among them."""
     for compiled, reference, test in PAIRS:
         path, name = test.split("::")
         assert f"def {name}(" in (ROOT / path).read_text(encoding="utf-8"), test
     named = " ".join(compiled for compiled, _, _ in PAIRS)
     for stage in ("static_solve", "factored", "march", "single", "reduced_revolution"):
-        assert f"kernel_binding.{stage}" in named, stage
+        assert f"binding.{stage}" in named, stage
+    # Each compiled module mirrors the numpy module of the same name (dense: the small dense
+    # algebra the references leave to numpy and scipy).
+    for path in (ROOT / "tmm_core" / "compiled").glob("*.py"):
+        if path.stem not in ("__init__", "binding", "cache", "dense"):
+            assert (ROOT / "tmm_core" / f"{path.stem}.py").exists(), f"compiled/{path.name} mirrors no reference"

@@ -1,4 +1,4 @@
-"""The compiled march (tmm_core.kernels) against the numpy reference path of TimeDomain (issue 15).
+"""The compiled march (tmm_core.compiled.march) against the numpy reference path of TimeDomain (issue 15).
 
 Both paths do the same arithmetic in a different order, so over a revolution they must agree to
 round-off: 1e-12 relative, with the second-order step's iteration converged to 1e-14 so that its
@@ -10,9 +10,10 @@ import numpy as np
 import pytest
 
 from cosim.scenario import load
-from tmm_core import CrankMotion, TimeDomain, kernels
+from tmm_core import CrankMotion, TimeDomain
+from tmm_core.compiled import march as compiled_march
 
-pytestmark = pytest.mark.skipif(not kernels.AVAILABLE, reason="numba is not installed")
+pytestmark = pytest.mark.skipif(not compiled_march.AVAILABLE, reason="numba is not installed")
 
 
 def _both(sc, revolutions=1.0, **kw):
@@ -41,7 +42,7 @@ def test_compiled_second_order_march_equals_numpy_over_a_revolution():
 
 
 def test_compiled_march_on_stored_factorizations_equals_numpy_over_a_revolution(monkeypatch):
-    """The map-free compiled march (tmm_core.kernels_factored: a solve on each configuration's
+    """The map-free compiled march (tmm_core.compiled.time_step: a solve on each configuration's
     stored factorization per iteration, instead of the dense maps) against the numpy reference,
     FE rig at 373 rpm (second-order step); measured 2.5e-13."""
     import tmm_core.transient as transient
@@ -85,7 +86,7 @@ def test_the_engine_uses_the_compiled_path_and_gets_the_same_answer():
 
         def init(self, *a, _c=compiled, **k):
             original(self, *a, **k)
-            self.compiled = _c and kernels.AVAILABLE
+            self.compiled = _c and compiled_march.AVAILABLE
         TimeDomain.__init__ = init
         try:
             runs.append(run_prescribed(engine, sc, revolutions=1.0))
@@ -111,7 +112,7 @@ def test_motor_driven_steps_use_the_stored_factorizations_and_agree_with_numpy()
     for compiled in (False, True):
         def init(self, *a, _c=compiled, **k):
             original_init(self, *a, **k)
-            self.compiled = _c and kernels.AVAILABLE
+            self.compiled = _c and compiled_march.AVAILABLE
         TimeDomain.__init__, step_data.compiled_factors = init, counted
         try:
             res = CoSimulation(sc, {"tmm": make_engine("tmm")}, mode="motor").run(revolutions=0.15)
@@ -126,7 +127,7 @@ def test_motor_driven_steps_use_the_stored_factorizations_and_agree_with_numpy()
         np.testing.assert_allclose(runs[1].gauges[g][0], bending, rtol=0, atol=1e-9 * np.max(np.abs(bending)))
 
 
-# -- the compiled factorization (tmm_core.kernels_static) ---------------------------------------
+# -- the compiled factorization (tmm_core.compiled.structure) ---------------------------------------
 def _fe_quasi_static_case(segments=8, positions=72):
     from tmm_core.ked import Coupling, coupling_stiffness, rigid_body_loads
     sc = load("crank_rocker_241rpm").with_overrides({"solver.tmm.segments": segments})
@@ -144,14 +145,14 @@ def test_compiled_factorization_equals_numpy_for_a_beam_column_solve():
     """One linear solve of the FE rig at 72 crank positions, with compressive and tensile segment
     forces in the field matrices and the rotating-frame node stiffness: every station state, the
     support reactions and the inertia count agree with tmm_core.structure to 1e-12."""
-    from tmm_core import structure_compiled
+    from tmm_core.compiled import statics as compiled_statics
     from tmm_core.structure import solve_linear
     _, mech, case = _fe_quasi_static_case()
     structure = mech.structure()
     rng = np.random.default_rng(1)
     P = {m.name: rng.uniform(-200.0, 300.0, (72, m.n_segments)) for m in structure.members}
     ref = solve_linear(structure, case, P, count_inertia=True)
-    new = structure_compiled.solve_linear(structure, case, P, count_inertia=True)
+    new = compiled_statics.solve_linear(structure, case, P, count_inertia=True)
     for name, r in ref.members.items():
         for k in range(6):
             assert _rel(r.state[..., k], new.members[name].state[..., k]) < 1e-12, (name, k)
@@ -179,16 +180,17 @@ def test_beam_column_iteration_that_cannot_meet_its_tolerance_fails_alike_in_bot
     """At an unreachable tolerance the iteration stops at ``max_iter`` solves with
     ConvergenceError in the numpy path and in the compiled one (which iterates each position in
     the kernel and reports the positions that did not converge)."""
-    from tmm_core import ConvergenceError, structure_compiled
+    from tmm_core import ConvergenceError
+    from tmm_core.compiled import statics as compiled_statics
     from tmm_core.statics import solve_static
     _, mech, case = _fe_quasi_static_case(positions=12)
     structure = mech.structure()
-    for solver in (solve_static, structure_compiled.solve_static):
+    for solver in (solve_static, compiled_statics.solve_static):
         with pytest.raises(ConvergenceError, match="did not converge in 3 iterations"):
             solver(structure, case, beam_column=True, tol=1e-30, max_iter=3, count_inertia=True)
     # A reachable tolerance: both converge, after the same number of solves.
     runs = [solver(structure, case, beam_column=True, tol=1e-8, max_iter=8, count_inertia=True)
-            for solver in (solve_static, structure_compiled.solve_static)]
+            for solver in (solve_static, compiled_statics.solve_static)]
     assert runs[0].iterations == runs[1].iterations <= 8
 
 
@@ -196,24 +198,25 @@ def test_beam_column_iteration_that_cannot_meet_its_tolerance_fails_alike_in_bot
                                                     (40.0, 200, "buckling load")])
 def test_one_call_beam_column_iteration_equals_the_two_call_one(monkeypatch, speed, max_iter, error):
     """The compiled iteration of a batch in one call (linear solve, its checks, the change scales
-    and the iteration: structure_compiled._run with cond_limit, taken with more than one thread) against
+    and the iteration: compiled_statics._run with cond_limit, taken with more than one thread) against
     the linear solve and the iteration in two calls with the scales from numpy: the same
     results bit for bit, and the same error where the iteration or the linear solve fails
     (``speed`` x the rig's: 40x is above the first natural frequency, negative stiffness; 3
     solves are too few for the tolerance)."""
-    from tmm_core import TMMError, structure_compiled
+    from tmm_core import TMMError
+    from tmm_core.compiled import statics as compiled_statics
     from tmm_core.ked import Coupling, coupling_stiffness, rigid_body_loads
     sc, mech, _ = _fe_quasi_static_case()
     motion = mech.motion(np.radians(np.linspace(0.0, 360.0, 72, endpoint=False)), speed * sc.drive.speed_rad_s, 0.0)
     case = mech.load_case(motion, rigid_body_loads(mech, motion, sc.gravity), None,
                           coupling_stiffness(mech, motion, Coupling(False, True, True), mass_damping=0.0))
     runs, calls = [], []
-    run = structure_compiled._run
-    monkeypatch.setattr(structure_compiled, "_run", lambda *a, **k: calls.append(k.get("cond_limit")) or run(*a, **k))
+    run = compiled_statics._run
+    monkeypatch.setattr(compiled_statics, "_run", lambda *a, **k: calls.append(k.get("cond_limit")) or run(*a, **k))
     for chunks in (2, 1):
-        monkeypatch.setattr(structure_compiled, "_thread_chunks", lambda B, solves, n=chunks: min(B, n))
+        monkeypatch.setattr(compiled_statics, "_thread_chunks", lambda B, solves, n=chunks: min(B, n))
         try:
-            runs.append(structure_compiled.solve_static(mech.structure(), case, beam_column=True, tol=1e-10,
+            runs.append(compiled_statics.solve_static(mech.structure(), case, beam_column=True, tol=1e-10,
                                                         max_iter=max_iter, count_inertia=True))
         except TMMError as exc:
             runs.append(exc)
@@ -235,7 +238,7 @@ def test_inertia_count_of_a_pinned_pinned_column_changes_exactly_at_the_euler_lo
     pinned-pinned column carries no negative pivot just below pi^2 EI / L^2 and exactly one just
     above it (and two above the second Euler load, 4 pi^2 EI / L^2), in the compiled
     factorization and in the numpy path; beyond the Euler load the solve is refused."""
-    from tmm_core import structure_compiled
+    from tmm_core.compiled import statics as compiled_statics
     from tmm_core.errors import BucklingError
     from tmm_core.sections import Material, Section
     from tmm_core.structure import Joint, LoadCase, Member, Structure, solve_linear
@@ -246,12 +249,12 @@ def test_inertia_count_of_a_pinned_pinned_column_changes_exactly_at_the_euler_lo
     euler = np.pi**2 * E * section.inertia_m4 / L**2
     for factor, expected in ((0.999999, 0), (1.000001, 1), (3.99999, 1), (4.00001, 2)):
         P = {"col": np.full((1, segments), -factor * euler)}
-        for solve in (solve_linear, structure_compiled.solve_linear):
+        for solve in (solve_linear, compiled_statics.solve_linear):
             sol = solve(column, case, P, check_buckling=False, count_inertia=True)
             assert int(sol.negative_eigenvalues[0]) == expected, (solve.__module__, factor)
     with pytest.raises(BucklingError, match="at or beyond its buckling load"):
-        structure_compiled.solve_linear(column, case, {"col": np.full((1, segments), -1.001 * euler)})
-    structure_compiled.solve_linear(column, case, {"col": np.full((1, segments), -0.999 * euler)})
+        compiled_statics.solve_linear(column, case, {"col": np.full((1, segments), -1.001 * euler)})
+    compiled_statics.solve_linear(column, case, {"col": np.full((1, segments), -0.999 * euler)})
 
 
 @pytest.mark.parametrize("scenario", ["crank_rocker_373rpm", "alexander_lawrence_400rpm", "watt_sixbar_600rpm"])
@@ -280,28 +283,28 @@ def test_compiled_configuration_maps_equal_numpy(scenario):
 
 @pytest.mark.parametrize("scenario", ["crank_rocker_373rpm", "alexander_lawrence_400rpm", "watt_sixbar_600rpm"])
 def test_vectorized_map_solve_equals_the_per_load_set_solve(scenario, monkeypatch):
-    """The maps' load solve (tmm_core.kernels_maps: every unit load of a configuration at once,
+    """The maps' load solve (tmm_core.compiled.step_data: every unit load of a configuration at once,
     vectorized across them, compact outputs) against the per-load-set solve
-    (kernels_static.solve_loads, taken when every station state is asked for) on the same prepared
+    (compiled_structure.solve_loads, taken when every station state is asked for) on the same prepared
     batch: node displacements, segment axial forces, joint displacements and forces, and the
     right-side state of every node (the gauges' output, here at all nodes: the stations before and
     after each member's first deformable segment). The same arithmetic in the same order: 1e-12 is
     a margin (measured: equal)."""
-    from tmm_core import structure_compiled
+    from tmm_core.compiled import statics as compiled_statics
     sc = load(scenario).with_overrides({"solver.tmm.segments": 4})
     s = sc.tmm
     td = TimeDomain(sc.mechanism, integrator=s.integrator, coupling=s.coupling, gravity=sc.gravity, gauges=sc.gauges,
                     axial_force=s.axial_force, compiled=True)
     assert td.axial_force == "dynamic" and td.gauges
     calls = []
-    solve = structure_compiled.solve_prepared
+    solve = compiled_statics.solve_prepared
 
     def captured(prep, P, **kw):
         if kw.get("node_loads") is not None:
             calls.append((prep, np.array(P), kw))
         return solve(prep, P, **kw)
 
-    monkeypatch.setattr(structure_compiled, "solve_prepared", captured)
+    monkeypatch.setattr(compiled_statics, "solve_prepared", captured)
     th = np.radians(np.arange(0.0, 360.0, 20.0))
     td.configurations(th, np.full(len(th), sc.drive.speed_rad_s), np.zeros(len(th)), 1e-4, maps=True)
     assert len(calls) == 1

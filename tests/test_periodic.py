@@ -52,7 +52,7 @@ def test_floquet_multipliers_reproduce_the_mathieu_stability_chart(delta, epsilo
     assert abs(np.prod(mu) - 1.0) < 1e-8            # Liouville: undamped, det = 1
 
 
-# -- compiled linearized revolutions (tmm_core.kernels_periodic) against the numpy reference --
+# -- compiled linearized revolutions (tmm_core.compiled.periodic) against the numpy reference --
 
 def _rig(rpm, integrator=None):
     """FE crank-rocker rig (8 segments per link, second-order step) at ``rpm`` with its angle step:
@@ -82,7 +82,7 @@ def test_compiled_linearized_revolutions_match_numpy(integrator):
     with the numpy reference (batched steps; per-step dense solves of the step's Jacobian) to
     1e-10 in every block of the matrices (measured <= 1.2e-11), and the compiled trajectory
     velocities with the integrator's own recursion."""
-    from tmm_core import kernels_periodic as kp
+    from tmm_core.compiled import periodic as kp
     from tmm_core.periodic import _batched_step, _monodromy, _revolution, _state
     td, cfg, keys, N, dt = _rig(241.0, integrator)
     n, ns = td.n_dof, len(keys) * td.n_dof
@@ -121,7 +121,7 @@ def test_compiled_monodromy_matches_numpy_near_buckling():
     checkout and 1.5e-10 on a fresh clone (BLAS's summation order with its thread count); the
     comparisons of this file fail with a term of the linearization dropped (checked with the
     Coriolis term). Unscaled, the numpy solve alone lost 1e-7."""
-    from tmm_core import kernels_periodic as kp
+    from tmm_core.compiled import periodic as kp
     from tmm_core.periodic import _monodromy, _revolution
     td, cfg, keys, N, dt = _rig(373.0)
     ns = len(keys) * td.n_dof
@@ -135,7 +135,7 @@ def test_compiled_periodic_solution_matches_numpy(monkeypatch):
     """The whole periodic solve at 373 rpm (Newton shooting, two monodromies): with the compiled
     linearized revolutions and with the numpy ones (as without numba) the responses agree to
     1e-10 of their range and the Floquet spectral radius to 1e-10."""
-    from tmm_core import kernels_periodic
+    from tmm_core.compiled import periodic as compiled_periodic
     s = load("crank_rocker_373rpm")
 
     def solve():
@@ -143,7 +143,7 @@ def test_compiled_periodic_solution_matches_numpy(monkeypatch):
         return periodic_steady_state(td, s.drive.speed_rad_s, step_s=s.engine_step_s("tmm"),
                                      start_angle=s.drive.start_angle_rad)
     fast = solve()
-    monkeypatch.setattr(kernels_periodic, "AVAILABLE", False)
+    monkeypatch.setattr(compiled_periodic, "AVAILABLE", False)
     ref = solve()
     assert fast.info["newton_iterations"] == ref.info["newton_iterations"]
     for g in ref.gauges:

@@ -145,7 +145,7 @@ def test_fast_model_of_bands_uses_the_reduced_model_when_asked():
             assert red["peaks"][g][k] == pytest.approx(p[k], rel=0.025), (g, k)
 
 
-# -- compiled revolution (tmm_core.kernels_reduced) against the numpy reference -------------------
+# -- compiled revolution (tmm_core.compiled.reduced_periodic) against the numpy reference -------------------
 def _rel(a, b):
     """Largest difference relative to the largest magnitude of the reference ``b``."""
     return float(np.max(np.abs(np.asarray(a) - b)) / np.max(np.abs(b)))
@@ -176,9 +176,9 @@ def test_compiled_revolution_matches_the_numpy_reference(beam_column):
     linear periodic state (Newton on every step from the previous step's stage accelerations),
     then a second one from the result with the monodromy (guesses from the first revolution, full
     Newton), then a third without it (chord iterations on the stored factorizations)."""
-    from tmm_core import kernels_reduced
+    from tmm_core.compiled import reduced_periodic as compiled_reduced_periodic
     from tmm_core.reduced_periodic import ReducedModel
-    if not kernels_reduced.AVAILABLE:
+    if not compiled_reduced_periodic.AVAILABLE:
         pytest.skip("numba not installed")
     _, td, _, basis, crank = _small_rig(beam_column)
     ref, fast = ReducedModel(td, crank, basis, compiled=False), ReducedModel(td, crank, basis, compiled=True)
@@ -210,8 +210,8 @@ def test_compiled_periodic_solve_matches_the_numpy_reference():
     """The periodic steady state (Newton shooting, second-order term) with the compiled
     revolutions and with numpy: gauge strains, drive torque and Floquet multipliers agree to 1e-10;
     both converge (residual below the shooting tolerance)."""
-    from tmm_core import kernels_reduced
-    if not kernels_reduced.AVAILABLE:
+    from tmm_core.compiled import reduced_periodic as compiled_reduced_periodic
+    if not compiled_reduced_periodic.AVAILABLE:
         pytest.skip("numba not installed")
     sc, td, options, basis, _ = _small_rig()
     kw = dict(options=options, basis=basis)
@@ -274,7 +274,7 @@ def test_reduced_model_of_an_elastic_crank_agrees_with_the_full_one(beam_column)
     the clamp moment (no rigid-crank arm); the basis' torque per unit load used to fail there (a
     broadcast of the unit-load columns), and with the second-order term the stage Newton stalled at
     its round-off floor (Newton matrix condition 6e10: updates ~2e-10 of the accelerations against
-    a tolerance of 1e-10; kernels_reduced.STALL_FACTOR). Peaks of the reduced periodic state within
+    a tolerance of 1e-10; compiled_reduced_periodic.STALL_FACTOR). Peaks of the reduced periodic state within
     1 % of the full model's converged ones (0.25 deg; measured 0.11 % linear, 0.19 % second order;
     at the scenario's 1 deg the full model's coupler - peak is 1.3 % off). The drive torque is
     compared in linear theory only (the reduced torque leaves out the second-order terms' share of

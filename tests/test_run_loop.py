@@ -13,7 +13,7 @@ from cosim.report import comparison_table
 from cosim.run import RunOptions, run_scenario
 from cosim.run_progress import RunProgress, toward_steady
 from cosim.scenario import load
-from tmm_core.kernel_cache import cache_is_cold
+from tmm_core.compiled.cache import cache_is_cold
 
 
 @pytest.fixture(scope="module")
@@ -92,19 +92,20 @@ def test_a_cold_kernel_cache_is_detected_and_any_compiled_source_keys_it(tmp_pat
     pytest.importorskip("numba")
     import shutil
 
-    from tmm_core import kernel_cache
+    from tmm_core.compiled import cache as kernel_cache
     sources = tmp_path / "src"
     sources.mkdir()
     for name in kernel_cache.COMPILED_SOURCES:
-        shutil.copy(kernel_cache.HERE / name, sources / name)
+        (sources / name).parent.mkdir(parents=True, exist_ok=True)
+        shutil.copy(kernel_cache.ROOT / name, sources / name)
     monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path / "cache"))
     assert cache_is_cold(sources)
-    index = kernel_cache.cache_dir(sources) / "src_0123" / "kernels.march-1.py311.nbi"
+    index = kernel_cache.cache_dir(sources) / "src_0123" / "march.march-1.py311.nbi"
     index.parent.mkdir(parents=True)
     index.write_bytes(b"index")
     assert not cache_is_cold(sources)
     old = kernel_cache.cache_dir(sources)
-    with open(sources / "kernels_dense.py", "a", encoding="utf-8") as fh:
+    with open(sources / "compiled" / "dense.py", "a", encoding="utf-8") as fh:
         fh.write("\n# an edit\n")
     assert cache_is_cold(sources) and kernel_cache.cache_dir(sources) != old
     kernel_cache.cache_dir(sources).mkdir()
@@ -114,27 +115,32 @@ def test_a_cold_kernel_cache_is_detected_and_any_compiled_source_keys_it(tmp_pat
 
 def test_numba_caches_the_kernels_in_the_keyed_folder():
     numba = pytest.importorskip("numba")
-    from tmm_core import kernel_cache
+    from tmm_core.compiled import cache as kernel_cache
     assert kernel_cache.numba_module() is numba
     assert numba.config.CACHE_DIR == str(kernel_cache.cache_dir())
 
 
 def test_the_kernels_compile_from_the_keyed_sources_only():
-    """Every kernel file is a keyed source, and the keyed sources import nothing else of tmm_core
-    at module level but the errors and the cache's own module (whose code numba does not
-    compile)."""
+    """Every module of ``tmm_core/compiled`` but the Python drivers is a keyed source, and the
+    keyed sources import nothing else of tmm_core at module level but keyed sources, the errors
+    and the cache's own module (whose code numba does not compile)."""
     import ast
 
-    from tmm_core import kernel_cache
+    from tmm_core.compiled import cache as kernel_cache
     names = set(kernel_cache.COMPILED_SOURCES)
-    assert {p.name for p in kernel_cache.HERE.glob("kernels*.py")} - {"kernel_cache.py"} <= names
+    drivers = {"compiled/__init__.py", "compiled/cache.py", "compiled/statics.py"}
+    found = {p.relative_to(kernel_cache.ROOT).as_posix() for p in kernel_cache.HERE.glob("*.py")}
+    assert found - drivers <= names
     for name in names:
-        tree = ast.parse((kernel_cache.HERE / name).read_text(encoding="utf-8"))
+        tree = ast.parse((kernel_cache.ROOT / name).read_text(encoding="utf-8"))
+        inside = name.startswith("compiled/")
         for node in tree.body:
-            if isinstance(node, ast.ImportFrom) and node.level == 1:
+            if isinstance(node, ast.ImportFrom) and node.level >= 1:
+                package = ("compiled/" if inside and node.level == 1 else "")
                 targets = [node.module] if node.module else [a.name for a in node.names]
                 for target in targets:
-                    assert f"{target}.py" in names or target in ("errors", "kernel_cache"), (name, target)
+                    allowed = f"{package}{target}.py" in names or target in ("errors", "cache")
+                    assert allowed, (name, node.level, target)
 
 
 # -- post-run analyses are bounded in time (issue 31 f) ----------------------------------------

@@ -145,13 +145,13 @@ def test_the_linear_axial_force_estimate_equals_the_numpy_linear_quasi_static_so
 
 
 def test_an_output_array_of_the_wrong_shape_is_refused():
-    from tmm_core import structure_compiled
+    from tmm_core.compiled import statics as compiled_statics
     from tmm_core.ked import rigid_body_loads
     td = load(FE).time_domain()
     motion = td.mech.motion(np.radians([0.0, 90.0]), np.full(2, 25.0), np.zeros(2))
-    prep = structure_compiled.prepare(td.structure, td.mech.load_case(motion, rigid_body_loads(td.mech, motion)))
+    prep = compiled_statics.prepare(td.structure, td.mech.load_case(motion, rigid_body_loads(td.mech, motion)))
     with pytest.raises(ValueError, match="C-contiguous float64"):
-        structure_compiled.solve_prepared(prep, np.zeros(prep.factor.shape), compact_nodes=[],
+        compiled_statics.solve_prepared(prep, np.zeros(prep.factor.shape), compact_nodes=[],
                                           compact_out=(np.empty((2, 3)), None))
 
 

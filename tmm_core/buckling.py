@@ -38,7 +38,7 @@ def buckling_message(structure, axial_force: Mapping[str, np.ndarray], negative)
     """The refusal of a member at or beyond its buckling load: the negative-eigenvalue count
     ``negative`` (per batch entry) and the most compressed member against its pinned-pinned Euler
     load (an orientation for the user); ``axial_force``: {member: segment forces [N]}. The numpy
-    and the compiled factorization (:mod:`tmm_core.structure_compiled`) refuse with it."""
+    and the compiled factorization (:mod:`tmm_core.compiled.statics`) refuse with it."""
     worst_name, worst_ratio, worst_P, worst_Pcr = None, -np.inf, 0.0, 0.0
     for m in structure.members:
         P = np.asarray(axial_force[m.name])

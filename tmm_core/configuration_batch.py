@@ -53,12 +53,12 @@ class StepMaps:
 
 @dataclass(frozen=True)
 class StepFactors:
-    """The map-free alternative to :class:`StepMaps` (:mod:`tmm_core.kernels_factored`): the
+    """The map-free alternative to :class:`StepMaps` (:mod:`tmm_core.compiled.time_step`): the
     compiled factorization of each of B configurations, kept, on which a step solves its loads
     (memory and work linear in the segments; the maps are quadratic).
 
     ``layout``: ``(seg_off, rigid, angle (B, M) [rad], ends, free, gauge nodes)`` of the compiled
-    structure; ``stored``: the arrays of :data:`tmm_core.kernels_factored.STORED`, batch axis
+    structure; ``stored``: the arrays of :data:`tmm_core.compiled.time_step.STORED`, batch axis
     first; ``Ocx`` (B, n_out, ny + 1): the outputs (:class:`OutputLayout`) as an augmented affine
     map (as :class:`StepMaps`' maps), ``Ocx[k, :, :-1] @ y + Ocx[k, :, -1]`` with ``y`` the joint
     reactions [N, N m] and the gauge nodes' right-side states of a solve."""

@@ -41,7 +41,7 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from . import structure_compiled
+from .compiled import statics as compiled_statics
 from .errors import InputError, SingularStructureError, require_finite, require_positive
 from .kinematics import FourBarMotion
 from .mechanism import FourBarMechanism
@@ -212,7 +212,7 @@ def quasi_static(mech: FourBarMechanism, crank_angle, crank_speed, crank_acceler
     and angular-acceleration terms act as stiffness to ground in the rotating frame (Coriolis has
     no quasi-static effect). A speed at which ``K - w^2 M`` is singular raises
     :class:`tmm_core.errors.SingularStructureError`.
-    ``compiled``: solve in the compiled factorization (:mod:`tmm_core.kernels_static`) when numba
+    ``compiled``: solve in the compiled factorization (:mod:`tmm_core.compiled.structure`) when numba
     is installed and the structure is one it handles (joints and members); the numpy path
     (:func:`tmm_core.statics.solve_static`) is the reference and the fallback.
     """
@@ -225,9 +225,9 @@ def quasi_static(mech: FourBarMechanism, crank_angle, crank_speed, crank_acceler
     try:
         structure = mech.structure()
         solver = solve_static
-        if compiled and structure_compiled.AVAILABLE and np.ndim(crank_angle) == 1 \
-                and structure_compiled.supported(structure):
-            solver = structure_compiled.solve_static
+        if compiled and compiled_statics.AVAILABLE and np.ndim(crank_angle) == 1 \
+                and compiled_statics.supported(structure):
+            solver = compiled_statics.solve_static
         sol = solver(structure, case, beam_column=beam_column, tol=tol,
                      count_inertia=True if coupling.centrifugal else None)
     except SingularStructureError as exc:
@@ -250,13 +250,13 @@ def linear_axial_forces(mech: FourBarMechanism, motion: FourBarMotion, gravity=N
     station states, torque or gauges: the time step's estimate of a revolution). ``local_loads``:
     the rigid-body loads in each link's frame when the caller has them
     (``rigid_body_loads(..., frame="local")``, as the time step does; ~1 ms a revolution not
-    recomputed). Needs the compiled factorization (:func:`tmm_core.structure_compiled.supported`)."""
+    recomputed). Needs the compiled factorization (:func:`tmm_core.compiled.statics.supported`)."""
     structure = mech.structure()
     if local_loads is None:
         local_loads = rigid_body_loads(mech, motion, gravity, frame="local")
     case = LoadCase(mech.joint_positions(motion), dict(local_loads), {}, {}, frame="local")
-    prep = structure_compiled.prepare(structure, case)
-    (_, N, _), *_ = structure_compiled.solve_prepared(prep, np.zeros(prep.factor.shape), check_buckling=False,
+    prep = compiled_statics.prepare(structure, case)
+    (_, N, _), *_ = compiled_statics.solve_prepared(prep, np.zeros(prep.factor.shape), check_buckling=False,
                                                       compact_nodes=np.zeros(0, np.int64))
     off = prep.layout.seg_off
     return {m.name: N[:, off[i]:off[i + 1], 0] for i, m in enumerate(structure.members)}

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import kernel_binding, kernels
+from .compiled import binding as kernel_binding, march as compiled_march
 from .errors import InputError
 from .ked import quasi_static
 from .time_step import ANDERSON_DEPTH, AXIAL_FORCE_TOLERANCE
@@ -93,13 +93,13 @@ class March:
 
     def step_many(self, cfg, indices, record_z: bool = True, record_axial: bool = False):
         """Steps through configurations ``indices`` of a batch, compiled when the batch has
-        cached maps or stored factorizations (:mod:`tmm_core.kernels`), else one by one in numpy.
+        cached maps or stored factorizations (:mod:`tmm_core.compiled.march`), else one by one in numpy.
         Returns ``(zs, outs)``: displacements ``(k, n_dof)`` (None unless ``record_z``) and outputs ``(k, n_out)``; with
         ``record_axial`` also the segment axial forces ``(k, n_seg)`` of the 'dynamic' step."""
         indices = np.asarray(indices, dtype=np.int64)
         td = self.td
         if td.compiled and (cfg.maps is not None or cfg.factors is not None) and not self.has_visco \
-                and td.integrator.name in kernels.INTEGRATOR_CODES:
+                and td.integrator.name in compiled_march.INTEGRATOR_CODES:
             return self._compiled(cfg, indices, record_z, record_axial)
         zs = np.empty((len(indices), td.n_dof)) if record_z else None
         outs = np.empty((len(indices), self.n_out))
@@ -115,8 +115,8 @@ class March:
     def _compiled(self, cfg, indices, record_z, record_axial=False):
         td, n, integ = self.td, self.td.n_dof, self.td.integrator
         data = td.kernel_data(cfg)
-        code = kernels.INTEGRATOR_CODES[integ.name]
-        params = np.array(integ.parameters if code == kernels.GENERALIZED_ALPHA else (0.0, 0.0, 0.0, 0.0), float)
+        code = compiled_march.INTEGRATOR_CODES[integ.name]
+        params = np.array(integ.parameters if code == compiled_march.GENERALIZED_ALPHA else (0.0, 0.0, 0.0, 0.0), float)
         c_a, c_v = integ.coefficients(self.dt)
         st = self.state
         zero = np.zeros(n)

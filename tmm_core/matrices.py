@@ -68,7 +68,7 @@ Z_IDX = np.array([U, W, TH])
 F_IDX = np.array([N, V, M])
 
 #: Below this |s| the Stumpff functions are summed as series (the compiled twin,
-#: tmm_core.kernels_dense.stumpff, uses the same limit and table).
+#: tmm_core.compiled.dense.stumpff, uses the same limit and table).
 SERIES_LIMIT = 4.0
 SERIES_TERMS = 24
 INV_FACT = [1.0 / math.factorial(k) for k in range(2 * SERIES_TERMS + 6)]

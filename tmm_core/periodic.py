@@ -22,7 +22,7 @@ through the step's exact Jacobian), starting from the periodic solution of the l
 (quasi-static axial force) model, whose Phi is the first Jacobian. The multipliers are those of
 the linearization about the periodic orbit.
 
-The linearized revolutions run in compiled kernels (:mod:`tmm_core.kernels_periodic`; 0.05 s for
+The linearized revolutions run in compiled kernels (:mod:`tmm_core.compiled.periodic`; 0.05 s for
 the linear pass and 0.14 s per monodromy on the FE rig, 216 states, 720 steps); the numpy code
 here is their reference (``TimeDomain(compiled=False)`` or without numba).
 
@@ -37,7 +37,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.integrate import solve_ivp
 
-from . import kernels_periodic
+from .compiled import periodic as compiled_periodic
 from .errors import ConvergenceError, InputError, TMMError
 from .ked import CrankMotion
 from .transient import TimeDomain
@@ -110,12 +110,12 @@ def periodic_steady_state(td: TimeDomain, speed_rad_s: float, *, step_s: float |
         raise InputError("periodic solver: the load-to-response maps exceed the memory budget (max_map_bytes)")
     n = td.n_dof
     ns = len(keys) * n
-    # The linearized revolutions in the compiled kernels (tmm_core.kernels_periodic) or in numpy
+    # The linearized revolutions in the compiled kernels (tmm_core.compiled.periodic) or in numpy
     # (the reference; td.compiled = False, or without numba).
-    compiled = td.compiled and kernels_periodic.AVAILABLE
-    monodromy = kernels_periodic.monodromy if compiled else _monodromy
+    compiled = td.compiled and compiled_periodic.AVAILABLE
+    monodromy = compiled_periodic.monodromy if compiled else _monodromy
     if compiled:
-        Phi, c = kernels_periodic.linear_shooting(td, cfg, keys, N, dt)
+        Phi, c = compiled_periodic.linear_shooting(td, cfg, keys, N, dt)
     else:
         # x_N = Phi x_0 + c: the zero state with the forcing (c) and the unit states without it
         # (Phi; differencing forced unit states with c lost up to 1e-4 in blocks of small entries).
@@ -225,9 +225,9 @@ def _revolution(td: TimeDomain, cfg, keys, x0, N, dt):
     zs, outs, Ps = march.step_many(cfg, indices, record_axial=True)
     # The trajectory for the linearization: displacements, velocities (v = c_v z + h_v, the
     # history from the state before each step) and axial forces per step.
-    if td.compiled and kernels_periodic.AVAILABLE:
+    if td.compiled and compiled_periodic.AVAILABLE:
         # The same recursion compiled (in Python it took 2/3 of the revolution's time).
-        vs = kernels_periodic.trajectory_velocities(td.integrator, state, zs, dt)
+        vs = compiled_periodic.trajectory_velocities(td.integrator, state, zs, dt)
         trajectory = [(idx, zs[j], vs[j], Ps[j]) for j, idx in enumerate(indices)]
     else:
         trajectory, st = [], state

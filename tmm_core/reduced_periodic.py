@@ -26,7 +26,7 @@ over a revolution is the monodromy matrix of the discrete map. Periodic shooting
 part gives the first guess in one linear solve ``(I - Phi) x0 = c``; Newton on ``x_N(x0) = x0``
 (state ``x = (eta, eta')``, 2r) then handles the axial-force term.
 
-The revolutions run in the compiled kernel :mod:`tmm_core.kernels_reduced` (numba) unless
+The revolutions run in the compiled kernel :mod:`tmm_core.compiled.reduced_periodic` (numba) unless
 ``compiled`` is False (default ``td.compiled``) or numba is missing; the numpy code here is the
 reference it is tested against. FE rig, r = 23, 360 steps, one thread: a periodic solve about
 0.3 s compiled against 2.8 s in numpy (the set-up of the stage matrices included).
@@ -37,7 +37,7 @@ instantaneous structure (D'Alembert, elastic inertia, rotating-frame and mass-pr
 damping terms; the second-order terms' share of the reactions is left out).
 
 Owns: the reduced model's equations, Radau IIA propagation and periodic shooting. Boundaries:
-the basis is tmm_core.reduced, the compiled revolution tmm_core.kernels_reduced; the full
+the basis is tmm_core.reduced, the compiled revolution tmm_core.compiled.reduced_periodic; the full
 model's step is not used.
 """
 from __future__ import annotations
@@ -48,7 +48,7 @@ import numpy as np
 from scipy.interpolate import CubicHermiteSpline
 from scipy.linalg import lu_factor, lu_solve
 
-from . import kernel_binding, kernels_reduced
+from .compiled import binding as kernel_binding, reduced_periodic as compiled_reduced_periodic
 from .errors import ConvergenceError, InputError
 from .ked import CrankMotion
 from .periodic import PeriodicResult
@@ -85,7 +85,7 @@ class ReducedModel:
     coupling, axial-force model, gravity, gauges). ``crank``: one period of the crank history
     (N + 1 samples, the last one revolution after the first). ``basis``: from
     :func:`tmm_core.reduced.build_basis` (geometry only: it may serve every speed).
-    ``compiled``: march revolutions in the compiled kernel (:mod:`tmm_core.kernels_reduced`) when
+    ``compiled``: march revolutions in the compiled kernel (:mod:`tmm_core.compiled.reduced_periodic`) when
     numba is installed; default ``td.compiled``; False keeps this module's numpy path (the
     reference). ``stages``: :class:`tmm_core.reduced_stages.StageCoefficients` of ``td`` and
     ``basis`` to combine for this crank history when its stage angles are theirs (else, and by
@@ -103,9 +103,9 @@ class ReducedModel:
         if td.axial_force == "dynamic" and set(td.dynamic_terms) != {"shortening", "axial_force"}:
             raise InputError("the reduced model carries both second-order terms or neither")
         self.td, self.basis = td, basis
-        self.compiled = bool(td.compiled if compiled is None else compiled) and kernels_reduced.AVAILABLE
+        self.compiled = bool(td.compiled if compiled is None else compiled) and compiled_reduced_periodic.AVAILABLE
         #: Compiled path: chord Newton iterations in the revolutions without the monodromy (see
-        #: tmm_core.kernels_reduced); False refactorizes every iteration, as the numpy path does.
+        #: tmm_core.compiled.reduced_periodic); False refactorizes every iteration, as the numpy path does.
         self.chord = True
         self._kernel_args = self._factors = None
         self.counts = np.zeros(2, dtype=np.int64)   # last compiled revolution: Newton iterations, LUs
@@ -176,8 +176,8 @@ class ReducedModel:
         return N, bT @ P_eta + H + aT @ F_eta, bT @ P_v + aT @ F_v, Pax, delta
 
     # -- one step ----------------------------------------------------------------------------
-    def step(self, n, eta, v, acc, nonlinear, jacobian=True, tol=kernels_reduced.STAGE_TOL,
-             iterations=kernels_reduced.STAGE_ITERATIONS, scale=0.0):
+    def step(self, n, eta, v, acc, nonlinear, jacobian=True, tol=compiled_reduced_periodic.STAGE_TOL,
+             iterations=compiled_reduced_periodic.STAGE_ITERATIONS, scale=0.0):
         """Radau IIA step ``n`` from ``(eta, eta')`` with a guess ``acc`` (3, r) of the stage
         accelerations: ``(eta, eta')`` at its end, the stage accelerations and the step's Jacobian
         ``S`` (2r, 2r) with respect to ``(eta, eta')`` (from the last Newton matrix; None unless
@@ -186,7 +186,7 @@ class ReducedModel:
         h, A, A2, c = self.h, RADAU_A, self.A2, RADAU_C
         P = 3 * n + np.arange(3)
         Mr, Cr, Kr, fr = self.Mr[P], self.Cr[P], self.Kr[P], self.fr[P]
-        prev = None             # the last update's size (kernels_reduced.STALL_FACTOR)
+        prev = None             # the last update's size (compiled_reduced_periodic.STALL_FACTOR)
         for it in range(iterations):
             vs = v[None] + h * A @ acc
             es = eta[None] + h * c[:, None] * v[None] + h * h * A2 @ acc
@@ -207,7 +207,7 @@ class ReducedModel:
             if not nonlinear or dmax <= limit:
                 break
             # An update that stopped shrinking near the tolerance: the round-off floor.
-            if prev is not None and dmax <= kernels_reduced.STALL_FACTOR * limit and dmax >= 0.5 * prev:
+            if prev is not None and dmax <= compiled_reduced_periodic.STALL_FACTOR * limit and dmax >= 0.5 * prev:
                 break
             prev = dmax
         else:
@@ -277,8 +277,8 @@ class ReducedModel:
         counts = np.zeros(2, dtype=np.int64)
         failed = kernel_binding.reduced_revolution()(
             x0, bool(nonlinear), bool(jacobian), bool(outputs), self.stage_acc is not None, self.chord,
-            kernels_reduced.CHORD_START, kernels_reduced.CHORD_CONTRACTION, guess,
-            self.h, RADAU_A, self.A2, RADAU_C, *args, kernels_reduced.STAGE_TOL, kernels_reduced.STAGE_ITERATIONS,
+            compiled_reduced_periodic.CHORD_START, compiled_reduced_periodic.CHORD_CONTRACTION, guess,
+            self.h, RADAU_A, self.A2, RADAU_C, *args, compiled_reduced_periodic.STAGE_TOL, compiled_reduced_periodic.STAGE_ITERATIONS,
             *self._factors, x_end, mono, outs, accs, counts)
         self.counts = counts
         if failed >= 0:

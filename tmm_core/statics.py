@@ -21,7 +21,7 @@ from typing import Mapping
 
 import numpy as np
 
-from . import kernels_dense
+from .compiled import dense as compiled_dense
 from .errors import ConvergenceError, InputError
 from .post import distortion, static_safety_factor, surface_stresses
 from .structure import LinearSolution, LoadCase, MemberResult, Structure, solve_linear
@@ -120,12 +120,12 @@ def iteration_converged(changes: list, tol: float) -> np.ndarray:
     saves the solve whose only role was to show a change below ``tol``. (One ratio alone
     underestimated the error 2x on the FE rig at 241 rpm, where r grows from 2e-3 to 5e-3; the
     larger of two did not, on the four rigs of the benchmark.) The rule itself, for one
-    configuration, is :func:`tmm_core.kernels_dense.iteration_converged`."""
+    configuration, is :func:`tmm_core.compiled.dense.iteration_converged`."""
     last = [np.asarray(c, dtype=float) for c in ([0.0, 0.0] + list(changes))[-3:]]
     c1, c2, c3 = np.broadcast_arrays(*last)
     out = np.zeros(c3.shape, dtype=bool)
     for i in np.ndindex(c3.shape):
-        out[i] = kernels_dense.iteration_converged(c1[i], c2[i], c3[i], len(changes), tol)
+        out[i] = compiled_dense.iteration_converged(c1[i], c2[i], c3[i], len(changes), tol)
     return out
 
 

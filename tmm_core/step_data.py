@@ -1,9 +1,9 @@
 """What a time step of :class:`tmm_core.TimeDomain` reads of a batch of configurations, besides
 its loads: the load-to-response maps (:class:`tmm_core.configuration_batch.StepMaps`) from the
-compiled factorization (:mod:`tmm_core.kernels_static`: every unit node load solved on one
+compiled factorization (:mod:`tmm_core.compiled.structure`: every unit node load solved on one
 factorization per configuration, in chunks of bounded working memory) or from the numpy one, or
 the stored compiled factorizations with the outputs' functionals
-(:class:`tmm_core.configuration_batch.StepFactors`, :mod:`tmm_core.kernels_factored`).
+(:class:`tmm_core.configuration_batch.StepFactors`, :mod:`tmm_core.compiled.time_step`).
 
 Owns: the step's maps and stored factorizations. Boundaries: which of them a batch gets, and
 everything else of a configuration, is :meth:`tmm_core.TimeDomain.configurations`.
@@ -14,7 +14,7 @@ import contextlib
 
 import numpy as np
 
-from . import structure_compiled
+from .compiled import statics as compiled_statics
 from .configuration_batch import StepFactors, StepMaps
 from .ked import segment_forces
 from .mechanism import torque_from_terms
@@ -70,12 +70,12 @@ def _compiled_maps(td, prep, P, drive):
     chunk = max(1, int(MAP_CHUNK_BYTES // (8.0 * (n + 1) * (2 * n + 6 * len(td.gauges) + 8))))
     for c0 in range(0, B, chunk):
         sl = slice(c0, min(B, c0 + chunk))
-        part = structure_compiled.Prepared(prep.structure, prep.case, lay, prep.angle[sl],
+        part = compiled_statics.Prepared(prep.structure, prep.case, lay, prep.angle[sl],
                                        {k: v[sl] for k, v in prep.origin.items()}, prep.factor[sl],
                                        prep.factor_given, prep.qloc[sl], prep.Kn[sl], prep.Fn[sl])
         # The responses to the unit loads and to the zero load (the last column), written into
         # the augmented maps (z: (b, n_dof, loads+1), N: (b, n_seg, loads+1)), then made relative.
-        (z, N, gstates), _, reaction, neg = structure_compiled.solve_prepared(
+        (z, N, gstates), _, reaction, neg = compiled_statics.solve_prepared(
             part, P[sl], check_buckling=False, count_inertia=True, node_loads=unit, compact_nodes=gauge_at,
             compact_out=(maps.Zx[sl], maps.Ax[sl] if axial else None))
         negative[sl] = neg
@@ -103,13 +103,13 @@ def _relative(x):
 
 def compiled_factors(td, prep, P, drive):
     """The map-free alternative: every configuration's compiled factorization kept
-    (:func:`tmm_core.structure_compiled.factor_prepared`) and the outputs' affine functionals of
+    (:func:`tmm_core.compiled.statics.factor_prepared`) and the outputs' affine functionals of
     the joint reactions and gauge states (their coefficients: the outputs of unit inputs;
     ``drive`` as :func:`compiled_maps`); returns a :class:`StepFactors` and the inertia count
     ``(B,)``."""
     B = len(P)
     lay = prep.layout
-    stored, negative = structure_compiled.factor_prepared(prep, P)
+    stored, negative = compiled_statics.factor_prepared(prep, P)
     gauge_at = gauge_nodes(td, lay)
     Ocx = output_functionals(td, prep, P, slice(0, B), drive, len(lay.labels), len(gauge_at))
     layout = (lay.seg_off, lay.rigid, np.ascontiguousarray(prep.angle), lay.ends, lay.free,
@@ -119,7 +119,7 @@ def compiled_factors(td, prep, P, drive):
 
 def output_functionals(td, part, P, sl, drive, nd, G):
     """The outputs (:class:`tmm_core.configuration_batch.OutputLayout`) of the configurations
-    ``sl`` of a batch (``part``: their :class:`structure_compiled.Prepared`, ``P (b, S)`` their
+    ``sl`` of a batch (``part``: their :class:`compiled_statics.Prepared`, ``P (b, S)`` their
     axial forces) as affine functionals of a solution's ``y``, its joint forces ``(nd,)`` [N, N m]
     then the right-side states ``(G, 6)`` at the gauge nodes: augmented ``(b, n_out, ny + 1)``
     (``outputs = Ocx[:, :, :-1] @ y + Ocx[:, :, -1]``). The drive torque reads only the joint

@@ -273,7 +273,7 @@ def factorize(structure: Structure, case: LoadCase, axial_force: Mapping[str, np
         raise SingularStructureError(f"instantaneous structure is singular: no stiffness at DOF(s) {dead}")
     dsafe = np.where(d > 0, d, 1.0)
     Ks = Ksym / dsafe[..., :, None] / dsafe[..., None, :]
-    # Inertia and conditioning from LDL^T pivots (Wittrick-Williams; as tmm_core.kernels_static).
+    # Inertia and conditioning from LDL^T pivots (Wittrick-Williams; as tmm_core.compiled.structure).
     piv = ldl_pivots(Ks)
     pmax = np.max(np.abs(piv), axis=-1)
     pmin = np.min(np.abs(piv), axis=-1)

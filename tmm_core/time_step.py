@@ -6,7 +6,7 @@ factorization (a dense map product or a Riccati load sweep). Second order ('dyna
 pseudo-loads of :mod:`tmm_core.second_order` iterated to convergence with Anderson mixing on the
 cached factorization, and refactorized at the step's own axial forces when that fails.
 
-Owns: :class:`StepSolver`, mixed into TimeDomain. The compiled march (:mod:`tmm_core.kernels`)
+Owns: :class:`StepSolver`, mixed into TimeDomain. The compiled march (:mod:`tmm_core.compiled.march`)
 does the same arithmetic and is checked against this code.
 """
 from __future__ import annotations
@@ -17,7 +17,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from . import kernels_factored
+from .compiled import time_step as compiled_time_step
 from .errors import ConvergenceError
 from .ked import segment_forces
 from .mechanism import torque_from_terms
@@ -200,7 +200,7 @@ class StepSolver:
                 arrays = (np.zeros((1, n, n + 1)), np.zeros((1, no, n + 1)), np.zeros((1, ns, n + 1)))
             data = tuple(np.ascontiguousarray(x, dtype=float) for x in arrays + (
                 cfg.P0 if dynamic else np.zeros((1, ns)), cfg.rigid, omega))
-            data += kernels_factored.march_arrays(fac, self.n_dof // 3, ns, no)
+            data += compiled_time_step.march_arrays(fac, self.n_dof // 3, ns, no)
             cfg.cache["kernel"] = data
         return data
 
@@ -240,7 +240,7 @@ def anderson_coefficients(dR, r):
     """Least-squares coefficients ``gamma`` of ``dR gamma = r`` (dR: (n, h), h <= ANDERSON_DEPTH)
     by modified Gram-Schmidt QR; a column whose remaining norm is below 1e-12 of the largest
     column's (a rank-deficient history) gets a zero coefficient. The same arithmetic as the
-    compiled march's (:mod:`tmm_core.kernels`), which it is checked against."""
+    compiled march's (:mod:`tmm_core.compiled.march`), which it is checked against."""
     h = dR.shape[1]
     Q = np.array(dR, dtype=float)
     R = np.zeros((h, h))

@@ -9,7 +9,7 @@ Speed: for every distinct crank position the solver factorizes the instantaneous
 and stores the dense maps from nodal loads to nodal displacements, drive torque, gauge strains
 and segment axial forces (unit loads pushed through the Riccati factorization, batched). A
 constant-speed run re-uses the maps of one revolution and marches them in the compiled kernel
-(:mod:`tmm_core.kernels`); other crank histories are processed in chunks.
+(:mod:`tmm_core.compiled.march`); other crank histories are processed in chunks.
 
 Public: :class:`TimeDomain` (``configurations``, ``step_loads``, ``solve_step``, ``begin``,
 ``run``). Owns the building of the configuration batches (:class:`tmm_core.ConfigurationBatch`:
@@ -23,7 +23,7 @@ from typing import Callable, Mapping, Sequence
 
 import numpy as np
 
-from . import kernels, structure_compiled
+from .compiled import march as compiled_march, statics as compiled_statics
 from .configuration_batch import ConfigurationBatch, CrankStates, OutputLayout
 from .errors import ConvergenceError, DynamicStabilityError, InputError, require_positive
 from .integrators import get_integrator
@@ -48,7 +48,7 @@ from .time_step import AXIAL_FORCE_MODELS, DYNAMIC_TERMS, StepSolver
 # link (and within max_map_bytes); beyond, the sweeps keep the cost linear in the segment count.
 MAP_MAX_DOF = 320
 # With the compiled factorization the alternative to the maps is the compiled march on the stored
-# factorizations (tmm_core.kernels_factored): a set-up of one factorization per configuration
+# factorizations (tmm_core.compiled.time_step): a set-up of one factorization per configuration
 # instead of n_dof + 1 solves, a step 2-4x dearer at small models and cheaper from ~200 DOFs.
 # Measured (set-up of one revolution maps / factors, then per step; 2-core machine): FE rig
 # 4 segments per link, 1 deg (30 DOFs) 23 / 8 ms, 2.9 / 11.0 us; Alexander-Lawrence 4 segments
@@ -86,7 +86,7 @@ class TimeDomain(StepSolver):
     dynamic_terms : the second-order terms of the 'dynamic' step: 'shortening' (axial shortening
         from bending) and 'axial_force' (the step's own axial force in the bending equations).
     compiled : march configurations with cached maps or stored factorizations in the compiled
-        kernel (:mod:`tmm_core.kernels`); the numpy path is the reference and the fallback.
+        kernel (:mod:`tmm_core.compiled.march`); the numpy path is the reference and the fallback.
     gravity : gravity vector [m/s^2] in the mechanism plane, or None.
     gauges : gauges whose strains are recorded.
     max_map_bytes : memory budget for the stored load-to-response maps or factorizations of a
@@ -98,9 +98,9 @@ class TimeDomain(StepSolver):
                  max_map_bytes: float = MAX_STEP_DATA_BYTES, axial_force: str = "dynamic", axial_tolerance: float = 1e-8,
                  axial_iterations: int = 60, dynamic_terms: tuple = DYNAMIC_TERMS, compiled: bool = True):
         self.mech = mech
-        #: March cached configurations in the compiled kernel (tmm_core.kernels) when numba is
+        #: March cached configurations in the compiled kernel (tmm_core.compiled.march) when numba is
         #: installed; False keeps the numpy reference path.
-        self.compiled = bool(compiled) and kernels.AVAILABLE
+        self.compiled = bool(compiled) and compiled_march.AVAILABLE
         if not set(dynamic_terms) <= set(DYNAMIC_TERMS):
             raise InputError(f"dynamic_terms must be a subset of {DYNAMIC_TERMS}, got {dynamic_terms!r}")
         #: The second-order terms the 'dynamic' step carries (both by default; one alone is for
@@ -270,18 +270,18 @@ class TimeDomain(StepSolver):
 
         prep = None
         if maps is not False and compiled:
-            # The maps come from the compiled factorization (tmm_core.kernels_static); without
+            # The maps come from the compiled factorization (tmm_core.compiled.structure); without
             # them ('factors', or too many DOFs or bytes) the compiled factorizations are kept
-            # instead (tmm_core.kernels_factored: linear in the segments), within the same memory
+            # instead (tmm_core.compiled.time_step: linear in the segments), within the same memory
             # budget. The numpy factor is built only if a step asks for it (ConfigurationBatch.factor).
-            prep = structure_compiled.prepare(self.structure, LoadCase(joints_flat, {}, {}, Kn, frame="local"),
+            prep = compiled_statics.prepare(self.structure, LoadCase(joints_flat, {}, {}, Kn, frame="local"),
                                               stiffness_factor=factors)
-            if not with_maps and structure_compiled.stored_bytes(prep) > self.max_map_bytes:
+            if not with_maps and compiled_statics.stored_bytes(prep) > self.max_map_bytes:
                 prep = None
         step_factors = None
         drive = mech.drive_torque_terms(motion, self.gravity)
         if prep is not None:
-            P_stacked = structure_compiled.stack_segments(prep, P or {})
+            P_stacked = compiled_statics.stack_segments(prep, P or {})
             if with_maps:
                 maps, negative = step_data.compiled_maps(self, prep, P_stacked, drive)
             else:
@@ -315,9 +315,9 @@ class TimeDomain(StepSolver):
     @property
     def compiled_factorization(self) -> bool:
         """Build the configurations' load-to-response maps in the compiled factorization
-        (:mod:`tmm_core.kernels_static`): with ``compiled``, for a structure of joints and members
+        (:mod:`tmm_core.compiled.structure`): with ``compiled``, for a structure of joints and members
         whose members are the elastic links in order."""
-        if not self.compiled or not structure_compiled.AVAILABLE or not structure_compiled.supported(self.structure):
+        if not self.compiled or not compiled_statics.AVAILABLE or not compiled_statics.supported(self.structure):
             return False
         return [m.name for m in self.structure.members] == [l.name for l in self.links] and \
             all(m.n_segments + 1 == l.n_nodes for m, l in zip(self.structure.members, self.links))

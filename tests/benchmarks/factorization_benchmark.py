@@ -1,4 +1,4 @@
-"""Benchmark (not a test): the compiled factorization (tmm_core.kernels_static) against the numpy
+"""Benchmark (not a test): the compiled factorization (tmm_core.compiled.structure) against the numpy
 reference, side by side in one process, and the compiled march's cost per step (issue 15).
 
 On the FE crank-rocker at 241 rpm (rigid crank, rotating-frame terms):

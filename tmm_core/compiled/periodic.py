@@ -27,7 +27,7 @@ n_state right-hand sides (measured 0.7-1 s per revolution of 720 steps on the FE
 linear pass, 0.14 s per monodromy, of which about half is the per-step solve for W.
 
 Kernels are compiled on first use and cached on disk (numba ``cache=True``, in the compiled
-layer's keyed folder: an edit of any kernel file starts a fresh cache, :mod:`tmm_core.kernel_cache`).
+layer's keyed folder: an edit of any kernel file starts a fresh cache, :mod:`tmm_core.compiled.cache`).
 
 Owns: the compiled linearized revolutions. Boundaries: the numpy path in tmm_core.periodic is
 the reference; the step's maps and data come from :meth:`tmm_core.TimeDomain.kernel_data`.
@@ -36,10 +36,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import kernel_cache
-from .kernel_binding import single
+from . import cache
+from .binding import single
 
-AVAILABLE = kernel_cache.AVAILABLE
+AVAILABLE = cache.AVAILABLE
 
 
 def integrator_coefficients(integrator, dt: float):

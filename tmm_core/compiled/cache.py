@@ -2,8 +2,8 @@
 cold.
 
 Numba checks a cached kernel against the source file that defines it only, while the kernels
-call (and inline) functions of other files: after an edit of ``kernels_dense.py`` a kernel of
-``kernels_static.py`` would be loaded stale from the cache. So the whole compiled layer shares one
+call (and inline) functions of other files: after an edit of ``dense.py`` a kernel of
+``structure.py`` would be loaded stale from the cache. So the whole compiled layer shares one
 cache folder keyed by the SHA-256 of its sources and numba's version
 (:data:`COMPILED_SOURCES`): an edit of any of them, or another numba, starts an empty folder by
 itself, and the folders of other keys beside the package are removed. Every kernel module gets numba through
@@ -34,12 +34,16 @@ from pathlib import Path
 COMPILE_ESTIMATE_S = 50.0
 
 HERE = Path(__file__).resolve().parent
-#: The files numba compiles the kernels from: every ``kernels*.py``, ``matrices.py`` (its
-#: constants are compiled into them) and the binding (its numba options are part of what is
-#: compiled); the compiled structure solve's Python driver (``structure_compiled.py``) is not. A test checks that the
-#: kernels import nothing else of tmm_core at module level but the errors and this module.
-COMPILED_SOURCES = ("kernels.py", "kernels_dense.py", "kernels_factor.py", "kernels_factored.py", "kernels_maps.py",
-                    "kernels_periodic.py", "kernels_reduced.py", "kernels_static.py", "matrices.py", "kernel_binding.py")
+#: The package the compiled sources are named relative to (tmm_core).
+ROOT = HERE.parent
+#: The files numba compiles the kernels from: every kernel module of ``compiled/``,
+#: ``matrices.py`` (its constants are compiled into them) and the binding (its numba options are
+#: part of what is compiled); the Python drivers (``compiled/statics.py``, this module) are not.
+#: A test checks that the kernels import nothing else of tmm_core at module level but these, the
+#: errors and this module.
+COMPILED_SOURCES = ("compiled/march.py", "compiled/dense.py", "compiled/riccati.py", "compiled/time_step.py",
+                    "compiled/step_data.py", "compiled/periodic.py", "compiled/reduced_periodic.py",
+                    "compiled/structure.py", "compiled/binding.py", "matrices.py")
 PREFIX = "kernels-"
 #: Whether numba is installed: without it the numpy reference path runs everything.
 AVAILABLE = importlib.util.find_spec("numba") is not None
@@ -52,7 +56,7 @@ def _numba_version() -> str | None:
         return None
 
 
-def sources_key(folder: Path = HERE) -> str:
+def sources_key(folder: Path = ROOT) -> str:
     """16 hex digits of the SHA-256 of the compiled sources (names and bytes) and numba's version."""
     h = hashlib.sha256((_numba_version() or "").encode())
     for name in COMPILED_SOURCES:
@@ -66,12 +70,12 @@ def cache_root() -> Path:
     package)."""
     if os.environ.get("NUMBA_CACHE_DIR"):
         return Path(os.environ["NUMBA_CACHE_DIR"])
-    if os.access(HERE, os.W_OK):
-        return HERE / "__pycache__"
+    if os.access(ROOT, os.W_OK):
+        return ROOT / "__pycache__"
     return Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache")) / "flexlink-bench"
 
 
-def cache_dir(folder: Path = HERE) -> Path:
+def cache_dir(folder: Path = ROOT) -> Path:
     """The compiled layer's cache folder for its sources (in ``folder``) as they are now."""
     return cache_root() / f"{PREFIX}{sources_key(folder)}"
 
@@ -84,7 +88,7 @@ def remove_stale(current: Path) -> None:
     for folder in current.parent.glob(f"{PREFIX}*"):
         if folder.is_dir() and folder.name != current.name and len(folder.name) == len(current.name):
             shutil.rmtree(folder, ignore_errors=True)
-    if current.parent == HERE / "__pycache__":
+    if current.parent == ROOT / "__pycache__":
         for stem in COMPILED_SOURCES:
             for old in current.parent.glob(f"{Path(stem).stem}.*.nb[ic]"):
                 old.unlink(missing_ok=True)
@@ -98,18 +102,18 @@ def numba_module():
     folder = cache_dir()
     with contextlib.suppress(OSError):
         folder.mkdir(parents=True, exist_ok=True)
-        if folder.parent == HERE / "__pycache__":      # this checkout's own: a shared folder may
+        if folder.parent == ROOT / "__pycache__":      # this checkout's own: a shared folder may
             remove_stale(folder)                        # hold other checkouts' current caches
     numba.config.CACHE_DIR = str(folder)
     return numba
 
 
-def cache_is_cold(folder: Path = HERE) -> bool:
+def cache_is_cold(folder: Path = ROOT) -> bool:
     """True when the cache folder of the compiled sources (in ``folder``) as they are now holds
-    no compiled march (``kernels.march-*.nbi``), so the first use compiles every kernel
+    no compiled march (``march.march-*.nbi``), so the first use compiles every kernel
     (~COMPILE_ESTIMATE_S). Cheap: a directory listing. False without numba (nothing is
     compiled)."""
     if _numba_version() is None:
         return False
     cache = cache_dir(folder)
-    return not (cache.is_dir() and any(cache.rglob("kernels.march-*.nbi")))
+    return not (cache.is_dir() and any(cache.rglob("march.march-*.nbi")))

@@ -2,7 +2,7 @@
 load-to-response maps of :func:`tmm_core.step_data.compiled_maps` solve every unit node load of a
 configuration (``n_dof + 1`` load sets) on one factorization.
 
-:func:`tmm_core.kernels_static.solve_loads` (the reference, kept for one load set: the stored
+:func:`tmm_core.compiled.structure.solve_loads` (the reference, kept for one load set: the stored
 factorizations' solve of a time step calls it per iteration) does the load sweep, the joint solve
 and the back-substitution one load set at a time in scalar 3x3 / 6x6 arithmetic. Here the same
 arithmetic, in the same order for every load set, runs with the load set as the innermost,
@@ -22,10 +22,10 @@ Alexander-Lawrence, 4 segments per link, 360 positions, 46 load sets: 11.3 -> 3.
 20-21 -> 12.7-12.9 ms.
 
 Owns: the many-load-set compact solve (:func:`solve_loads_many`) and its scratch
-(:func:`maps_scratch`). Boundaries: the factorization is :mod:`tmm_core.kernels_factor`, the
-one-load-set solve and the batch loop :mod:`tmm_core.kernels_static`, which compiles this module's
-functions (:func:`tmm_core.kernel_binding.static_solve`); an edit here starts a fresh cache
-by itself (:mod:`tmm_core.kernel_cache`).
+(:func:`maps_scratch`). Boundaries: the factorization is :mod:`tmm_core.compiled.riccati`, the
+one-load-set solve and the batch loop :mod:`tmm_core.compiled.structure`, which compiles this module's
+functions (:func:`tmm_core.compiled.binding.static_solve`); an edit here starts a fresh cache
+by itself (:mod:`tmm_core.compiled.cache`).
 """
 from __future__ import annotations
 
@@ -158,9 +158,9 @@ def copy_sweep(mi, l0, l1, src, m, first, pcol, cs, ys, af):
 def solve_loads_many(bi, Fn, seg_off, rigid, angle, ends, free, q_out, reaction, zout, nout, gnode, gstate, R, M, nd,
                      nf, lead, prefix, lcol, B0, T220, SP, TL, Gis, Xs, BGis, HGis, Cs, Ds, Af, Bf, firsts, Kfull, lu,
                      piv, scratch):
-    """:func:`tmm_core.kernels_static.solve_loads` for ``R`` load sets and the compact outputs only
+    """:func:`tmm_core.compiled.structure.solve_loads` for ``R`` load sets and the compact outputs only
     (``zout``, ``nout``, ``gstate``, with ``q_out`` and ``reaction``; units and layout as
-    :func:`tmm_core.kernels_static.solve_range`), vectorized across the load sets; ``scratch`` from
+    :func:`tmm_core.compiled.structure.solve_range`), vectorized across the load sets; ``scratch`` from
     :func:`maps_scratch` (one per batch loop: the transposed loads are kept between configurations
     when ``Fn`` has no batch entries)."""
     FT, ranges, filled, pcol, cs, ys, af, rfull, xf, qv, S0, st, zc, F5 = scratch
@@ -216,7 +216,7 @@ def solve_loads_many(bi, Fn, seg_off, rigid, angle, ends, free, q_out, reaction,
             rfull[e0, ri] += cp * q0 + sn * q1
             rfull[e1, ri] += -sn * q0 + cp * q1
             rfull[e2, ri] += q2
-    # -- joint solve (kernels_dense.lu_solve's order), displacements and joint forces -------
+    # -- joint solve (dense.lu_solve's order), displacements and joint forces -------
     for i in range(nf):
         src = free[piv[i]]
         for ri in range(Rp):

@@ -1,11 +1,11 @@
-"""Python side of the compiled factorization (:mod:`tmm_core.kernels_static`): which structures it
+"""Python side of the compiled factorization (:mod:`tmm_core.compiled.structure`): which structures it
 handles (:func:`supported`), their layout, the stacked arrays of a batch of configurations
 (:func:`prepare`), the solve with its singularity and buckling checks (:func:`solve_prepared`) and
 the compiled equivalents of :func:`tmm_core.structure.solve_linear` and
-:func:`tmm_core.statics.solve_static` (see :mod:`tmm_core.kernels_static` for the method and scope).
+:func:`tmm_core.statics.solve_static` (see :mod:`tmm_core.compiled.structure` for the method and scope).
 
 Owns: the Python side of the compiled factorization: layout, preparation, solves, the quasi-
-static iteration. Boundaries: no numba code (tmm_core.kernels_static); the numpy path
+static iteration. Boundaries: no numba code (tmm_core.compiled.structure); the numpy path
 (tmm_core.structure) stays the reference.
 """
 from __future__ import annotations
@@ -17,20 +17,21 @@ from typing import Mapping
 
 import numpy as np
 
-from . import kernel_binding, kernels_factored, kernels_static
-from .buckling import buckling_message, clamped_clamped_buckling_count
-from .errors import BucklingError, ConvergenceError, InputError, SingularStructureError, require_finite
-from .kernel_cache import numba_module
-from .matrices import frame_rotation
-from .statics import StaticSolution, change_scales, change_weights
-from .structure import LinearSolution, LoadCase, MemberResult, factorize, support_reactions
+from . import binding
+from . import structure as structure_kernel, time_step as time_step_kernel
+from ..buckling import buckling_message, clamped_clamped_buckling_count
+from ..errors import BucklingError, ConvergenceError, InputError, SingularStructureError, require_finite
+from .cache import numba_module
+from ..matrices import frame_rotation
+from ..statics import StaticSolution, change_scales, change_weights
+from ..structure import LinearSolution, LoadCase, MemberResult, factorize, support_reactions
 
-AVAILABLE = kernels_static.AVAILABLE
+AVAILABLE = structure_kernel.AVAILABLE
 
 
 def supported(structure) -> bool:
     """Does the compiled path handle this structure (joints and members only, see
-    :mod:`tmm_core.kernels_static`)?"""
+    :mod:`tmm_core.compiled.structure`)?"""
     if structure.springs or structure.rigid_bodies or structure.sliders:
         return False
     if any(j.support not in ("free", "pinned", "clamped") for j in structure.joints):
@@ -200,7 +201,7 @@ def solve_prepared(prep: Prepared, P: np.ndarray, *, check_buckling: bool = True
     last, as the columns of a map). ``compact_out``: C-contiguous arrays ``(B, 3 Nn, R)`` and
     ``(B, S, R)`` (or None) the node displacements and axial forces are written into (e.g. the
     caller's maps: no second copy). Raises :class:`SingularStructureError` and, with
-    ``check_buckling``, :class:`BucklingError` (:mod:`tmm_core.kernels_static`)."""
+    ``check_buckling``, :class:`BucklingError` (:mod:`tmm_core.compiled.structure`)."""
     # A writable copy: the kernel is compiled for writable arrays (an iteration updates P).
     P = np.array(np.broadcast_to(np.asarray(P, dtype=float), prep.factor.shape))
     s = _tension_parameter(prep, P)
@@ -286,12 +287,12 @@ def _run(prep, P, check_buckling, count_inertia, node_loads, compact_nodes, iter
     pivots = np.empty((B, 2))
     status = np.zeros(B, dtype=np.int64)
     iterations, last_change = np.ones(B, dtype=np.int64), np.zeros(B)
-    solve_range, iteration_start = kernel_binding.static_solve()
+    solve_range, iteration_start = binding.static_solve()
     chunks = _thread_chunks(B, B * Fn.shape[1])
     linear_states = None if cond_limit is None else np.empty((B, 1, Nn, 2, 6))
     if linear_states is not None:       # written by the call (not the default's shared array)
         start, scales = linear_states[:, 0], np.zeros(2)
-    inputs = (kernels_static.INV_FACT, lay.seg_off, lay.L, lay.EA, lay.EI, lay.rigid, prep.factor, P, prep.qloc,
+    inputs = (structure_kernel.INV_FACT, lay.seg_off, lay.L, lay.EA, lay.EI, lay.rigid, prep.factor, P, prep.qloc,
               prep.Kn, Fn, prep.angle, lay.ends, lay.free, count)
     outputs = (q, reaction, negative, pivots, status, zout, nout, gnode, gstate)
     control = (np.asarray(weights, dtype=float),
@@ -357,8 +358,8 @@ def _in_parts(kernel, B: int, chunks: int, *args) -> None:
 def factor_prepared(prep: Prepared, P: np.ndarray, *, cond_limit: float = 1e12):
     """The compiled factorization of every configuration of a :class:`Prepared` batch at the
     stacked segment axial forces ``P (B, S)``, kept for later solves
-    (:mod:`tmm_core.kernels_factored`): ``(stored, inertia count (B,))``, ``stored`` the arrays of
-    :data:`tmm_core.kernels_factored.STORED` with the batch axis first. Raises
+    (:mod:`tmm_core.compiled.time_step`): ``(stored, inertia count (B,))``, ``stored`` the arrays of
+    :data:`tmm_core.compiled.time_step.STORED` with the batch axis first. Raises
     :class:`SingularStructureError` as :func:`solve_prepared` (no buckling check: the caller
     reads the inertia count)."""
     P = np.array(np.broadcast_to(np.asarray(P, dtype=float), prep.factor.shape))
@@ -371,13 +372,13 @@ def factor_prepared(prep: Prepared, P: np.ndarray, *, cond_limit: float = 1e12):
     # flexible segment) are kept up to that index only.
     nlead = 2 + 2 * max(int(np.argmax(~lay.rigid[lay.seg_off[i]:lay.seg_off[i + 1]])) for i in range(M))
     shapes = stored_shapes(np.diff(lay.seg_off), nd, nf, nlead)
-    stored = tuple(np.zeros((B,) + shapes[k], dtype=np.int64 if k in kernels_factored.INTEGER else float)
-                   for k in kernels_factored.STORED)
+    stored = tuple(np.zeros((B,) + shapes[k], dtype=np.int64 if k in time_step_kernel.INTEGER else float)
+                   for k in time_step_kernel.STORED)
     negative = np.zeros((B, 2), dtype=np.int64)
     pivots = np.empty((B, 2))
     status = np.zeros(B, dtype=np.int64)
-    factor_range, _ = kernel_binding.factored()
-    args = (kernels_static.INV_FACT, lay.seg_off, lay.L, lay.EA, lay.EI, lay.rigid, prep.factor, P, prep.qloc, prep.Kn,
+    factor_range, _ = binding.factored()
+    args = (structure_kernel.INV_FACT, lay.seg_off, lay.L, lay.EA, lay.EI, lay.rigid, prep.factor, P, prep.qloc, prep.Kn,
             prep.angle, lay.ends, lay.free, np.ones(M, dtype=np.bool_), negative, pivots, status, stored)
     _in_parts(factor_range, B, _thread_chunks(B, B), *args)
     return stored, _checked(prep, P, s, (None, None, None, negative, pivots, status), False, cond_limit)[3]
@@ -396,7 +397,7 @@ def stored_bytes_per_configuration(member_segments, joint_dofs: int = 0, free_do
 
 
 def stored_shapes(member_segments, joint_dofs: int, free_dofs: int, nlead: int) -> dict:
-    """Shapes of one configuration's stored factorization (:data:`tmm_core.kernels_factored.STORED`):
+    """Shapes of one configuration's stored factorization (:data:`tmm_core.compiled.time_step.STORED`):
     ``member_segments`` of each member, ``nlead`` chain matrices kept before the first
     deformable segment's (its index + 1)."""
     M = len(member_segments)
@@ -466,7 +467,7 @@ def solve_linear(structure, case, axial_force: Mapping[str, np.ndarray] | None =
     """Compiled equivalent of :func:`tmm_core.structure.solve_linear` (small deflection, no chord
     rotation) for a :func:`supported` structure and a one-dimensional batch of configurations.
     Returns a :class:`tmm_core.structure.LinearSolution`; raises the same errors (singular
-    structure, buckling), decided from the pivots of the factorization (:mod:`tmm_core.kernels_static`)."""
+    structure, buckling), decided from the pivots of the factorization (:mod:`tmm_core.compiled.structure`)."""
     prep = prepare(structure, case, stiffness_factor)
     P = stack_segments(prep, axial_force or {})
     res = solve_prepared(prep, P, check_buckling=check_buckling, cond_limit=cond_limit, count_inertia=count_inertia)

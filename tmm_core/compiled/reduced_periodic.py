@@ -27,7 +27,7 @@ products (BLAS through ``np.dot``, single-threaded at these sizes). The outputs 
 stage state (maps built once by the caller) plus the shortening of the gauge segments.
 
 Compiled on first use and cached on disk (numba ``cache=True``, in the compiled layer's keyed
-folder: an edit of any kernel file starts a fresh cache, :mod:`tmm_core.kernel_cache`).
+folder: an edit of any kernel file starts a fresh cache, :mod:`tmm_core.compiled.cache`).
 
 Owns: the compiled revolution of the reduced model. Boundaries: the equations and the data (stage
 matrices, output maps) come from tmm_core.reduced_periodic; no numpy fallback here.
@@ -36,9 +36,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import kernel_cache
+from . import cache
 
-AVAILABLE = kernel_cache.AVAILABLE
+AVAILABLE = cache.AVAILABLE
 #: Refactorize while the chord iteration contracts slower than this (update ratio).
 CHORD_CONTRACTION = 0.03
 #: The stage Newton iteration's tolerance (update relative to the stage accelerations) and

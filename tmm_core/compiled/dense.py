@@ -1,12 +1,12 @@
-"""Small dense helpers of the compiled factorization (:mod:`tmm_core.kernels_static`): Stumpff
+"""Small dense helpers of the compiled factorization (:mod:`tmm_core.compiled.structure`): Stumpff
 functions, 3x3 inverse and product, LDL^T inertia, LU with partial pivoting, the sparse blocks of a
 segment's field matrix, and the beam-column iteration's change and stopping rule. Plain Python here;
-:func:`tmm_core.kernel_binding.static_solve` compiles them (numba, cached on disk) and binds the
+:func:`tmm_core.compiled.binding.static_solve` compiles them (numba, cached on disk) and binds the
 compiled objects where the kernels look them up.
 
 Owns: the small dense numba helpers of the compiled factorization (Stumpff functions, 3x3
 algebra, LDL^T inertia, LU). Boundaries: no structure knowledge; compiled by
-tmm_core.kernel_binding.static_solve.
+tmm_core.compiled.binding.static_solve.
 """
 from __future__ import annotations
 
@@ -14,7 +14,7 @@ import math
 
 import numpy as np
 
-from .matrices import SERIES_LIMIT
+from ..matrices import SERIES_LIMIT
 
 
 def stumpff(s, inv_fact, out):
@@ -138,8 +138,8 @@ def iteration_start(start, P, seg_off, L, EI, factor, rigid, negative, pivots, s
                     check_buckling):
     """Between the linear solve of a batch (station states ``start (B, Nn, 2, 6)``) and its
     beam-column iteration, in the driver call that does both
-    (:func:`tmm_core.structure_compiled.iterate_prepared`). True if the linear solve passes the checks
-    of :func:`tmm_core.structure_compiled._checked` (``status`` 0, pivot ratio below
+    (:func:`tmm_core.compiled.statics.iterate_prepared`). True if the linear solve passes the checks
+    of :func:`tmm_core.compiled.statics._checked` (``status`` 0, pivot ratio below
     ``cond_limit``, with ``check_buckling`` no negative pivot), its states are finite and the
     tension parameters ``P L^2 / EI`` of the initial axial forces stay below 700^2 (cosh
     overflow); then ``scales (2,)`` holds the batch's change scales (as

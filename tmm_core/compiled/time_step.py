@@ -1,11 +1,11 @@
 """Compiled factorizations kept per configuration, and a time step's solve on them (numba): the
-map-free path of the compiled march (:mod:`tmm_core.kernels`).
+map-free path of the compiled march (:mod:`tmm_core.compiled.march`).
 
 The load-to-response maps of :mod:`tmm_core.step_data` cost ``n_dof + 1`` solves per
 configuration to build and ``O(n_dof^2)`` memory and work per step: quadratic in the segments.
-Here every configuration's factorization (:func:`tmm_core.kernels_factor.factor_configuration`:
+Here every configuration's factorization (:func:`tmm_core.compiled.riccati.factor_configuration`:
 the members' Riccati factors, the joint stiffness and its LU factors) is stored as it is, and a
-step's iteration solves its loads on it (:func:`tmm_core.kernels_static.solve_loads`: the load
+step's iteration solves its loads on it (:func:`tmm_core.compiled.structure.solve_loads`: the load
 sweep, the joint solve and the back-substitution): ``O(segments)`` memory and work, linear in
 the segments. The outputs (drive torque, gauge strains) are affine in the joint reactions and the
 gauges' station states; their coefficients per configuration come from the Python side
@@ -13,17 +13,17 @@ gauges' station states; their coefficients per configuration come from the Pytho
 
 Owns: the stored factorizations (:func:`factor_range`, a range of a batch's configurations) and the solve of
 one set of node loads on one of them (:func:`factored_solve`). Boundaries: the factorization and
-the load solve themselves are :mod:`tmm_core.kernels_factor` and :mod:`tmm_core.kernels_static`.
+the load solve themselves are :mod:`tmm_core.compiled.riccati` and :mod:`tmm_core.compiled.structure`.
 """
 from __future__ import annotations
 
 import numpy as np
 
-from . import kernels_factor, kernels_static
+from . import riccati, structure
 
-factor_configuration = kernels_factor.factor_configuration
-factor_scratch = kernels_factor.factor_scratch
-solve_loads = kernels_static.solve_loads
+factor_configuration = riccati.factor_configuration
+factor_scratch = riccati.factor_scratch
+solve_loads = structure.solve_loads
 
 #: The stored arrays of a batch (name: dimensions, the batch axis included), in the order of the
 #: tuple the march reads; :data:`INTEGER` ones are int64, the others float64.
@@ -36,7 +36,7 @@ def factor_range(b_start, b_stop, inv_fact, seg_off, L, EA, EI, rigid, factor, P
                  negative, pivots, status, stored):
     """Factorize the configurations ``b_start <= b < b_stop`` into ``stored`` (the arrays of
     :data:`STORED`, each with the batch axis first; inputs and ``negative``, ``pivots``,
-    ``status`` as :func:`tmm_core.kernels_static.solve_range`)."""
+    ``status`` as :func:`tmm_core.compiled.structure.solve_range`)."""
     lead, prefix, lcol, B0, T220, SP, TL, Gis, Xs, BGis, HGis, Cs, Ds, Af, Bf, firsts, Kfull, lu, piv = stored
     M = seg_off.shape[0] - 1
     nd = Kfull.shape[1]

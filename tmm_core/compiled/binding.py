@@ -9,7 +9,7 @@ command line and the numpy path never import numba): the static solve (factoriza
 solve of a batch of configurations), the stored factorizations, the march, the reduced model's
 revolution, and single kernels without helpers of their own (the periodic solver's).
 
-The on-disk cache is :mod:`tmm_core.kernel_cache`'s, keyed by every kernel file: an edit of any
+The on-disk cache is :mod:`tmm_core.compiled.cache`'s, keyed by every kernel file: an edit of any
 of them compiles afresh by itself.
 
 Owns: compiling and binding the kernels, the registry of compiled entry points and their numba
@@ -17,17 +17,18 @@ options. Boundaries: no arithmetic (the kernel modules), no cache policy (kernel
 """
 from __future__ import annotations
 
-from . import kernels, kernels_dense, kernels_factor, kernels_factored, kernels_maps, kernels_reduced, kernels_static
-from .kernel_cache import numba_module
+from . import dense, reduced_periodic, riccati, step_data, structure, time_step
+from . import march as march_kernel     # beside the stage function march() below
+from .cache import numba_module
 
-#: The dense helpers every factorization and solve calls (tmm_core.kernels_dense).
+#: The dense helpers every factorization and solve calls (tmm_core.compiled.dense).
 DENSE = ("stumpff", "inv3", "mm3", "ldl_inertia", "lu_factor", "lu_solve", "segment_blocks", "full6", "state_change",
          "iteration_converged", "iteration_start")
-#: The load solve's helpers on many load sets (tmm_core.kernels_maps).
+#: The load solve's helpers on many load sets (tmm_core.compiled.step_data).
 MAPS = ("sweep_member", "copy_sweep", "maps_scratch", "solve_loads_many")
-#: The march's helpers (tmm_core.kernels).
+#: The march's helpers (tmm_core.compiled.march).
 MARCH = ("history", "advance", "shape_products", "affine", "anderson_coefficients")
-#: The reduced revolution's helpers (tmm_core.kernels_reduced).
+#: The reduced revolution's helpers (tmm_core.compiled.reduced_periodic).
 REDUCED = ("dot", "lu_factor", "lu_solve", "subtract_rows", "lu_solve_many", "second_order", "stage_states",
            "newton_matrix")
 
@@ -45,58 +46,58 @@ def _bind(jit, module, names, into=()) -> None:
 
 
 def static_solve():
-    """``(solve_range, iteration_start)``: :func:`tmm_core.kernels_static.solve_range` compiled
+    """``(solve_range, iteration_start)``: :func:`tmm_core.compiled.structure.solve_range` compiled
     without the GIL (the Python driver runs a batch's parts on threads), with the factorization,
     the load solves and the dense helpers bound where they are called, and the beam-column
-    iteration's start (:func:`tmm_core.kernels_dense.iteration_start`)."""
+    iteration's start (:func:`tmm_core.compiled.dense.iteration_start`)."""
     if "static" not in _ENTRY:
         numba = numba_module()
         jit = numba.njit(cache=True, error_model="numpy")
-        _bind(jit, kernels_dense, DENSE, into=(kernels_factor, kernels_static))
-        _bind(jit, kernels_factor, ("factor_configuration", "factor_scratch"), into=(kernels_static, kernels_factored))
-        _bind(jit, kernels_maps, MAPS, into=(kernels_static,))
-        _bind(jit, kernels_static, ("solve_loads",), into=(kernels_factored,))
-        _bind(numba.njit(cache=True, error_model="numpy", nogil=True), kernels_static, ("solve_range",))
-        _ENTRY["static"] = kernels_static.solve_range, kernels_dense.iteration_start
+        _bind(jit, dense, DENSE, into=(riccati, structure))
+        _bind(jit, riccati, ("factor_configuration", "factor_scratch"), into=(structure, time_step))
+        _bind(jit, step_data, MAPS, into=(structure,))
+        _bind(jit, structure, ("solve_loads",), into=(time_step,))
+        _bind(numba.njit(cache=True, error_model="numpy", nogil=True), structure, ("solve_range",))
+        _ENTRY["static"] = structure.solve_range, dense.iteration_start
     return _ENTRY["static"]
 
 
 def factored():
-    """``(factor_range, factored_solve)`` of :mod:`tmm_core.kernels_factored`, compiled (the
+    """``(factor_range, factored_solve)`` of :mod:`tmm_core.compiled.time_step`, compiled (the
     stored factorizations of a range of a batch, without the GIL; the solve on one of them,
     inlined where it is called)."""
     if "factored" not in _ENTRY:
         numba = numba_module()
         static_solve()                               # the factorization and the load solve it calls
-        _bind(numba.njit(cache=True, error_model="numpy", nogil=True), kernels_factored, ("factor_range",))
-        _bind(numba.njit(cache=True, error_model="numpy", inline="always"), kernels_factored, ("factored_solve",),
-              into=(kernels,))
-        _ENTRY["factored"] = kernels_factored.factor_range, kernels_factored.factored_solve
+        _bind(numba.njit(cache=True, error_model="numpy", nogil=True), time_step, ("factor_range",))
+        _bind(numba.njit(cache=True, error_model="numpy", inline="always"), time_step, ("factored_solve",),
+              into=(march_kernel,))
+        _ENTRY["factored"] = time_step.factor_range, time_step.factored_solve
     return _ENTRY["factored"]
 
 
 def march():
-    """:func:`tmm_core.kernels.march`, compiled with its helpers and the stored-factorization solve."""
+    """:func:`tmm_core.compiled.march.march`, compiled with its helpers and the stored-factorization solve."""
     if "march" not in _ENTRY:
         numba = numba_module()
         factored()
         # Reassociation lets LLVM vectorise the map products (dot-product reductions); no other
         # fast-math flag: the march tests for non-finite values.
         jit = numba.njit(cache=True, fastmath={"reassoc", "contract"})
-        _bind(jit, kernels, MARCH)
-        _ENTRY["march"] = jit(kernels.march)
+        _bind(jit, march_kernel, MARCH)
+        _ENTRY["march"] = jit(march_kernel.march)
     return _ENTRY["march"]
 
 
 def reduced_revolution():
-    """:func:`tmm_core.kernels_reduced.revolution`, compiled with its helpers."""
+    """:func:`tmm_core.compiled.reduced_periodic.revolution`, compiled with its helpers."""
     if "reduced" not in _ENTRY:
         numba = numba_module()
         # error_model "numpy": a singular Newton matrix gives inf/nan (the step then fails to
         # converge, as in the numpy path) instead of raising ZeroDivisionError in the kernel.
         jit = numba.njit(cache=True, error_model="numpy")
-        _bind(jit, kernels_reduced, REDUCED)
-        _ENTRY["reduced"] = jit(kernels_reduced.revolution)
+        _bind(jit, reduced_periodic, REDUCED)
+        _ENTRY["reduced"] = jit(reduced_periodic.revolution)
     return _ENTRY["reduced"]
 
 

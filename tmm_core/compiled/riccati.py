@@ -1,10 +1,10 @@
-"""The factorization phase of the compiled solve (:func:`tmm_core.kernels_static.solve_range`) for
+"""The factorization phase of the compiled solve (:func:`tmm_core.compiled.structure.solve_range`) for
 one configuration: the Riccati condensation of every member (:func:`tmm_core.riccati.factor_chain`),
 the assembled joint system, its inertia and pivots (LDL^T) and its LU factors. Compiled by
-:func:`tmm_core.kernel_binding.static_solve`.
+:func:`tmm_core.compiled.binding.static_solve`.
 
 Owns: the factorization phase of one configuration in the compiled kernel. Boundaries: no loads
-(tmm_core.kernels_static.solve_loads).
+(tmm_core.compiled.structure.solve_loads).
 """
 from __future__ import annotations
 
@@ -12,7 +12,7 @@ import math
 
 import numpy as np
 
-from .kernels_dense import full6, inv3, ldl_inertia, lu_factor, mm3, segment_blocks
+from .dense import full6, inv3, ldl_inertia, lu_factor, mm3, segment_blocks
 
 
 def factor_scratch(nf):
@@ -28,7 +28,7 @@ def factor_configuration(bi, inv_fact, seg_off, L, EA, EI, rigid, factor, P, qlo
                          negative, pivots, status, M, nd, nf, lead, prefix, lcol, B0, T220, SP, TL, Gis, Xs, BGis,
                          HGis, Cs, Ds, Af, Bf, firsts, Kc, T6, t6, tmp6, Kfull, Kff, Ks, lu, piv, work, c5, sp, T11,
                          T12, T21, T22, A, Bm, C, D, t1, t2, zi, fi):
-    """Factorize configuration ``bi`` into the work arrays of :func:`tmm_core.kernels_static.solve_range`
+    """Factorize configuration ``bi`` into the work arrays of :func:`tmm_core.compiled.structure.solve_range`
     (load-independent member factors, joint stiffness ``Kfull``, LU factors ``lu``, ``piv``) and set its
     ``status``, ``negative`` and ``pivots`` entries. False if the joint system is singular."""
     status[bi] = 0

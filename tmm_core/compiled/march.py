@@ -16,7 +16,7 @@ estimated axial forces leave the dynamic system indefinite) is handed back: the 
 before it and returns its index, and the caller solves that step with the numpy path (which
 refactorizes at the step's own axial forces) and resumes.
 
-Kernels are compiled on first use by :mod:`tmm_core.kernel_binding` and cached on disk. Integrator codes:
+Kernels are compiled on first use by :mod:`tmm_core.compiled.binding` and cached on disk. Integrator codes:
 0 Newmark (average acceleration), 1 Houbolt, 2 generalized-alpha.
 
 Owns: the compiled march. Boundaries: the numpy path (tmm_core.time_step) stays the reference.
@@ -25,13 +25,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import kernel_cache
-from .kernels_factored import factored_solve  # the compiled one once bound (tmm_core.kernel_binding)
+from . import cache
+from .time_step import factored_solve  # the compiled one once bound (tmm_core.compiled.binding)
 
 # numba is imported (and the kernels compiled or loaded from its cache) on first use only, by
-# tmm_core.kernel_binding: the command line and the numpy path do not pay for it. Without numba
+# tmm_core.compiled.binding: the command line and the numpy path do not pay for it. Without numba
 # the numpy path still works.
-AVAILABLE = kernel_cache.AVAILABLE
+AVAILABLE = cache.AVAILABLE
 
 NEWMARK, HOUBOLT, GENERALIZED_ALPHA = 0, 1, 2
 INTEGRATOR_CODES = {"newmark": NEWMARK, "houbolt": HOUBOLT, "generalized_alpha": GENERALIZED_ALPHA}
@@ -158,7 +158,7 @@ def march(code, params, dt, c_a, c_v, idx,
     the outputs of each step into ``out_hist`` / ``z_hist`` / ``P_hist`` (rows; an array with no
     rows is not written) and its iteration count. The responses come from the augmented maps
     ``Zx, Ox, Ax`` (:class:`tmm_core.configuration_batch.StepMaps`) or, with ``factored``, from
-    solves on the stored factorizations (:func:`tmm_core.kernels_factored.factored_solve`:
+    solves on the stored factorizations (:func:`tmm_core.compiled.time_step.factored_solve`:
     ``flayout, fstored, fwork``; the outputs ``Ocx`` applied to ``y``).
     Returns the number of steps done (``len(idx)`` unless a step failed: then the state is that
     of the step before it)."""

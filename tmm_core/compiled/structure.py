@@ -21,15 +21,15 @@ at its buckling load), compared with ``cond_limit``.
 
 Scope: structures of joints and members (pinned, clamped and free joints; pin and rigid member
 connections; rigid segments): the four-bars and the linkages without springs, plates or
-sliders. :func:`tmm_core.structure_compiled.supported` says whether a structure qualifies; the
+sliders. :func:`tmm_core.compiled.statics.supported` says whether a structure qualifies; the
 callers use the numpy path otherwise. Kernels are compiled on first use and cached on disk (numba
 ``cache=True``).
 
 Modules: this one holds the kernel (:func:`solve_range` and its load-solve phase
-:func:`solve_loads`); :mod:`tmm_core.kernels_factor` the factorization phase,
-:mod:`tmm_core.kernels_maps` the load solve of many load sets with compact outputs (the maps,
-vectorized across the load sets: 3x faster there), :mod:`tmm_core.kernels_dense` the small dense
-helpers, :mod:`tmm_core.structure_compiled` the Python driver (layout, checks, the compiled
+:func:`solve_loads`); :mod:`tmm_core.compiled.riccati` the factorization phase,
+:mod:`tmm_core.compiled.step_data` the load solve of many load sets with compact outputs (the maps,
+vectorized across the load sets: 3x faster there), :mod:`tmm_core.compiled.dense` the small dense
+helpers, :mod:`tmm_core.compiled.statics` the Python driver (layout, checks, the compiled
 ``solve_linear`` and ``solve_static``).
 
 The beam-column iteration runs in the kernel too, one configuration at a time to its own
@@ -37,7 +37,7 @@ tolerance (the loop of :func:`tmm_core.statics.solve_static`): no solves for con
 that have converged, and one call per part of the batch for the whole iteration.
 
 Threads: the kernel releases the GIL (``nogil``), and the Python driver
-(:mod:`tmm_core.structure_compiled`) runs the parts of a batch on a thread pool, each part an
+(:mod:`tmm_core.compiled.statics`) runs the parts of a batch on a thread pool, each part an
 independent range of configurations (so the result does not depend on the split). Numba's own
 parallel loops did the same, but compiling them took about as long as every other kernel
 together on a 2-core machine (the parallel lowering of a 60-argument loop body).
@@ -54,12 +54,13 @@ import math
 
 import numpy as np
 
-from . import kernel_cache, matrices
-from .kernels_dense import iteration_converged, iteration_start, lu_solve, state_change
-from .kernels_factor import factor_configuration, factor_scratch
-from .kernels_maps import maps_scratch, solve_loads_many
+from . import cache
+from .. import matrices
+from .dense import iteration_converged, iteration_start, lu_solve, state_change
+from .riccati import factor_configuration, factor_scratch
+from .step_data import maps_scratch, solve_loads_many
 
-AVAILABLE = kernel_cache.AVAILABLE
+AVAILABLE = cache.AVAILABLE
 
 INV_FACT = np.array(matrices.INV_FACT)        # the Stumpff series' 1/k! (the numpy path's table)
 
@@ -91,7 +92,7 @@ def solve_range(b_start, b_stop, inv_fact, seg_off, L, EA, EI, rigid, factor, P,
     Iteration (``R`` = 1, every station state): it starts from the linear solution ``start
     (B, Nn, 2, 6)`` (the first solve), with ``P`` its axial forces, and returns the last axial
     forces in ``P``; ``weights (6,)`` and ``scales (2,)`` of the change
-    (:func:`tmm_core.kernels_dense.state_change`); ``iterations (B,)`` solves made (the first
+    (:func:`tmm_core.compiled.dense.state_change`); ``iterations (B,)`` solves made (the first
     included), ``last_change (B,)``; ``status`` 3 a non-finite iterate, 4 not converged in
     ``max_iter`` solves; ``count`` the members to count, or with ``count from P`` recounted
     before every solve (the members in compression)."""
@@ -217,12 +218,12 @@ def solve_loads(bi, Fn, seg_off, rigid, angle, ends, free, states, q_out, reacti
                 nd, nf, full, compact, lead, prefix, lcol, B0, T220, SP, TL, Gis, Xs, BGis, HGis, Cs, Ds, Af, Bf,
                 firsts, Kfull, lu, piv, pcol, ys, cs, af, t6, t1, t2, a, c, y, v3, rfull, rhs, xf, qv, zl, zs, ze, qe,
                 S0, zj, stn, zi, fi):
-    """Solve the factorized configuration ``bi`` (:func:`tmm_core.kernels_factor.factor_configuration`)
+    """Solve the factorized configuration ``bi`` (:func:`tmm_core.compiled.riccati.factor_configuration`)
     for every load set: the load sweep (:func:`tmm_core.riccati.sweep_loads`), the joint solve and the
     back-substitution to the station states (outputs as :func:`solve_range`). One load set at a
     time: the one-load-set callers (a time step on the stored factorizations, the quasi-static
     solves); many load sets with compact outputs go to
-    :func:`tmm_core.kernels_maps.solve_loads_many`."""
+    :func:`tmm_core.compiled.step_data.solve_loads_many`."""
     # -- every load set: load sweep (tmm_core.riccati.sweep_loads), joint solve, states ------
     fb = bi if Fn.shape[0] > 1 else 0
     for ri in range(R):
