@@ -233,7 +233,7 @@ def test_public_entry_points_take_few_parameters():
 
 
 def test_every_compiled_entry_point_has_its_reference_and_equality_test():
-    """The compiled/reference pairs (:data:`PAIRS`, listed in the README's Layout) name tests
+    """The compiled/reference pairs (:data:`PAIRS`, listed in docs/architecture.md) name tests
     that exist, and every stage tmm_core.kernel_binding compiles is among them."""
     for compiled, reference, test in PAIRS:
         path, name = test.split("::")

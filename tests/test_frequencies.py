@@ -62,7 +62,8 @@ def test_frequencies_over_a_revolution_and_independence_of_the_mesh():
     f16 = fourbar_frequencies(alexander_lawrence(16), th[:2], 3, 500.0)
     assert f4.shape == (8, 3) and np.all(np.isfinite(f4))
     np.testing.assert_allclose(f4[:2], f16, rtol=1e-8)
-    # reference_checks.md: the coupler's first bending mode is near 47 Hz, the 7th harmonic of 400 rpm.
+    # docs/validation.md, "Damping decides the coupler response near 400 rpm": the coupler's first
+    # bending mode is near 47 Hz, the 7th harmonic of 400 rpm.
     assert np.all((f4[:, 0] > 40) & (f4[:, 0] < 50))
 
 

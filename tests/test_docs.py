@@ -1,0 +1,196 @@
+"""The documents keep their word (issue 36, "the front door"):
+
+* the README stays a front door: at most 300 lines and no dated measurement (history goes to
+  CHANGELOG.md);
+* every code block of README.md and docs/*.md runs: ```python blocks are executed (from a
+  temporary working directory in which a short run has written ``logs/<scenario>-<timestamp>``),
+  ```toml blocks are parsed, every line of a ```bash block is checked: ``cosim`` commands parse
+  with the command line's own parser, ``python -m`` modules and ``python`` scripts exist, ``make``
+  targets are in the Makefile; ```text blocks are drawings and are not run;
+* docs/benchmarks.md's tables are the ones bench_table.py prints from the latest results file;
+* no document, test, scenario, script or module names a repository file that does not exist,
+  and every relative link of a document resolves (the research notes the bench was built from are
+  not in the repository: what it relies on of them is written in docs/validation.md).
+"""
+from __future__ import annotations
+
+import re
+import shlex
+import tomllib
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parent.parent
+DOCUMENTS = [ROOT / "README.md", ROOT / "CHANGELOG.md", *sorted((ROOT / "docs").glob("*.md"))]
+FENCE = re.compile(r"^```(\w*)\n(.*?)^```", re.S | re.M)
+KINDS = ("python", "toml", "bash", "text")
+
+
+def _blocks(kind: str):
+    for doc in DOCUMENTS:
+        for n, m in enumerate(FENCE.finditer(doc.read_text(encoding="utf-8"))):
+            if m.group(1) == kind:
+                yield pytest.param(doc, m.group(2), id=f"{doc.relative_to(ROOT).as_posix()}#{n}")
+
+
+def test_the_readme_is_a_front_door():
+    text = (ROOT / "README.md").read_text(encoding="utf-8")
+    assert len(text.splitlines()) <= 300
+    assert not re.findall(r"\b20\d\d-\d\d-\d\d\b", text), "dated measurements belong in CHANGELOG.md"
+
+
+def test_every_code_block_is_of_a_kind_the_tests_run():
+    for doc in DOCUMENTS:
+        for m in FENCE.finditer(doc.read_text(encoding="utf-8")):
+            assert m.group(1) in KINDS, f"{doc.name}: a ```{m.group(1)} block; this test runs {KINDS}"
+
+
+# -- python blocks ---------------------------------------------------------------------------
+
+@pytest.fixture(scope="module")
+def workdir(tmp_path_factory):
+    """A working directory with one short run in ``logs/crank_rocker_95rpm-<timestamp>`` (MuJoCo
+    alone, one revolution: what the documents' ``load_run`` examples read)."""
+    from cosim.run import RunOptions, run_scenario
+    wd = tmp_path_factory.mktemp("docs")
+    res = run_scenario("crank_rocker_95rpm", RunOptions(engines=("mujoco",), revolutions=1,
+                                                        out=wd / "logs" / "crank_rocker_95rpm-doc",
+                                                        viewer="none", progress=False))
+    assert res.summary["status"] == "completed", res.summary
+    return wd
+
+
+@pytest.mark.parametrize("doc, code", list(_blocks("python")))
+def test_python_blocks_run(doc, code, workdir, monkeypatch):
+    import matplotlib
+    matplotlib.use("Agg")
+    monkeypatch.chdir(workdir)
+    exec(compile(code.replace("<timestamp>", "doc"), f"{doc.name} block", "exec"), {"__name__": "__doc_block__"})
+
+
+# -- toml blocks -----------------------------------------------------------------------------
+
+@pytest.mark.parametrize("doc, code", list(_blocks("toml")))
+def test_toml_blocks_parse(doc, code):
+    tomllib.loads(code)
+
+
+# -- bash blocks -----------------------------------------------------------------------------
+
+def _commands(code: str):
+    """The commands of a shell block: continuation lines joined, comments dropped."""
+    for line in code.replace("\\\n", " ").splitlines():
+        words = shlex.split(line, comments=True)
+        if words:
+            yield words
+
+
+def _check_command(words: list[str]) -> None:
+    from cosim.cli import build_parser
+    prog, *args = words
+    if prog in (".venv/bin/cosim", "cosim"):
+        build_parser().parse_args(args)                     # exits (a failure here) on a bad option
+    elif prog in (".venv/bin/python", "python", "python3"):
+        if args[:2] == ["-m", "cosim"]:
+            build_parser().parse_args(args[2:])
+        elif args[:2] == ["-m", "pip"]:
+            assert args[2] == "install" and all(a.startswith("-") or a.startswith(".[") for a in args[3:]), args
+        elif args[0] == "-m":
+            module = ROOT / args[1].replace(".", "/")
+            assert module.with_suffix(".py").is_file() or (module / "__init__.py").is_file(), args[1]
+        else:
+            assert (ROOT / args[0]).is_file(), args[0]
+    elif prog == "make":
+        targets = re.findall(r"^([\w-]+):", (ROOT / "Makefile").read_text(), re.M)
+        assert args and all(a in targets for a in args), (args, targets)
+    elif prog in (".venv/bin/rerun", ".venv/bin/jupyter"):
+        assert all((ROOT / a).exists() for a in args if "/" in a and "<" not in a), args
+    else:
+        raise AssertionError(f"a command this test does not know how to check: {' '.join(words)}")
+
+
+@pytest.mark.parametrize("doc, code", list(_blocks("bash")))
+def test_shell_blocks_are_commands_that_exist_and_parse(doc, code):
+    for words in _commands(code):
+        try:
+            _check_command(words)
+        except SystemExit as exc:                           # argparse's refusal
+            raise AssertionError(f"{doc.name}: {' '.join(words)} does not parse") from exc
+
+
+# -- generated documents ---------------------------------------------------------------------
+
+def test_the_benchmark_document_shows_the_latest_results():
+    from tests.benchmarks import bench_table
+    assert (ROOT / "docs" / "benchmarks.md").read_text(encoding="utf-8") == bench_table.document(), \
+        "run: python -m tests.benchmarks.bench_table --doc"
+
+
+# -- files named -----------------------------------------------------------------------------
+
+#: Where a named file is looked for: the repository's own top-level folders.
+TOP = ("cosim", "tmm_core", "tests", "scenarios", "docs", "examples", "benchmarks")
+PATH = re.compile(r"(?<![\w./-])((?:%s)/[\w./*-]*[\w*/])" % "|".join(TOP))
+BARE = re.compile(r"(?<![\w./-])([\w-]+\.md)\b")
+LINK = re.compile(r"\]\(([^)#\s]+)(?:#[^)]*)?\)")
+SOURCES = [*DOCUMENTS, *sorted(p for p in ROOT.glob("tests/**/*.py") if p.name != "test_docs.py"), *sorted(ROOT.glob("scenarios/**/*.toml")),
+           *sorted(ROOT.glob("scenarios/*.py")), *sorted(ROOT.glob("cosim/**/*.py")),
+           *sorted(ROOT.glob("tmm_core/**/*.py")), *sorted(ROOT.glob("examples/*.py")),
+           ROOT / "Makefile", ROOT / "pyproject.toml"]
+
+
+def _exists(name: str) -> bool:
+    name = name.split("::")[0].rstrip(".")
+    if any(c in name for c in "*"):
+        return any(ROOT.glob(name))
+    return (ROOT / name).exists()
+
+
+def _named(path: Path):
+    text = path.read_text(encoding="utf-8")
+    for m in PATH.finditer(text):
+        name = m.group(1)
+        if "<" in text[m.end():m.end() + 1] or text[m.end():m.end() + 1] in "{<":
+            continue                                        # a placeholder: scenarios/<name>.toml
+        yield name
+    for m in BARE.finditer(text):
+        yield m.group(1)
+
+
+def test_every_file_named_exists():
+    md_names = {p.name for p in ROOT.rglob("*.md") if ".venv" not in p.parts}
+    missing = []
+    for path in SOURCES:
+        for name in _named(path):
+            if name.endswith(".md") and "/" not in name:
+                ok = name in md_names
+            else:
+                ok = _exists(name)
+            if not ok:
+                missing.append(f"{path.relative_to(ROOT).as_posix()}: {name}")
+    assert not missing, "named but not in the repository:\n" + "\n".join(sorted(set(missing)))
+
+
+def test_every_relative_link_of_a_document_resolves():
+    broken = []
+    for doc in DOCUMENTS:
+        for m in LINK.finditer(doc.read_text(encoding="utf-8")):
+            target = m.group(1)
+            if not re.match(r"^[a-z]+:", target) and not (doc.parent / target).exists():
+                broken.append(f"{doc.name}: {target}")
+    assert not broken, broken
+
+
+def test_every_anchor_of_a_document_link_exists():
+    """``[text](file.md#anchor)``: the anchor is a heading of that file (GitHub's slugs)."""
+    def slugs(doc: Path) -> set[str]:
+        heads = re.findall(r"^#+ (.+)$", FENCE.sub("", doc.read_text(encoding="utf-8")), re.M)
+        return {re.sub(r"[^\w\- ]", "", h.lower()).replace(" ", "-") for h in heads}
+    broken = []
+    for doc in DOCUMENTS:
+        for target, anchor in re.findall(r"\]\(([^)#\s]*)#([^)\s]+)\)", doc.read_text(encoding="utf-8")):
+            file = doc if not target else doc.parent / target
+            if file.suffix == ".md" and anchor not in slugs(file):
+                broken.append(f"{doc.name}: {target}#{anchor}")
+    assert not broken, broken
