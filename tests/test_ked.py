@@ -21,7 +21,8 @@ def test_quasi_static_rocker_midspan_matches_closed_form():
     """Linear kineto-elastostatics of the rocker: pinned at D and C, it is a simply supported beam
     under its own inertia load rho A alpha x, so the midspan bending stress is
     (3/8) rho alpha4 L^3 / h at every crank position (docs/validation.md, "Shin's Alexander-Lawrence
-    stresses sit about 2.7x above a closed form"), tension on the -y face for alpha4 > 0. The bearing masses sit on the coupler ends and load the rocker only at C."""
+    stresses sit about 2.7x above a closed form"), tension on the -y face for alpha4 > 0. The
+    bearing masses sit on the coupler ends and load the rocker only at C."""
     mech = alexander_lawrence(16)
     th = np.radians(np.arange(0.0, 360.0, 2.0))
     qs = quasi_static(mech, th, W400, beam_column=False, gauges=[ROCKER_MID])

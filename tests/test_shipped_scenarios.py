@@ -12,7 +12,8 @@ Each pinned number comes from something other than the engine under test:
 * the flexible-crank variant: its first natural frequency at crank angle 0 from exudyn's
   eigenvalue analysis, against the transfer-matrix frequency search;
 * Shin's static structures are pinned to Shin's tables in tests/test_multiloop.py.
-Values measured 2026-11-24.
+Values measured 2026-11-24; ``python -m tests.benchmarks.pinned_references`` regenerates every one
+of them from its reference (not run in CI: the refined exudyn runs take minutes each).
 """
 import math
 
