@@ -1,7 +1,7 @@
 """FE crank-rocker rig (7/10/12/11 in aluminium) at 95, 241 and 373 rpm: steady-state midspan strain peaks.
 
 Transfer-matrix time-domain analysis (generalized-alpha) of the strain-gauged rig of the FE
-thesis (notes seed002 §3): bending and axial strain at the midspan of the coupler and of the
+thesis: bending and axial strain at the midspan of the coupler and of the
 output link (rocker), over the last steady revolution, and the quasi-static (kineto-elastostatic)
 peaks beside them. The thesis's Table I holds the measured peaks for comparison (records issue).
 

@@ -260,7 +260,7 @@ def test_wang_composite_with_viscoelastic_links_reaches_a_steady_state():
                     axial_force="quasi_static")     # the second-order step has no viscoelastic axial history
     assert r.steady
     w = r.displacements["coupler"][-180:, 3, 1]          # span mid-node (between the housings)
-    assert 0.05e-3 < np.ptp(w) < 1.0e-3                  # order of the notes' re-run (tenths of a mm)
+    assert 0.05e-3 < np.ptp(w) < 1.0e-3                  # order of a re-run of Wang's program made when reading the thesis (tenths of a mm)
 
 
 def test_incremental_march_reproduces_the_batched_run():
