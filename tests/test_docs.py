@@ -150,10 +150,9 @@ def _exists(name: str) -> bool:
 def _named(path: Path):
     text = path.read_text(encoding="utf-8")
     for m in PATH.finditer(text):
-        name = m.group(1)
-        if "<" in text[m.end():m.end() + 1] or text[m.end():m.end() + 1] in "{<":
+        if text[m.end():m.end() + 1] in ("<", "{"):
             continue                                        # a placeholder: scenarios/<name>.toml
-        yield name
+        yield m.group(1)
     for m in BARE.finditer(text):
         yield m.group(1)
 

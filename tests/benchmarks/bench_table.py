@@ -30,9 +30,9 @@ KINDS = {"bench": "The full run", "parts": "The parts run alone", "overhead": "T
 
 
 def latest_results(kind: str = "bench") -> Path:
-    """The newest kept run of a kind (``<kind>-<date>[-<label>].json``; the date orders them, and
-    of one day only the last is kept)."""
-    files = sorted(RESULTS.glob(f"{kind}-*.json"))
+    """The newest kept run of a kind (``<kind>-<date>[-<label>].json``): the date orders them, and
+    within a day the file's time (of one day only the last is kept)."""
+    files = sorted(RESULTS.glob(f"{kind}-*.json"), key=lambda f: (f.name[len(kind) + 1:][:8], f.stat().st_mtime))
     if not files:
         raise FileNotFoundError(f"no {kind}-*.json under {RESULTS}")
     return files[-1]
