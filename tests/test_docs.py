@@ -181,6 +181,31 @@ def test_no_citation_of_notes_outside_the_repository():
     assert not cited, cited
 
 
+SECTION = re.compile(r"\b(README|docs/[a-z-]+)(?:\.md)?(?:'s)?,? (?:section )?(?:\"([^\"\n]+)\"|'([^'\n]+)')")
+
+
+def test_every_section_named_in_the_code_exists():
+    """``docs/validation.md, "Engines that agree"``: a section a module, test or scenario points to
+    is a heading (or a bold paragraph's lead) of that document, so that moving a section breaks a
+    test instead of a pointer."""
+    def leads(doc: Path) -> list[str]:
+        text = doc.read_text(encoding="utf-8")
+        found = re.findall(r"^#+ (.+)$", text, re.M) + re.findall(r"^\*\*(.+?)\*\*", text, re.M)
+        return [_plain(h) for h in found]
+    stale = []
+    for path in SOURCES:
+        for m in SECTION.finditer(path.read_text(encoding="utf-8")):
+            doc = ROOT / (m.group(1) + ".md")
+            name = _plain(m.group(2) or m.group(3))
+            if not doc.is_file() or not any(h.startswith(name) for h in leads(doc)):
+                stale.append(f"{path.relative_to(ROOT).as_posix()}: {m.group(0)}")
+    assert not stale, stale
+
+
+def _plain(text: str) -> str:
+    return re.sub(r"[\"'`.:]", "", text).strip().lower()
+
+
 def test_every_relative_link_of_a_document_resolves():
     broken = []
     for doc in DOCUMENTS:
