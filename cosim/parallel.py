@@ -73,8 +73,8 @@ def start_worker(parent_pid: int) -> None:
     threading.Thread(target=_exit_with_parent, args=(parent_pid,), daemon=True, name="parent-watch").start()
     from threadpoolctl import threadpool_limits
     threadpool_limits(1, user_api="blas")
-    from tmm_core import kernels_static
-    kernels_static.THREADS = 1
+    from tmm_core import structure_compiled
+    structure_compiled.THREADS = 1
 
 
 #: How often a worker checks that its parent is alive [s].

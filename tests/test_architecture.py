@@ -46,8 +46,6 @@ LONG_FUNCTIONS = {
     "tmm_core.kernels_periodic.push": "compiled linearized step; issue 33 items 4-5 (one step)",
     "tmm_core.kernels_reduced.second_order": "reduced model's second-order step; issue 33 items 4-5",
     "tmm_core.kernels_reduced.revolution": "reduced model's revolution; issue 33 items 4-5",
-    "tmm_core.kernels_static.solve_batch": "compiled static solve, 32 parameters; issue 33 item 5",
-    "tmm_core.kernels_static.iterate_batch": "compiled beam-column iteration; issue 33 item 5",
     "tmm_core.kernels_static.solve_range": "compiled static solve; issue 33 item 5",
     "tmm_core.kernels_static.solve_loads": "compiled load solve, 63 parameters; issue 33 item 5",
     "tmm_core.linkage_kinematics.solve": "Shin's module kinematics in closed form; issue 33",
@@ -70,13 +68,14 @@ MAX_PUBLIC_PARAMETERS = 8
 #: Each compiled entry point beside the numpy reference it mirrors and the test that holds them
 #: equal (to 1e-12 relative unless the test says otherwise): (compiled, numpy reference, test).
 PAIRS = (
-    ("kernel_binding.static_solve: kernels_static.solve_batch", "structure.solve_linear, statics.solve_static",
+    ("kernel_binding.static_solve: kernels_static.solve_range", "structure.solve_linear, statics.solve_static",
      "tests/test_kernels.py::test_compiled_factorization_equals_numpy_for_a_beam_column_solve"),
-    ("kernel_binding.static_solve: kernels_static.iterate_batch", "ked.quasi_static (numpy beam-column iteration)",
+    ("kernel_binding.static_solve: kernels_static.solve_range, iteration_start (beam-column iteration)",
+     "ked.quasi_static (numpy beam-column iteration)",
      "tests/test_kernels.py::test_compiled_quasi_static_revolution_equals_numpy"),
     ("kernels_maps.solve_loads_many (load-to-response maps)", "step_data.numpy_maps",
      "tests/test_kernels.py::test_compiled_configuration_maps_equal_numpy"),
-    ("kernel_binding.factored: kernels_factored.factor_batch, factored_solve", "time_step.StepSolver (numpy step)",
+    ("kernel_binding.factored: kernels_factored.factor_range, factored_solve", "time_step.StepSolver (numpy step)",
      "tests/test_kernels.py::test_compiled_march_on_stored_factorizations_equals_numpy_over_a_revolution"),
     ("kernel_binding.march: kernels.march", "time_step.StepSolver (numpy step), integrators",
      "tests/test_kernels.py::test_compiled_march_equals_numpy_for_every_integrator_and_the_quasi_static_axial_force"),

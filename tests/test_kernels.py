@@ -196,7 +196,7 @@ def test_beam_column_iteration_that_cannot_meet_its_tolerance_fails_alike_in_bot
                                                     (40.0, 200, "buckling load")])
 def test_one_call_beam_column_iteration_equals_the_two_call_one(monkeypatch, speed, max_iter, error):
     """The compiled iteration of a batch in one call (linear solve, its checks, the change scales
-    and the iteration: kernels_static.iterate_batch, taken with more than one thread) against
+    and the iteration: structure_compiled._run with cond_limit, taken with more than one thread) against
     the linear solve and the iteration in two calls with the scales from numpy: the same
     results bit for bit, and the same error where the iteration or the linear solve fails
     (``speed`` x the rig's: 40x is above the first natural frequency, negative stiffness; 3

@@ -17,8 +17,6 @@ options. Boundaries: no arithmetic (the kernel modules), no cache policy (kernel
 """
 from __future__ import annotations
 
-import os
-
 from . import kernels, kernels_dense, kernels_factor, kernels_factored, kernels_maps, kernels_reduced, kernels_static
 from .kernel_cache import numba_module
 
@@ -47,35 +45,33 @@ def _bind(jit, module, names, into=()) -> None:
 
 
 def static_solve():
-    """``(solve_batch, iterate_batch)`` of :mod:`tmm_core.kernels_static`, compiled, with the
-    factorization, the load solves and the dense helpers bound where they are called."""
+    """``(solve_range, iteration_start)``: :func:`tmm_core.kernels_static.solve_range` compiled
+    without the GIL (the Python driver runs a batch's parts on threads), with the factorization,
+    the load solves and the dense helpers bound where they are called, and the beam-column
+    iteration's start (:func:`tmm_core.kernels_dense.iteration_start`)."""
     if "static" not in _ENTRY:
         numba = numba_module()
         jit = numba.njit(cache=True, error_model="numpy")
         _bind(jit, kernels_dense, DENSE, into=(kernels_factor, kernels_static))
         _bind(jit, kernels_factor, ("factor_configuration", "factor_scratch"), into=(kernels_static, kernels_factored))
         _bind(jit, kernels_maps, MAPS, into=(kernels_static,))
-        _bind(jit, kernels_static, ("solve_loads", "solve_range"), into=(kernels_factored,))
-        kernels_static.numba_prange = numba.prange
-        if "NUMBA_THREADING_LAYER" not in os.environ:
-            numba.config.THREADING_LAYER = kernels_static.THREADING_LAYER
-        parallel = numba.njit(cache=True, error_model="numpy", parallel=True)
-        _ENTRY["static"] = parallel(kernels_static.solve_batch), parallel(kernels_static.iterate_batch)
+        _bind(jit, kernels_static, ("solve_loads",), into=(kernels_factored,))
+        _bind(numba.njit(cache=True, error_model="numpy", nogil=True), kernels_static, ("solve_range",))
+        _ENTRY["static"] = kernels_static.solve_range, kernels_dense.iteration_start
     return _ENTRY["static"]
 
 
 def factored():
-    """``(factor_batch, factored_solve)`` of :mod:`tmm_core.kernels_factored`, compiled (the
-    stored factorizations of a batch, and the solve on one of them, inlined where it is called)."""
+    """``(factor_range, factored_solve)`` of :mod:`tmm_core.kernels_factored`, compiled (the
+    stored factorizations of a range of a batch, without the GIL; the solve on one of them,
+    inlined where it is called)."""
     if "factored" not in _ENTRY:
         numba = numba_module()
         static_solve()                               # the factorization and the load solve it calls
-        kernels_factored.numba_prange = numba.prange
-        _bind(numba.njit(cache=True, error_model="numpy"), kernels_factored, ("factor_range",))
+        _bind(numba.njit(cache=True, error_model="numpy", nogil=True), kernels_factored, ("factor_range",))
         _bind(numba.njit(cache=True, error_model="numpy", inline="always"), kernels_factored, ("factored_solve",),
               into=(kernels,))
-        batch = numba.njit(cache=True, error_model="numpy", parallel=True)(kernels_factored.factor_batch)
-        _ENTRY["factored"] = batch, kernels_factored.factored_solve
+        _ENTRY["factored"] = kernels_factored.factor_range, kernels_factored.factored_solve
     return _ENTRY["factored"]
 
 

@@ -137,8 +137,8 @@ def state_change(new, old, w, scales):
 def iteration_start(start, P, seg_off, L, EI, factor, rigid, negative, pivots, status, weights, scales, cond_limit,
                     check_buckling):
     """Between the linear solve of a batch (station states ``start (B, Nn, 2, 6)``) and its
-    beam-column iteration, in the compiled call that does both
-    (:func:`tmm_core.kernels_static.iterate_batch`). True if the linear solve passes the checks
+    beam-column iteration, in the driver call that does both
+    (:func:`tmm_core.structure_compiled.iterate_prepared`). True if the linear solve passes the checks
     of :func:`tmm_core.structure_compiled._checked` (``status`` 0, pivot ratio below
     ``cond_limit``, with ``check_buckling`` no negative pivot), its states are finite and the
     tension parameters ``P L^2 / EI`` of the initial axial forces stay below 700^2 (cosh

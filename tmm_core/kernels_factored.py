@@ -11,7 +11,7 @@ the segments. The outputs (drive torque, gauge strains) are affine in the joint 
 gauges' station states; their coefficients per configuration come from the Python side
 (:func:`tmm_core.step_data.compiled_factors`).
 
-Owns: the stored factorizations (:func:`factor_range`, :func:`factor_batch`) and the solve of
+Owns: the stored factorizations (:func:`factor_range`, a range of a batch's configurations) and the solve of
 one set of node loads on one of them (:func:`factored_solve`). Boundaries: the factorization and
 the load solve themselves are :mod:`tmm_core.kernels_factor` and :mod:`tmm_core.kernels_static`.
 """
@@ -21,7 +21,6 @@ import numpy as np
 
 from . import kernels_factor, kernels_static
 
-numba_prange = range      # numba.prange once compiled
 factor_configuration = kernels_factor.factor_configuration
 factor_scratch = kernels_factor.factor_scratch
 solve_loads = kernels_static.solve_loads
@@ -31,15 +30,6 @@ solve_loads = kernels_static.solve_loads
 STORED = {"lead": 5, "prefix": 5, "lcol": 3, "B0": 4, "T220": 4, "SP": 4, "TL": 4, "Gis": 5, "Xs": 5, "BGis": 5,
           "HGis": 5, "Cs": 5, "Ds": 5, "Af": 4, "Bf": 4, "firsts": 2, "Kfull": 3, "lu": 3, "piv": 2}
 INTEGER = ("firsts", "piv")
-
-
-def factor_batch(inv_fact, seg_off, L, EA, EI, rigid, factor, P, qloc, Kn, angle, ends, free, count, negative, pivots,
-                 status, stored, chunks):
-    """:func:`factor_range` over the whole batch in ``chunks`` parts, in parallel."""
-    B = P.shape[0]
-    for c in numba_prange(chunks):
-        factor_range(B * c // chunks, B * (c + 1) // chunks, inv_fact, seg_off, L, EA, EI, rigid, factor, P, qloc, Kn,
-                     angle, ends, free, count, negative, pivots, status, stored)
 
 
 def factor_range(b_start, b_stop, inv_fact, seg_off, L, EA, EI, rigid, factor, P, qloc, Kn, angle, ends, free, count,
@@ -108,10 +98,16 @@ def factored_solve(k, f, layout, stored, work, zn, N, y):
     M = seg_off.shape[0] - 1
     nd = Kfull.shape[1]
     nf = lu.shape[1]
-    solve_loads(0, Fn, seg_off, rigid, angle[k:k + 1], ends, free, states, q_out, reaction, zout, nout, gnode, gstate,
-                1, M, nd, nf, False, True, lead[k], prefix[k], lcol[k], B0[k], T220[k], SP[k], TL[k], Gis[k], Xs[k],
-                BGis[k], HGis[k], Cs[k], Ds[k], Af[k], Bf[k], firsts[k], Kfull[k], lu[k], piv[k], pcol, ys, cs, af, t6,
-                t1, t2, a, c, yv, v3, rfull, rhs, xf, qv, zl, zs, ze, qe, S0, zj, stn, zi, fi)
+    # Entry 0 of a one-entry batch, one load set, compact outputs only: read from the shapes, not
+    # written as constants, so that numba compiles solve_loads once (constants would be typed as
+    # literals and compile a second, specialised solve_loads).
+    entry, load_sets = Fn.shape[0] - 1, Fn.shape[1]
+    full, compact = states.shape[1] > 0, zout.shape[1] > 0
+    solve_loads(entry, Fn, seg_off, rigid, angle[k:k + 1], ends, free, states, q_out, reaction, zout, nout, gnode,
+                gstate, load_sets, M, nd, nf, full, compact, lead[k], prefix[k], lcol[k], B0[k], T220[k], SP[k],
+                TL[k], Gis[k], Xs[k], BGis[k], HGis[k], Cs[k], Ds[k], Af[k], Bf[k], firsts[k], Kfull[k], lu[k],
+                piv[k], pcol, ys, cs, af, t6, t1, t2, a, c, yv, v3, rfull, rhs, xf, qv, zl, zs, ze, qe, S0, zj, stn,
+                zi, fi)
     for i in range(3 * Nn):
         zn[i] = zout[0, i, 0]
     for s in range(N.shape[0]):

@@ -25,22 +25,22 @@ sliders. :func:`tmm_core.structure_compiled.supported` says whether a structure 
 callers use the numpy path otherwise. Kernels are compiled on first use and cached on disk (numba
 ``cache=True``).
 
-Modules: this one holds the kernel (:func:`solve_batch`, :func:`iterate_batch`, :func:`solve_range`
-and its load-solve phase :func:`solve_loads`); :mod:`tmm_core.kernels_factor` the factorization phase,
+Modules: this one holds the kernel (:func:`solve_range` and its load-solve phase
+:func:`solve_loads`); :mod:`tmm_core.kernels_factor` the factorization phase,
 :mod:`tmm_core.kernels_maps` the load solve of many load sets with compact outputs (the maps,
 vectorized across the load sets: 3x faster there), :mod:`tmm_core.kernels_dense` the small dense
 helpers, :mod:`tmm_core.structure_compiled` the Python driver (layout, checks, the compiled
 ``solve_linear`` and ``solve_static``).
 
 The beam-column iteration runs in the kernel too, one configuration at a time to its own
-tolerance (the loop of :func:`tmm_core.statics.solve_static`): one parallel region for the
-iteration instead of one per solve (each region's start woke the second thread, ~0.3-1 ms on a
-2-core machine), and no solves for configurations that have converged. With more than one
-thread the linear solve, its checks, the batch's change scales and the iteration are one call
-(:func:`iterate_batch`: two parallel loops, no Python between them; the second loop's start
-is cheap right after the first): a quasi-static revolution of the FE rig's 360 positions
-(8 segments per link, 2 cores) 12-14 -> 7.4-8.1 ms median (best 8.5-9.3 -> 7.3-7.7), bit for
-bit the same results.
+tolerance (the loop of :func:`tmm_core.statics.solve_static`): no solves for configurations
+that have converged, and one call per part of the batch for the whole iteration.
+
+Threads: the kernel releases the GIL (``nogil``), and the Python driver
+(:mod:`tmm_core.structure_compiled`) runs the parts of a batch on a thread pool, each part an
+independent range of configurations (so the result does not depend on the split). Numba's own
+parallel loops did the same, but compiling them took about as long as every other kernel
+together on a 2-core machine (the parallel lowering of a 60-argument loop body).
 
 Measured (FE rig at 241 rpm, 8 segments per link, 360 positions, side by side with numpy,
 ``tests/benchmarks/factorization_benchmark.py``): a beam-column quasi-static revolution 9-11x faster
@@ -60,56 +60,8 @@ from .kernels_factor import factor_configuration, factor_scratch
 from .kernels_maps import maps_scratch, solve_loads_many
 
 AVAILABLE = kernel_cache.AVAILABLE
-#: Threads of the compiled batch solve (None: numba's default, the number of cores). The
-#: configurations of a batch are independent; results do not depend on the thread count.
-THREADS: int | None = None
-#: numba's threading layer for it, unless NUMBA_THREADING_LAYER says otherwise. Measured on 2
-#: cores (quasi-static revolution, 8 segments per link): one thread 18 ms; two threads 11 ms with
-#: OpenMP and 12 ms with numba's own work queue on a free machine, but with another process on the
-#: second core 50 ms with OpenMP (its threads spin between the calls and take the core the numpy
-#: parts need) against 18 ms with the work queue. Sweep workers set one thread
-#: (cosim.parallel.one_thread_per_worker).
-THREADING_LAYER = "workqueue"
-numba_prange = range      # numba.prange once compiled
 
 INV_FACT = np.array(matrices.INV_FACT)        # the Stumpff series' 1/k! (the numpy path's table)
-
-def solve_batch(inv_fact, seg_off, L, EA, EI, rigid, factor, P, qloc, Kn, Fn, angle, ends, free, count,
-                states, q_out, reaction, negative, pivots, status, zout, nout, gnode, gstate, iteration, weights,
-                start, scales, iterations, last_change, chunks):
-    """:func:`solve_range` over the whole batch in ``chunks`` parts, in parallel (numba threads;
-    each configuration is independent, so the result does not depend on the split)."""
-    B = P.shape[0]
-    for c in numba_prange(chunks):
-        solve_range(B * c // chunks, B * (c + 1) // chunks, inv_fact, seg_off, L, EA, EI, rigid, factor, P, qloc,
-                    Kn, Fn, angle, ends, free, count, states, q_out, reaction, negative, pivots, status, zout, nout,
-                    gnode, gstate, iteration, weights, start, scales, iterations, last_change)
-
-
-def iterate_batch(inv_fact, seg_off, L, EA, EI, rigid, factor, P, qloc, Kn, Fn, angle, ends, free, count,
-                  states, q_out, reaction, negative, pivots, status, zout, nout, gnode, gstate, iteration, weights,
-                  start, scales, iterations, last_change, linear_states, cond_limit, check_buckling, chunks):
-    """The beam-column iteration of a batch in one call: the linear solve of every configuration
-    (``P`` zero; its states into ``linear_states (B, 1, Nn, 2, 6)``, of which ``start`` is the
-    view ``[:, 0]``), its checks, the change scales and the initial axial forces
-    (:func:`tmm_core.kernels_dense.iteration_start`), then the iteration (arguments as
-    :func:`solve_batch`). One Python call instead of two, and no numpy between the two parallel
-    loops (the scales' reduction alone took 0.4 ms). Returns False, without iterating, if the
-    linear solve fails a check (the caller repeats them in Python)."""
-    B = P.shape[0]
-    linear = (0.0, 1, False)
-    for c in numba_prange(chunks):
-        solve_range(B * c // chunks, B * (c + 1) // chunks, inv_fact, seg_off, L, EA, EI, rigid, factor, P, qloc,
-                    Kn, Fn, angle, ends, free, count, linear_states, q_out, reaction, negative, pivots, status, zout,
-                    nout, gnode, gstate, linear, weights, start, scales, iterations, last_change)
-    if not iteration_start(start, P, seg_off, L, EI, factor, rigid, negative, pivots, status, weights, scales,
-                           cond_limit, check_buckling):
-        return False
-    for c in numba_prange(chunks):
-        solve_range(B * c // chunks, B * (c + 1) // chunks, inv_fact, seg_off, L, EA, EI, rigid, factor, P, qloc,
-                    Kn, Fn, angle, ends, free, count, states, q_out, reaction, negative, pivots, status, zout, nout,
-                    gnode, gstate, iteration, weights, start, scales, iterations, last_change)
-    return True
 
 
 def solve_range(b_start, b_stop, inv_fact, seg_off, L, EA, EI, rigid, factor, P, qloc, Kn, Fn, angle, ends, free,

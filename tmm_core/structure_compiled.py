@@ -10,6 +10,8 @@ static iteration. Boundaries: no numba code (tmm_core.kernels_static); the numpy
 """
 from __future__ import annotations
 
+import concurrent.futures
+import functools
 from dataclasses import dataclass
 from typing import Mapping
 
@@ -109,7 +111,7 @@ def _to_local_stiffness(K, R3):
 
 @dataclass
 class Prepared:
-    """A structure and load case laid out for :func:`solve_batch` (everything but the axial
+    """A structure and load case laid out for the compiled solve (everything but the axial
     forces, which change from one beam-column iteration to the next)."""
 
     structure: object
@@ -211,8 +213,7 @@ def iterate_prepared(prep: Prepared, *, tol: float, max_iter: int, check_bucklin
                      cond_limit: float = 1e12, count_inertia: bool | None = None):
     """The beam-column iteration of every configuration of a :class:`Prepared` batch (the loop
     of :func:`tmm_core.statics.solve_static`, each configuration to its own tolerance): the
-    linear solve and the iteration in one compiled call with more than one thread
-    (:func:`tmm_core.kernels_static.iterate_batch`), else (and where the linear solve fails a
+    linear solve, its checks and the iteration in one driver call with more than one thread, else (and where the linear solve fails a
     check, to raise) one call each, the change scales from numpy. Returns ``(P (B, S) the last axial
     forces, (states, q, reaction, inertia count) of the last solve as :func:`solve_prepared`,
     solves made (B,), last relative change (B,))``. Raises :class:`ConvergenceError` where a
@@ -224,8 +225,8 @@ def iterate_prepared(prep: Prepared, *, tol: float, max_iter: int, check_bucklin
     B = prep.factor.shape[0]
     P = np.zeros(prep.factor.shape)
     out = None
-    # The linear solve and the iteration in one compiled call (parallel: one Python call, no
-    # numpy in between). It declines (None) if a check of the linear solve fails, and is not
+    # The linear solve and the iteration in one driver call (on the threads, no numpy in
+    # between). It declines (None) if a check of the linear solve fails, and is not
     # tried where a clamped-clamped buckling count would enter that check (s = 0 at P = 0
     # unless a stiffness is 0: see buckling.clamped_clamped_buckling_count).
     if _thread_chunks(B, B) > 1 and np.min(_tension_parameter(prep, P), initial=0.0) > -4.0 * np.pi**2:
@@ -237,7 +238,8 @@ def iterate_prepared(prep: Prepared, *, tol: float, max_iter: int, check_bucklin
         start = linear[0]
         scales = np.array(change_scales([start], weights))
         left = np.arange(int(lay.seg_off[-1])) + np.repeat(np.arange(len(lay.seg_off) - 1), np.diff(lay.seg_off))
-        P = np.where(lay.rigid, 0.0, 0.5 * (start[:, left, 1, 5] + start[:, left + 1, 0, 5]))
+        # C order: the kernel is compiled for C-contiguous arrays (another layout compiles it again).
+        P = np.ascontiguousarray(np.where(lay.rigid, 0.0, 0.5 * (start[:, left, 1, 5] + start[:, left + 1, 0, 5])))
         _tension_parameter(prep, P)
         out = _run(prep, P, check_buckling, count_inertia, None, None, iteration, weights, start, scales)
     status, iterations, last_change = out[5], out[6], out[7]
@@ -255,10 +257,11 @@ def _run(prep, P, check_buckling, count_inertia, node_loads, compact_nodes, iter
     """The compiled call: ``(states, q, reaction, negative, pivots, status, iterations,
     last_change)``; ``P`` is updated in place by an iteration (checked by the caller:
     :func:`_tension_parameter`). With ``cond_limit`` (and ``P`` zero, more than one thread):
-    the linear solve, its checks and the iteration in one call
-    (:func:`tmm_core.kernels_static.iterate_batch`), None if a check fails."""
+    the linear solve, its checks and the iteration in one call, None if a check fails."""
     lay = prep.layout
     B, S = prep.factor.shape
+    if not P.flags.c_contiguous:
+        raise ValueError("compiled solve: the axial forces must be C-contiguous (updated in place)")
     if count_inertia is None:
         count = np.array([check_buckling and bool(np.any(P[:, lay.seg_off[i]:lay.seg_off[i + 1]] < 0))
                           for i in range(len(lay.seg_off) - 1)], dtype=np.bool_)
@@ -283,24 +286,25 @@ def _run(prep, P, check_buckling, count_inertia, node_loads, compact_nodes, iter
     pivots = np.empty((B, 2))
     status = np.zeros(B, dtype=np.int64)
     iterations, last_change = np.ones(B, dtype=np.int64), np.zeros(B)
-    solve = kernel_binding.static_solve()[0]
+    solve_range, iteration_start = kernel_binding.static_solve()
     chunks = _thread_chunks(B, B * Fn.shape[1])
     linear_states = None if cond_limit is None else np.empty((B, 1, Nn, 2, 6))
     if linear_states is not None:       # written by the call (not the default's shared array)
         start, scales = linear_states[:, 0], np.zeros(2)
-    args = (kernels_static.INV_FACT, lay.seg_off, lay.L, lay.EA, lay.EI, lay.rigid, prep.factor, P, prep.qloc, prep.Kn,
-            Fn, prep.angle, lay.ends, lay.free, count, states, q, reaction, negative, pivots, status, zout, nout,
-            gnode, gstate, iteration, np.asarray(weights, dtype=float),
-            np.empty((B, 0, 2, 6)) if start is None else np.ascontiguousarray(start), np.asarray(scales, dtype=float),
-            iterations, last_change)
+    inputs = (kernels_static.INV_FACT, lay.seg_off, lay.L, lay.EA, lay.EI, lay.rigid, prep.factor, P, prep.qloc,
+              prep.Kn, Fn, prep.angle, lay.ends, lay.free, count)
+    outputs = (q, reaction, negative, pivots, status, zout, nout, gnode, gstate)
+    control = (np.asarray(weights, dtype=float),
+               np.empty((B, 0, 2, 6)) if start is None else np.ascontiguousarray(start),
+               np.asarray(scales, dtype=float), iterations, last_change)
     if linear_states is not None:
-        buckling = bool(check_buckling)
-        if not kernel_binding.static_solve()[1](*args, linear_states, float(cond_limit), buckling, chunks):
+        # The linear solve, its checks, the change scales and the initial axial forces
+        # (iteration_start), then the iteration: every part of the batch on the same call.
+        _in_parts(solve_range, B, chunks, *inputs, linear_states, *outputs, (0.0, 1, False), *control)
+        if not iteration_start(start, P, lay.seg_off, lay.L, lay.EI, prep.factor, lay.rigid, negative, pivots,
+                               status, control[0], scales, float(cond_limit), bool(check_buckling)):
             return None
-    elif chunks == 1:
-        kernels_static.solve_range(0, B, *args)      # no parallel region: its start costs ~0.4 ms
-    else:
-        solve(*args, chunks)
+    _in_parts(solve_range, B, chunks, *inputs, states, *outputs, iteration, *control)
     if compact_nodes is not None:
         states = (zout, nout, gstate)
     elif node_loads is None:
@@ -319,13 +323,35 @@ def _output_array(given, shape):
     return given
 
 
+#: Threads of the compiled batch solve (None: numba's thread count, the number of cores unless
+#: NUMBA_NUM_THREADS says otherwise). The configurations of a batch are independent; results do
+#: not depend on the thread count. Sweep workers set one thread
+#: (cosim.parallel.one_thread_per_worker).
+THREADS: int | None = None
+
+
 def _thread_chunks(B: int, solves: int) -> int:
-    """Parts of a batch of ``B`` configurations for the compiled threads (one, without a parallel
-    region, for fewer than 64 solves: a region's start costs ~0.4 ms)."""
-    numba = numba_module()
-    threads = kernels_static.THREADS
-    threads = numba.get_num_threads() if threads is None else max(1, min(int(threads), numba.config.NUMBA_NUM_THREADS))
+    """Parts of a batch of ``B`` configurations for the threads (one, without the pool, for
+    fewer than 64 solves: handing a part to a thread costs tens of microseconds)."""
+    threads = numba_module().config.NUMBA_NUM_THREADS if THREADS is None else max(1, int(THREADS))
     return max(1, min(B, threads if solves >= 64 else 1))
+
+
+@functools.lru_cache(maxsize=None)
+def _pool(threads: int) -> concurrent.futures.ThreadPoolExecutor:
+    return concurrent.futures.ThreadPoolExecutor(max_workers=threads, thread_name_prefix="tmm-kernel")
+
+
+def _in_parts(kernel, B: int, chunks: int, *args) -> None:
+    """``kernel(b_start, b_stop, *args)`` over the configurations ``0 <= b < B`` in ``chunks``
+    contiguous parts, each on a thread of the pool (the kernels release the GIL)."""
+    if chunks == 1:
+        kernel(0, B, *args)
+        return
+    parts = [(B * c // chunks, B * (c + 1) // chunks) for c in range(chunks)]
+    futures = [_pool(chunks).submit(kernel, b0, b1, *args) for b0, b1 in parts]
+    for future in futures:
+        future.result()
 
 
 def factor_prepared(prep: Prepared, P: np.ndarray, *, cond_limit: float = 1e12):
@@ -350,14 +376,10 @@ def factor_prepared(prep: Prepared, P: np.ndarray, *, cond_limit: float = 1e12):
     negative = np.zeros((B, 2), dtype=np.int64)
     pivots = np.empty((B, 2))
     status = np.zeros(B, dtype=np.int64)
-    factor_batch, _ = kernel_binding.factored()
+    factor_range, _ = kernel_binding.factored()
     args = (kernels_static.INV_FACT, lay.seg_off, lay.L, lay.EA, lay.EI, lay.rigid, prep.factor, P, prep.qloc, prep.Kn,
             prep.angle, lay.ends, lay.free, np.ones(M, dtype=np.bool_), negative, pivots, status, stored)
-    chunks = _thread_chunks(B, B)
-    if chunks == 1:
-        kernels_factored.factor_range(0, B, *args)
-    else:
-        factor_batch(*args, chunks)
+    _in_parts(factor_range, B, _thread_chunks(B, B), *args)
     return stored, _checked(prep, P, s, (None, None, None, negative, pivots, status), False, cond_limit)[3]
 
 
