@@ -14,8 +14,12 @@
 """
 from __future__ import annotations
 
+import json
+import os
 import re
 import shlex
+import subprocess
+import sys
 import tomllib
 from pathlib import Path
 
@@ -52,12 +56,13 @@ def test_every_code_block_is_of_a_kind_the_tests_run():
 def workdir(tmp_path_factory):
     """A working directory with one short run in ``logs/crank_rocker_95rpm-<timestamp>`` (MuJoCo
     alone, one revolution: what the documents' ``load_run`` examples read)."""
-    from cosim.run import RunOptions, run_scenario
+    # Through the command line, the interface the documents show (stable where modules move).
     wd = tmp_path_factory.mktemp("docs")
-    res = run_scenario("crank_rocker_95rpm", RunOptions(engines=("mujoco",), revolutions=1,
-                                                        out=wd / "logs" / "crank_rocker_95rpm-doc",
-                                                        viewer="none", progress=False))
-    assert res.summary["status"] == "completed", res.summary
+    subprocess.run([sys.executable, "-m", "cosim", "-q", "run", "crank_rocker_95rpm", "--engines", "mujoco",
+                    "--revolutions", "1", "--no-record", "--out", "logs/crank_rocker_95rpm-doc"],
+                   cwd=wd, check=True, capture_output=True, env={**os.environ, "PYTHONPATH": str(ROOT)})
+    summary = json.loads((wd / "logs" / "crank_rocker_95rpm-doc" / "summary.json").read_text())
+    assert summary["status"] == "completed", summary
     return wd
 
 
@@ -125,6 +130,17 @@ def test_the_benchmark_document_shows_the_latest_results():
     from tests.benchmarks import bench_table
     assert (ROOT / "docs" / "benchmarks.md").read_text(encoding="utf-8") == bench_table.document(), \
         "run: python -m tests.benchmarks.bench_table --doc"
+
+
+def test_the_architecture_lists_every_compiled_reference_pair():
+    """docs/architecture.md's table of compiled kernels and their numpy references names every
+    pair of tests/test_architecture.py's PAIRS: its kernels and its equality test."""
+    from tests.test_architecture import PAIRS
+    text = (ROOT / "docs" / "architecture.md").read_text(encoding="utf-8")
+    for compiled, _reference, test in PAIRS:
+        kernels = re.findall(r"(kernels\w*)\.(\w+)", compiled)
+        assert kernels and all(f"{module}.{name}" in text for module, name in kernels), compiled
+        assert test.split("/")[-1] in text, test
 
 
 # -- files named -----------------------------------------------------------------------------
