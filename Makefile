@@ -1,5 +1,6 @@
 # Two entry points for a fresh machine:  `make run`  and  `make test`.
-# Both create .venv (once, or again when pyproject.toml changes) and install the bench into it.
+# Both create .venv (once, or again when pyproject.toml changes) and install the bench into it,
+# with its test extra (pytest, Hypothesis, nbformat): `make run` and `make test` share one .venv.
 PYTHON ?= python3
 VENV   := .venv
 BIN    := $(VENV)/bin
@@ -10,7 +11,7 @@ STAMP  := $(VENV)/.installed
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
-	$(BIN)/python -m pip install --quiet -e .
+	$(BIN)/python -m pip install --quiet -e '.[test]'
 	touch $(STAMP)
 
 run: $(STAMP)

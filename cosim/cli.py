@@ -229,7 +229,7 @@ def build_parser() -> argparse.ArgumentParser:
                         "exudyn and MuJoCo always march")
     s.add_argument("--model", choices=("full", "reduced"),
                    help="TMM model of the periodic solves: the full transfer-matrix model, or the reduced one (link "
-                        "modes plus a static correction, README 'Reduced model'); default: the scenario's "
+                        "modes plus a static correction, docs/theory.md 'Reduced model'); default: the scenario's "
                         "solver.tmm.model")
     _executor_arguments(s, "points")
     _max_hours_argument(s)

@@ -2,7 +2,7 @@
 crank, as a periodic crank history for the transfer-matrix model.
 
 Within a revolution the FE rig's motor cannot hold the crank speed (its torque is far too small
-against the linkage's inertia torques; the README's "The drive"): the crank and everything rigidly
+against the linkage's inertia torques; docs/validation.md, "The drive"): the crank and everything rigidly
 on its shaft exchange kinetic energy with the linkage. With an inertia ``J_d`` on the crank shaft
 (flywheels, pulleys, the motor's rotor seen through a stiff belt) and the rigid linkage's
 reflected inertia ``J(q)`` and gravity work ``W(q)`` (:meth:`FourBarMechanism.crank_inertia`),

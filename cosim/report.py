@@ -16,7 +16,7 @@ from .files import SUMMARY_BYTES, FileRefused, read_text_bounded
 from .run_outcome import MISSING_OUTPUTS
 
 #: Where a user reads why the models and the measurement differ (pointed to when they differ much).
-MEASUREMENT_GAP_DOC = "README.md, section 'How far the bench is from the measurement'"
+MEASUREMENT_GAP_DOC = "docs/validation.md, section 'How far the bench is from the measurement'"
 #: A peak error beyond this fraction gets the pointer to that section.
 LARGE_PEAK_ERROR = 0.5
 

@@ -401,7 +401,7 @@ def tmm_settings(r: Reader, data) -> TMMSettings:
         step_rad = math.radians(1.0)
     cp = r.table(d.get("coupling", {}), "solver.tmm.coupling", {"coriolis", "centrifugal", "angular_acceleration"})
     # The rotating-frame terms are on by default: at 373 rpm on the FE rig they move the peaks by
-    # 2-4 % and the geometrically exact exudyn model has them (README, "engines agree").
+    # 2-4 % and the geometrically exact exudyn model has them (docs/validation.md, "Engines that agree").
     coupling = Coupling(*(r.number(cp.get(k, True), f"solver.tmm.coupling.{k}", bool)
                           for k in ("coriolis", "centrifugal", "angular_acceleration")))
     if peek(d.get("beam_column", True)) is False and peek(d.get("axial_force", "none")) != "none":

@@ -57,7 +57,7 @@ class TMMSettings:
     #: "full" (every node) or "reduced" (link modes plus a static correction, tmm_core.reduced):
     #: periodic solves of sweeps, bands and identification; time-marching runs refuse "reduced".
     model: str = "full"
-    #: Mode shapes of the reduced model (tmm_core.reduced.DEFAULT_MODES: README "Reduced model").
+    #: Mode shapes of the reduced model (tmm_core.reduced.DEFAULT_MODES: docs/theory.md "Reduced model").
     modes: int = 4
 
 

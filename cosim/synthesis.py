@@ -1,4 +1,4 @@
-"""Rigid four-bar synthesis (FE thesis Ch. III, notes seed002 §2.1), limit positions and
+"""Rigid four-bar synthesis (FE thesis Ch. III; docs/validation.md), limit positions and
 transmission angles of any four-bar, and the ``cosim synthesize`` command.
 
 Thesis notation (Fig. 1): crank pivot M, crank pin A, coupler-rocker pin B, rocker pivot Q, with
@@ -34,7 +34,7 @@ from .files import write_atomic
 RESIDUAL_TOLERANCE = 1e-10   # of the thesis equations in ratios to d and radians: round-off, not "close"
 CHECK_TOLERANCE = 1e-8       # rad: the synthesized linkage through the bench's kinematics
 DEFAULT_LIKE = "crank_rocker_373rpm"
-SOURCE = "cosim synthesize, case {case} (FE thesis Ch. III, notes seed002 §2.1)"
+SOURCE = "cosim synthesize, case {case} (FE thesis Ch. III)"
 
 
 def _deg(x: float) -> str:

@@ -7,6 +7,9 @@ with the new name. Either way the written file is loaded before this returns, so
 does not load is an error here, not at the user's first run. An existing file is never
 overwritten.
 
+The scenario format itself is described in docs/scenario-format.md, the one home of the
+schema, which the written file points to.
+
 Owns: ``cosim new``: the commented template or a copy with its bases. Boundaries: writes only the
 files it names.
 """
@@ -32,7 +35,7 @@ TEMPLATE = '''\
 # and one you had to assume
 #     key = {{ value = "2 %", assumption = "why this value" }}
 # so that every run lists what was assumed. The values below are an aluminium crank-rocker;
-# replace each `assumption` with your rig's data. Full key list: cosim/scenario.py.
+# replace each `assumption` with your rig's data. Full key list: docs/scenario-format.md.
 
 [scenario]
 name = "{name}"
@@ -42,7 +45,7 @@ sources = ["where the values come from (drawings, a thesis, measurements)"]
 #                            # at the drive speed are scored against every engine
 
 [linkage]
-type = "four-bar"            # or "slider-crank" / "structure" (see the README)
+type = "four-bar"            # or "slider-crank" / "linkage" / "structure" (docs/scenario-format.md)
 ground = {{ value = "11 in", assumption = "distance between the crank and rocker pivots; replace" }}
 branch = "open"              # assembly of the coupler and rocker: "open" or "crossed"
 

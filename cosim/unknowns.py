@@ -26,7 +26,7 @@ A key is one of three kinds:
 
 :func:`solve` runs one variant: the transfer-matrix model marched to its periodic steady state
 with one revolution of factorized configurations reused (the compiled kernel), which measured
-6-8x faster than the periodic shooting solver for the same peaks (README, "How far the bench is
+6-8x faster than the periodic shooting solver for the same peaks (docs/validation.md, "How far the bench is
 from the measurement").
 
 Owns: the fast model run of bands and identification (the declared unknowns are read by
@@ -50,7 +50,7 @@ from .unknowns_table import (DISTRIBUTIONS, MODEL_KEYS, Unknown, Variant, declar
 @dataclass(frozen=True)
 class Settings:
     """Transfer-matrix settings of bands and identification: 4 segments per link at 0.5 deg are
-    within 2 % of the shipped 8 segments at 0.5 deg on the FE rig's peaks (README); marched until
+    within 2 % of the shipped 8 segments at 0.5 deg on the FE rig's peaks (docs/validation.md); marched until
     two revolutions agree to ``tolerance`` of the peak-to-peak (at most ``max_revolutions``)."""
 
     segments: int = 4

@@ -7,7 +7,7 @@ Three columns for the follower (rocker) midpoint, Shin's node 12:
 * the converged answer: 16 segments; generalized-alpha, 1 deg step, 3 % modal damping at 47 Hz
   (assumed), run to a steady state.
 
-reference_checks.md explains why Shin's numbers sit about 2.7x above an independent closed form
+docs/validation.md, "Shin's Alexander-Lawrence stresses sit about 2.7x above a closed form" explains why Shin's numbers sit about 2.7x above an independent closed form
 for the stated rig; nothing here is tuned to close that gap. Writes ``summary.json`` to
 ``logs/alexander_lawrence_shin-<timestamp>/``.
 Run: ``python -m scenarios.alexander_lawrence_shin``.

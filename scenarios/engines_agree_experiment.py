@@ -10,7 +10,7 @@ terms:
 * the axial shortening from bending (``dynamic`` with 'shortening');
 * the rotating-frame terms of the elastic motion (Coriolis, centrifugal, angular acceleration).
 
-Result (README, "Engines that agree"): neither the step's own axial force nor the shortening
+Result (docs/validation.md, "Engines that agree"): neither the step's own axial force nor the shortening
 alone closes the gap; both together leave 2-4 %, and the rotating-frame terms the rest.
 
 Writes ``table.csv`` and ``summary.json`` to ``logs/engines_agree_experiment-<timestamp>/``.

@@ -1,13 +1,13 @@
 """FE crank-rocker rig (7/10/12/11 in aluminium) at 95, 241 and 373 rpm: steady-state midspan strain peaks.
 
 Transfer-matrix time-domain analysis (generalized-alpha) of the strain-gauged rig of the FE
-thesis (notes seed002 §3): bending and axial strain at the midspan of the coupler and of the
+thesis: bending and axial strain at the midspan of the coupler and of the
 output link (rocker), over the last steady revolution, and the quasi-static (kineto-elastostatic)
 peaks beside them. The thesis's Table I holds the measured peaks for comparison (records issue).
 
 Assumptions (the thesis does not give them; declared, not tuned):
 * damping: 2 % modal (stiffness-proportional) at 79 Hz, the output link's first mode; the thesis
-  models none, and reference_checks.md shows the 373 rpm peaks depend strongly on it;
+  models none, and docs/validation.md, "The FE rig rings near resonance" shows the 373 rpm peaks depend strongly on it;
 * bearing weight 0.13128 lbf at *each* coupler end (the text is ambiguous: per end or total);
 * the crank is rigid (split links and shafts; thesis: 304 Hz; a 100x strip still has 129-292 Hz modes);
 * counter-clockwise crank rotation; gauge faces are the links' local +y ("top") faces with the

@@ -5,7 +5,7 @@ two, and which rig would produce Table I.
     .venv/bin/python -m scenarios.measurement_gap [--samples 64] [--trajectories 10] [--workers 2]
                                                   [--out DIR] [--publish]
 
-Writes ``gap.json`` (every number of the README section) and ``gap.png/.svg`` (measured against
+Writes ``gap.json`` (every number of docs/validation.md's section on it) and ``gap.png/.svg`` (measured against
 predicted, with the band, per speed and gauge) to ``logs/measurement_gap-<timestamp>/``;
 ``--publish`` also copies the figure and the numbers to ``docs/``. About an hour on two cores.
 

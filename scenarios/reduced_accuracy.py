@@ -1,4 +1,4 @@
-"""Accuracy and cost of the reduced transfer-matrix model against the full one (README, "Reduced
+"""Accuracy and cost of the reduced transfer-matrix model against the full one (docs/validation.md, "Reduced
 model"): the FE rig's periodic steady state at 241 and 373 rpm (rigid crank, the scenarios'
 default settings), the +/- bending peaks of both gauges for several mode counts, and the wall
 time of each solve (the reduced one with its basis).

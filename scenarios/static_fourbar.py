@@ -1,6 +1,6 @@
 """Static analysis of the Alexander-Lawrence four-bar held at one crank angle (TMM instantaneous structure).
 
-Mechanism (Shin 1986, §8.3; notes seed000 §7.2): crank 4, coupler 11, rocker 10.5, ground 10 in;
+Mechanism (Shin 1986, §8.3): crank 4, coupler 11, rocker 10.5, ground 10 in;
 1 in wide aluminium strip, crank 0.167 in and coupler/rocker 0.063 in thick.
 
 Assumptions (not given by the source): E = 10.3e6 psi and weight density 0.1 lb/in^3, typical

@@ -232,8 +232,9 @@ def test_public_entry_points_take_few_parameters():
 
 
 def test_every_compiled_entry_point_has_its_reference_and_equality_test():
-    """The compiled/reference pairs (:data:`PAIRS`, listed in the README's Layout) name tests
-    that exist, and every stage tmm_core.compiled.binding compiles is among them."""
+    """The compiled/reference pairs (:data:`PAIRS`, listed in docs/architecture.md) name tests
+    that exist, every stage tmm_core.compiled.binding compiles is among them, and each compiled
+    module has the numpy module of its name."""
     for compiled, reference, test in PAIRS:
         path, name = test.split("::")
         assert f"def {name}(" in (ROOT / path).read_text(encoding="utf-8"), test

@@ -55,7 +55,7 @@ def test_alexander_lawrence_shin_comparison_script(tmp_path, capsys):
     assert alexander_lawrence_shin.main(["--out", str(tmp_path)]) == 0
     data = json.loads((tmp_path / "summary.json").read_text())
     # The bench's converged quasi-static follower stress amplitude (16 segments, 1 deg, beam-column):
-    # 3287 psi in the mesh/step convergence study of issue 3 (Shin prints 6900; reference_checks.md).
+    # 3287 psi in the mesh/step convergence study of issue 3 (Shin prints 6900; docs/validation.md).
     assert data["bench_converged"]["quasi_static"]["S_alt_psi"] == pytest.approx(3287, rel=0.01)
     assert data["bench_converged"]["time_domain"]["steady"] is True
     assert "bench, converged" in capsys.readouterr().out

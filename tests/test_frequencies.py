@@ -45,7 +45,8 @@ def test_fe_rig_output_link_first_frequency():
 
 
 def test_assembled_fe_rig_matches_independent_fe_model():
-    """Notes seed002 §6 ('my computation'): crank slope clamped, quintic elements, no lumped
+    """docs/validation.md, "The FE rig's natural frequencies from an independent finite-element
+    model": crank slope clamped, quintic elements, no lumped
     masses: 12.2, 88.6, 150.6 Hz at 0 deg and 47.3, 80.4, 136.7 Hz at 40 deg; with 0.13128 lbf at
     each coupler end 8.0, 83.7, 123.0 Hz at 0 deg. One quintic element per link is slightly stiff,
     so agreement within 1 %."""
@@ -62,13 +63,14 @@ def test_frequencies_over_a_revolution_and_independence_of_the_mesh():
     f16 = fourbar_frequencies(alexander_lawrence(16), th[:2], 3, 500.0)
     assert f4.shape == (8, 3) and np.all(np.isfinite(f4))
     np.testing.assert_allclose(f4[:2], f16, rtol=1e-8)
-    # reference_checks.md: the coupler's first bending mode is near 47 Hz, the 7th harmonic of 400 rpm.
+    # docs/validation.md, "Damping decides the coupler response near 400 rpm": the coupler's first
+    # bending mode is near 47 Hz, the 7th harmonic of 400 rpm.
     assert np.all((f4[:, 0] > 40) & (f4[:, 0] < 50))
 
 
 def test_wang_linkages_match_the_notes_independent_model():
-    """Notes seed001 §8 V8 (the note author's FE model of Wang's linkages with the aluminium
-    housings, not thesis data): first bending modes about 36.9 Hz (steel, depth 0.062 in),
+    """docs/validation.md, "Wang's linkages' first modes from an independent model" (not thesis
+    data; with the aluminium housings): first bending modes about 36.9 Hz (steel, depth 0.062 in),
     62.8 Hz (composite, E = 1.328e6 psi) and 96.6 Hz (E = 3.143e6 psi), nearly independent of
     the crank angle."""
     from scenarios.rigs import wang_composite, wang_steel

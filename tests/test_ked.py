@@ -20,8 +20,9 @@ COUPLER_MID = Gauge("coupler_mid", "coupler", 11 * INCH / 2, "top")
 def test_quasi_static_rocker_midspan_matches_closed_form():
     """Linear kineto-elastostatics of the rocker: pinned at D and C, it is a simply supported beam
     under its own inertia load rho A alpha x, so the midspan bending stress is
-    (3/8) rho alpha4 L^3 / h at every crank position (reference_checks.md), tension on the -y face
-    for alpha4 > 0. The bearing masses sit on the coupler ends and load the rocker only at C."""
+    (3/8) rho alpha4 L^3 / h at every crank position (docs/validation.md, "Shin's Alexander-Lawrence
+    stresses sit about 2.7x above a closed form"), tension on the -y face for alpha4 > 0. The
+    bearing masses sit on the coupler ends and load the rocker only at C."""
     mech = alexander_lawrence(16)
     th = np.radians(np.arange(0.0, 360.0, 2.0))
     qs = quasi_static(mech, th, W400, beam_column=False, gauges=[ROCKER_MID])
@@ -32,7 +33,7 @@ def test_quasi_static_rocker_midspan_matches_closed_form():
     peak = np.max(np.abs(expected))
     # Lumping the distributed load on 16 segments: agreement within 0.2 % of the peak.
     np.testing.assert_allclose(bending, expected, atol=2e-3 * peak)
-    assert np.max(np.abs(qs.motion.rocker.alpha)) == pytest.approx(1769, rel=2e-3)   # reference_checks.md
+    assert np.max(np.abs(qs.motion.rocker.alpha)) == pytest.approx(1769, rel=2e-3)   # docs/validation.md, Shin's Alexander-Lawrence stresses
 
 
 def test_quasi_static_converges_with_segment_count():
@@ -68,7 +69,7 @@ def test_quasi_static_drive_torque_matches_rigid_inverse_dynamics():
     "Shin Table 8.11/8.12 (follower midpoint, quasi-static, 400 rpm): max distortion 0.3443 in, S_alt 6900 psi, "
     "S_mean -2752 psi. The bench with Shin's mesh, 9 deg positions and beam-column iteration gives 0.173 in, "
     "3218 psi, -1653 psi (converged: 0.183 in, 3287 psi, -1718 psi; linear: 0.12 in, 2598 psi, -668 psi, "
-    "matching the closed form (3/8) rho alpha L^3/h of reference_checks.md). Shin's values sit about 2x higher "
+    "matching the closed form (3/8) rho alpha L^3/h of docs/validation.md). Shin's values sit about 2x higher "
     "for inputs the dissertation does not print; nothing is tuned."))
 def test_alexander_lawrence_quasi_static_vs_shin_tables_8_11_and_8_12():
     mech = alexander_lawrence(4)
@@ -259,7 +260,7 @@ def test_wang_composite_with_viscoelastic_links_reaches_a_steady_state():
                     axial_force="quasi_static")     # the second-order step has no viscoelastic axial history
     assert r.steady
     w = r.displacements["coupler"][-180:, 3, 1]          # span mid-node (between the housings)
-    assert 0.05e-3 < np.ptp(w) < 1.0e-3                  # order of the notes' re-run (tenths of a mm)
+    assert 0.05e-3 < np.ptp(w) < 1.0e-3                  # order of a re-run of Wang's program made when reading the thesis (tenths of a mm)
 
 
 def test_incremental_march_reproduces_the_batched_run():

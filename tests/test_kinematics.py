@@ -9,7 +9,7 @@ AL = FourBarGeometry(4 * INCH, 11 * INCH, 10.5 * INCH, 10 * INCH)
 
 
 def test_shin_table_8_9_and_8_10_initial_position():
-    """Shin Tables 8.9/8.10 (notes seed000 §7.2): crank angle 0, omega = -41.87 rad/s."""
+    """Shin Tables 8.9/8.10: crank angle 0, omega = -41.87 rad/s."""
     m = fourbar_motion(AL, 0.0, -41.87, 0.0)
     np.testing.assert_allclose(m.C / INCH, [7.896, 10.29], rtol=1e-3)
     np.testing.assert_allclose(m.B / INCH, [4.000, 0.0], atol=1e-12)

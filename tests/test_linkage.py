@@ -7,7 +7,7 @@ Measured (2026-11): velocities and accelerations agree with central differences 
 and velocities (h = 1e-5 s, relative to each joint's largest component) to 1.6e-6 and 4.7e-6 on
 Shin's Table 2.1 mechanism (drawn branches; the slider dyad's other branch), 1.4e-6 on the Watt
 six-bar and 0.9e-6 on Shin's §8.2 mechanism in motion: the differences' own truncation error.
-Table 2.1's trustworthy entries and the notes' corrected ones are reproduced to 0.2 % (the drawn
+Table 2.1's trustworthy entries and the re-derived ones (docs/validation.md) are reproduced to 0.2 % (the drawn
 coordinates have four digits).
 """
 import math
@@ -25,7 +25,7 @@ IN = 0.0254
 
 
 def table_2_1(flip=(1, 1, 1)):
-    """Shin's Table 2.1 multiloop (notes seed000 §4): crank 1-2 (5 in at 75 deg), coupler 2-3-4
+    """Shin's Table 2.1 multiloop (docs/validation.md, "Shin's Table 2.1"): crank 1-2 (5 in at 75 deg), coupler 2-3-4
     (15 in, 3 at mid-length), follower 6-5-4 (12 in), a block at 5 sliding on the follower with
     the arm 5-7 square to it, link 7-8, links 3-9 and 9-10; inches, drawn at 75 deg. ``flip``
     multiplies the drawn branch of the dyad at 4, the slider dyad at 7 and the dyad at 9."""
@@ -79,9 +79,9 @@ def shin():
 
 
 def test_table_2_1_regression():
-    """Shin's Table 2.1 / 2.2 (omega = 20 rad/s at 75 deg, in/s^2 and rad/s^2): the entries the
-    notes verify (nodes 2, 4, 5, 7, the block's sliding acceleration, the follower's and link
-    7-8's angular accelerations) and the notes' corrected values where Shin's dyad formula used
+    """Shin's Table 2.1 / 2.2 (omega = 20 rad/s at 75 deg, in/s^2 and rad/s^2): the entries that
+    check out (docs/validation.md, "Shin's Table 2.1") (nodes 2, 4, 5, 7, the block's sliding acceleration, the follower's and link
+    7-8's angular accelerations) and the re-derived values where Shin's dyad formula used
     L2 for L3 (node 3, node 9, the coupler and links 3-9 and 9-10)."""
     st = table_2_1().solve(math.radians(75.0), 20.0, 0.0)
     acc = {j: st.joints[j][2] for j in st.joints}

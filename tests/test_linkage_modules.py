@@ -1,5 +1,5 @@
-"""The complete module set of the component-module approach (Shin 1986, Ch. 2, Fig. 2.1, App. A;
-notes seed000 §4): the RPR dyad (``rpr``: Shin's types 7 and 8, the inverted slider-crank), the
+"""The complete module set of the component-module approach (Shin 1986, Ch. 2, Fig. 2.1, App. A):
+the RPR dyad (``rpr``: Shin's types 7 and 8, the inverted slider-crank), the
 PRP dyad (``prp``: a joint on two slides) and the RPP dyad (``rpp``: the Scotch yoke), beside the
 crank, RRR and RRP modules of ``tests/test_linkage.py``.
 

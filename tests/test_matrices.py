@@ -38,7 +38,7 @@ def test_zero_axial_force_field_matrix_is_shin_eq_3_14():
 
 @pytest.mark.parametrize("P", [250.0, -250.0])
 def test_beam_column_field_matrix_matches_shin_eqs_3_15_and_3_16(P):
-    """Shin's tension (sinh/cosh) and compression (sin/cos) forms, notes seed000 §3.2-3.3,
+    """Shin's tension (sinh/cosh) and compression (sin/cos) forms,
     converted to our sign convention (theta and M negated)."""
     L, EA, EI = 0.4, 1e7, 3.0
     K = np.sqrt(abs(P) / EI)

@@ -1,5 +1,5 @@
 """Shin's multiloop mechanism (issue 8): general structures with plates, springs, sliders and
-sub-loops, against the dissertation's Tables 8.1-8.8 (notes seed000 §7.5, §7.6), and the scenario
+sub-loops, against the dissertation's Tables 8.1-8.8, and the scenario
 format's topology errors."""
 import math
 

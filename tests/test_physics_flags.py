@@ -142,8 +142,8 @@ def test_rigid_engine_is_told_it_cannot_show_a_resonance_and_the_console_shows_t
 
 def test_flexible_crank_linkage_mode_takes_in_a_harmonic():
     """The fast equivalent of the run below: the flexible crank pulls the linkage's first mode to
-    67-79 Hz over a revolution (reference_checks.md), which takes in the 11th and 12th harmonics of
-    373 rpm (68.4, 74.6 Hz); the rigid crank's 79 Hz mode lies 2.2 % below the 13th (80.8 Hz)."""
+    67-79 Hz over a revolution (docs/validation.md, "A 100x stiffer crank is not rigid"), which
+    takes in the 11th and 12th harmonics of 373 rpm (68.4, 74.6 Hz); the rigid crank's 79 Hz mode lies 2.2 % below the 13th (80.8 Hz)."""
     flex = physics_flags(load("crank_rocker_373rpm_flexible_crank"), _summary({"tmm": {"status": "completed"}}))
     linkage = [f for f in flex["tmm"] if f["kind"] == "resonance" and "linkage mode 1" in f["message"]]
     assert len(linkage) == 1 and linkage[0]["value"] == 0.0 and "harmonic 11" in linkage[0]["message"]

@@ -15,7 +15,7 @@ from cosim.virtual_rig import synthesize
 
 RECORDS = load.__globals__["SCENARIO_DIR"] / "records"
 
-# FE thesis Table I as printed (notes seed002 §3.4): rpm -> (output +, %, output -, %, coupler +, %, coupler -, %)
+# FE thesis Table I as printed: rpm -> (output +, %, output -, %, coupler +, %, coupler -, %)
 TABLE_I = {
     95: {"bending": (80.788, 16.214, 12.381, 50.613), "axial": (9.359, 6.568, 28.583, 16.660),
          "percent": (11.59, 40.51, 230.86, 32.92)},

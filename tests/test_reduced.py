@@ -97,7 +97,7 @@ def test_reduced_peaks_within_one_percent_of_the_full_tmm_at_the_default_mode_co
     against the full TMM's periodic steady state, every +/- bending peak within 1 %. The full TMM
     runs at 0.25 deg: at the scenarios' 0.5 deg its own 373 rpm coupler + peak is 0.9 % below its
     0.25 deg answer (1744 against 1760 microstrain), and the reduced model (1767) is 1.35 % from it
-    (measured; README, "Reduced model"). Measured against 0.25 deg: at most 0.4 % at 373 rpm and
+    (measured; docs/validation.md, "Reduced model accuracy"). Measured against 0.25 deg: at most 0.4 % at 373 rpm and
     0.4 % at 241 rpm."""
     sc = load(scenario)
     td = _time_domain(sc)
@@ -134,7 +134,7 @@ def test_time_marching_engine_refuses_the_reduced_model():
 def test_fast_model_of_bands_uses_the_reduced_model_when_asked():
     """cosim.unknowns.solve with the scenario's model = "reduced": the same peaks as the marched
     full model of the same settings within 2.5 % (4 segments; measured 1.9 % on the rocker + peak, of which
-    about 1 % is the marched model's own 0.5 deg step error: README, "Reduced model")."""
+    about 1 % is the marched model's own 0.5 deg step error: docs/validation.md, "Reduced model accuracy")."""
     from cosim.unknowns import Settings, solve
     sc = load("crank_rocker_241rpm")
     full = solve(sc, {}, Settings(model="full"))

@@ -4,7 +4,7 @@ Each pinned number comes from something other than the engine under test:
 * flexible rigs: exudyn's steady bending peak at twice the default elements and half the default
   step (an independent, geometrically exact engine, refined), the transfer-matrix engine runs at
   the scenario's defaults to its steady state; tolerance 2 % of exudyn's peak-to-peak (the
-  measured agreement is 0.1-1.0 %, README "Engines that agree");
+  measured agreement is 0.1-1.0 %, docs/validation.md, "Engines that agree");
 * Wang's rigs (no exudyn: mass-proportional damping, viscoelastic links): the transfer-matrix
   model refined (twice the segments, a quarter of the step), a convergence study; 1 %;
 * the weak-drive variant: the speed fluctuation of the rigid linkage with the motor as one ODE
@@ -12,7 +12,8 @@ Each pinned number comes from something other than the engine under test:
 * the flexible-crank variant: its first natural frequency at crank angle 0 from exudyn's
   eigenvalue analysis, against the transfer-matrix frequency search;
 * Shin's static structures are pinned to Shin's tables in tests/test_multiloop.py.
-Values measured 2026-11-24.
+Values measured 2026-11-24; ``python -m tests.benchmarks.pinned_references`` regenerates every one
+of them from its reference (not run in CI: the refined exudyn runs take minutes each).
 """
 import math
 

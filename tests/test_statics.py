@@ -73,9 +73,9 @@ def test_hanging_bar_under_self_weight_fixes_shin_axial_load_terms():
 
 
 def _stepped_beam(per_25mm: int):
-    """Shin §8.5 / App. D (notes seed000 §7.7): 500 mm steel beam pinned at x = 0, 5x5 mm up to
+    """Shin §8.5 / App. D: 500 mm steel beam pinned at x = 0, 5x5 mm up to
     x = 250 mm then 2.5x2.5 mm, vertical sliding springs 2 N/mm at x = 150 and 400 mm, 15 N down at
-    the tip, self-weight 76.5e-6 N/mm^3, E = 207 GPa (inferred in the notes)."""
+    the tip, self-weight 76.5e-6 N/mm^3, E = 207 GPa (Shin does not state it; inferred from his tables)."""
     steel = Material("AISI 4340", 207e9, yield_strength_Pa=689e6)
     big, small = Section.rectangle(5e-3, 5e-3), Section.rectangle(2.5e-3, 2.5e-3)
     n = 20 * per_25mm

@@ -2,8 +2,8 @@
 
 Expected values are the publication's, never this code's: the FE thesis, Ch. III (Case Studies I
 and II, Eqs. 3.4-3.17) prescribes angles of its Ch. IX rig, crank 7, coupler 10, rocker 12, ground
-11 in; notes seed002 §2.1 list the inputs and the printed digits of the other angles (phi2 95.216,
-mu2 40.119, theta1 44.665, phi4 14.141, mu4 63.612 deg), §6 the rig's limit positions (44.66 and
+11 in; docs/validation.md, "The FE thesis's synthesis example", lists the inputs and the printed digits of the other angles (phi2 95.216,
+mu2 40.119, theta1 44.665, phi4 14.141, mu4 63.612 deg), and the rig's limit positions (44.66 and
 282.247 deg, swing 81.075 deg, time ratio 1.941) and its minimum transmission angle (18.195 deg at
 crank angle 0 from the lengths; the thesis prints 17.76 deg).
 """
@@ -36,7 +36,7 @@ def _lengths_in(s):
 
 
 def test_case_one_gives_the_fe_rig():
-    # Thesis Ch. III Case Study I with the rig's angles (notes seed002 §2.1).
+    # Thesis Ch. III Case Study I with the rig's angles (docs/validation.md, "The FE thesis's synthesis example").
     s = synthesize_case_one(11 * INCH, DEG(81.0748), DEG(14.1411), DEG(18.1949))
     np.testing.assert_allclose(_lengths_in(s), FE_RIG_IN[:3], rtol=1e-3)
     assert _printed(s.phi2, 95.216) and _printed(s.mu2, 40.119) and _printed(s.theta1, 44.665)
@@ -44,7 +44,7 @@ def test_case_one_gives_the_fe_rig():
 
 
 def test_case_two_gives_the_fe_rig():
-    # Thesis Ch. III Case Study II with the rig's crank limit positions (notes seed002 §2.1).
+    # Thesis Ch. III Case Study II with the rig's crank limit positions (docs/validation.md, "The FE thesis's synthesis example").
     s = synthesize_case_two(11 * INCH, DEG(81.0748), DEG(44.6649), DEG(102.2467))
     np.testing.assert_allclose(_lengths_in(s), FE_RIG_IN[:3], rtol=1e-3)
     assert _printed(s.phi4, 14.141) and _printed(s.mu4, 63.612)
@@ -63,7 +63,7 @@ def test_limit_positions_of_the_fe_rig_match_the_collinear_triangles_and_samplin
     assert lim["crank_angle_folded_rad"] == pytest.approx(folded, abs=1e-9)
     assert lim["rocker_angle_extended_rad"] == pytest.approx(rocker_ext, abs=1e-9)
     assert lim["rocker_angle_folded_rad"] == pytest.approx(rocker_fold, abs=1e-9)
-    assert math.degrees(extended) == pytest.approx(44.665, abs=5e-4)       # notes §6
+    assert math.degrees(extended) == pytest.approx(44.665, abs=5e-4)       # docs/validation.md, synthesis example
     assert math.degrees(folded) == pytest.approx(282.247, abs=5e-4)
     assert math.degrees(lim["oscillation_rad"]) == pytest.approx(81.075, abs=5e-4)
     assert lim["time_ratio"] == pytest.approx(1.941, abs=5e-4)
@@ -136,7 +136,7 @@ def test_cli_scenario_out_loads_with_the_synthesized_lengths(tmp_path, capsys):
 
 def test_every_four_bar_run_reports_its_limit_positions_and_transmission_range():
     """The run summary's `linkage` entry (cosim.run.linkage_summary) for the FE rig, against the
-    notes' values (seed002 §2.1: theta1 = 44.665 deg, oscillation 81.0748 deg, mu1 = 18.1949 deg)."""
+    thesis's values (docs/validation.md, synthesis example: theta1 = 44.665 deg, oscillation 81.0748 deg, mu1 = 18.1949 deg)."""
     from cosim.run import linkage_summary
     from cosim.scenario import load
     lk = linkage_summary(load("crank_rocker_373rpm"))

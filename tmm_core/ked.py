@@ -20,7 +20,7 @@ is (local components, link angular speed w and acceleration alpha)::
     a_w = w_ddot + 2 w u_dot - w^2 w + alpha u
 
 Shin and Wang keep only ``u_ddot, w_ddot``; the Coriolis (2 w), centrifugal (w^2, the -theta_dot^2 [MD]
-term of the FE thesis, notes seed002 §2.5) and angular-acceleration (alpha) terms are switched on
+term of the FE thesis) and angular-acceleration (alpha) terms are switched on
 with :class:`Coupling`. Centrifugal *stiffening* of bending comes from the axial forces of the
 rigid-body inertia loads, i.e. from the beam-column coupling (``beam_column=True``).
 

@@ -1,6 +1,6 @@
 """General planar linkages: closed-form kinematics by modules (Shin's component-module approach).
 
-Kinematics (Shin 1986, Ch. 2 and App. A, the component-module approach; notes seed000 §4). A
+Kinematics (Shin 1986, Ch. 2 and App. A, the component-module approach). A
 linkage is a set of rigid *bodies* (each a list of joints that keep their relative positions: a
 straight link through its path of joints, a plate through its vertices, a slider block with the
 links welded to it), joined at joints, and described at one assembled *reference* configuration

@@ -57,7 +57,7 @@ class StandardLinearSolid:
     ``sigma = E_inf * eps + q`` with ``q_dot + q / tau = (E_0 - E_inf) * eps_dot``: relaxation
     modulus ``E(t) = E_inf + (E_0 - E_inf) exp(-t/tau)``, instantaneous modulus ``E_0``, relaxed
     modulus ``E_inf``, relaxation time ``tau``. Equivalent to Wang's spring ``G1 = E_0`` in series
-    with a Kelvin unit (notes seed001 §5.2): ``E_inf = G1 G2 / (G1 + G2)``, ``tau = eta / (G1 + G2)``.
+    with a Kelvin unit (Wang 1984): ``E_inf = G1 G2 / (G1 + G2)``, ``tau = eta / (G1 + G2)``.
     """
 
     instantaneous_modulus_Pa: float

@@ -53,7 +53,7 @@ from .post import gauge_strains
 from .second_order import geometric_matrices
 from .structure import LoadCase, factorize, solve_factored
 
-#: Default number of link modes (chosen from the accuracy study, README "Reduced model").
+#: Default number of link modes (chosen from the accuracy study, docs/validation.md "Reduced model accuracy").
 DEFAULT_MODES = 4
 
 

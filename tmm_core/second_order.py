@@ -3,7 +3,7 @@
 The linear transfer-matrix step treats every segment as a beam-column whose axial force P0 is
 fixed when the configuration is factorized (the quasi-static, rigid-body estimate). Near
 buckling that is not good enough (FE crank-rocker at 373 rpm: 8-24 % off a geometrically exact
-exudyn model). Two effects are missing, and the README's "engines agree" section records the
+exudyn model). Two effects are missing, and docs/validation.md's "Engines that agree" section records the
 experiment that isolated them (neither alone closes the gap, both together do):
 
 * **Shortening from bending** (foreshortening): the axial strain of a bent segment is

@@ -3,7 +3,7 @@
 Element choice: ``ObjectANCFCable2D`` (Euler-Bernoulli, geometrically exact in the plane, cubic
 in position with slope vectors at the nodes). It is the same beam theory as the transfer-matrix
 model and, in exudyn 1.13, needs about a quarter of the elements of the linear geometrically
-exact 2D beam for the same midspan strain (engine_pitfalls.md). The mesh of each link: one
+exact 2D beam for the same midspan strain (docs/validation.md, "Reference engines: modelling choices"). The mesh of each link: one
 element per end block plus ``solver.exudyn.elements`` over the span.
 
 One builder for every mechanism (:func:`tmm_core.linkage.as_linkage`: the four-bar, the
@@ -29,7 +29,7 @@ have no equivalent on cable nodes and are refused.
 
 Integrator: generalized-alpha with ``spectral_radius`` (default 0.9), fixed step, modified
 Newton with relative tolerance ``newton_tolerance`` (1e-8 sits at round-off for stiff axial
-members and makes the adaptive step collapse; engine_pitfalls.md), sparse linear solver.
+members and makes the adaptive step collapse; docs/validation.md, "Reference engines: modelling choices"), sparse linear solver.
 
 Outputs are sampled once per macro step, at its end: crank angle and speed, drive torque,
 gauge strains (curvature and axial strain of the cable; at a node between two elements the two

@@ -44,7 +44,7 @@ class BodyTree:
             kind = kin.step(i)["kind"]
             if kind not in ("crank", "rrr", "rrp"):
                 # rpr, prp and rpp need a slide between two moving bodies or two slides at one
-                # joint; this tree builder does not have them yet (README "Linkages in motion").
+                # joint; this tree builder does not have them yet (docs/scenario-format.md, "Linkages in motion").
                 raise InputError(f"the MuJoCo engine builds linkages from crank, rrr and rrp modules only; "
                                  f"module {i + 1} is {kind!r}: run this linkage with --engines tmm,exudyn")
         ref = kin.reference_position

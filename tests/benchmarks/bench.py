@@ -18,7 +18,7 @@ Other parts (bench_parts): ``quasi_static`` (360 positions, 8 segments per link,
 compiled vs numpy), ``floor`` (compiled march per step vs the 3-5 us floor), ``scaling`` (4-512
 segments per link), ``overhead`` (the co-simulation bench), ``sweep`` (81 points, 100-500 rpm,
 stopped at ``--sweep-cap`` s). Results go to ``logs/benchmarks/bench-<timestamp>.json``, each
-part written as soon as it is done; ``bench_table`` prints the README's tables.
+part written as soon as it is done; ``bench_table`` prints its tables (and writes docs/benchmarks.md's).
 
     python -m tests.benchmarks.bench [--rigs a,b] [--engines tmm,exudyn,mujoco] [--parts engines,...]
                                      [--quick] [--repeats 5] [--budget 55] [--estimate] [--tiny]

@@ -1,0 +1,107 @@
+"""Regenerate the pinned numbers of tests/test_shipped_scenarios.py from their independent
+references (issue 36: every pinned number has a script that regenerates it).
+
+* ``EXUDYN_REFINED``: exudyn's steady +/- bending peak over the last revolution, at twice the
+  scenario's elements and half its step (an independent, geometrically exact engine, refined),
+  run until steady;
+* ``TMM_REFINED`` (Wang's rigs, which exudyn cannot carry): the transfer-matrix model at twice the
+  segments and a quarter of the step, a convergence study;
+* the weak drive's speed fluctuation: the rigid linkage and the motor as one ODE
+  (tests/monolithic.py, scipy DOP853), per revolution;
+* the flexible-crank variant's first natural frequency at crank angle 0, from exudyn's
+  constrained eigenvalue analysis.
+
+Not part of the test run: the refined exudyn runs take minutes each (the 373 rpm rig and the
+Bahgat-Willmert four-bar the longest; an hour or more for all on two cores). Each result is
+printed beside the number pinned now, so a change of engine version or scenario shows at once::
+
+    python -m tests.benchmarks.pinned_references                       # everything
+    python -m tests.benchmarks.pinned_references --only crank_rocker_95rpm,flexible_crank
+    python -m tests.benchmarks.pinned_references --json logs/pinned.json
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from tests.benchmarks.bench_accuracy import default_setting, scaled, scenario_for
+
+WEAK_DRIVE, FLEXIBLE_CRANK = "crank_rocker_373rpm_weak_drive", "crank_rocker_373rpm_flexible_crank"
+
+
+def refined_peaks(name: str, engine: str, gauge: str, count: float, step: float) -> dict:
+    """``engine``'s steady +/- bending peak [microstrain] of ``gauge`` at the scenario's setting
+    with its count times ``count`` and its step times ``step``, run until steady."""
+    from cosim.engines import make_engine, run_prescribed
+    from cosim.metrics import last_revolution, run_change
+    setting = scaled(default_setting(name, engine), count=count, step=step)
+    sc = scenario_for(name, engine, setting)
+    run = run_prescribed(make_engine(engine), sc)
+    bending = run.gauges[gauge][0][last_revolution(run.crank_angle)] * 1e6
+    change = float(run_change(run))
+    return {"setting": setting, "plus": float(bending.max()), "minus": float(bending.min()),
+            "revolution_change": change, "steady": change < sc.output.steady_tolerance}
+
+
+def weak_drive_fluctuation(revolutions: int = 6) -> dict:
+    """(max - min) / mean of the crank speed in each revolution of the monolithic rigid
+    linkage-and-motor ODE, from the scenario's steady start."""
+    from cosim.scenario import load
+    from tests.monolithic import RigidFourBarWithMotor
+    sc = load(WEAK_DRIVE)
+    ref = RigidFourBarWithMotor(sc.mechanism, sc.motor).solve(revolutions * sc.revolution_period_s, scenario=sc)
+    turned = np.abs(ref["angle"] - ref["angle"][0]) / (2 * math.pi)
+    per_revolution = []
+    for k in range(revolutions):
+        window = (turned >= k) & (turned < k + 1)
+        w = ref["speed"][window]
+        if w.size:
+            per_revolution.append(float((w.max() - w.min()) / w.mean()))
+    return {"fluctuation_per_revolution": per_revolution}
+
+
+def flexible_crank_frequency() -> dict:
+    """exudyn's first natural frequency [Hz] of the flexible-crank variant at crank angle 0."""
+    from cosim.engines.exudyn import natural_frequencies
+    from cosim.scenario import load
+    return {"first_frequency_Hz": float(natural_frequencies(load(FLEXIBLE_CRANK), 0.0, 1)[0])}
+
+
+def main(argv=None) -> dict:
+    from tests.test_shipped_scenarios import EXUDYN_REFINED, TMM_REFINED
+    ap = argparse.ArgumentParser(prog="python -m tests.benchmarks.pinned_references", description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--only", default="", help="comma-separated scenario names, 'weak_drive', 'flexible_crank'")
+    ap.add_argument("--json", type=Path, help="also write the results to this file")
+    args = ap.parse_args(argv)
+    only = set(filter(None, args.only.split(",")))
+    wanted = (lambda key: not only or key in only)
+    out = {}
+    for table, engine, count, step in ((EXUDYN_REFINED, "exudyn", 2, 0.5), (TMM_REFINED, "tmm", 2, 0.25)):
+        for name, (gauge, hi, lo, _tol) in table.items():
+            if wanted(name):
+                out[name] = refined_peaks(name, engine, gauge, count, step)
+                print(f"{name} ({engine}, {out[name]['setting']}): {gauge} {out[name]['plus']:+.2f} / "
+                      f"{out[name]['minus']:+.2f} microstrain, steady {out[name]['steady']} "
+                      f"(pinned {hi:+.2f} / {lo:+.2f})", flush=True)
+    if wanted("weak_drive"):
+        out["weak_drive"] = weak_drive_fluctuation()
+        print(f"{WEAK_DRIVE}: speed fluctuation per revolution "
+              f"{', '.join(f'{f:.4f}' for f in out['weak_drive']['fluctuation_per_revolution'])} (pinned 0.5839)")
+    if wanted("flexible_crank"):
+        out["flexible_crank"] = flexible_crank_frequency()
+        print(f"{FLEXIBLE_CRANK}: first natural frequency at crank angle 0 "
+              f"{out['flexible_crank']['first_frequency_Hz']:.2f} Hz (pinned 67.19)")
+    if args.json:
+        args.json.parent.mkdir(parents=True, exist_ok=True)
+        args.json.write_text(json.dumps(out, indent=1))
+    return out
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:])
