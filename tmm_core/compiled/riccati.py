@@ -16,21 +16,33 @@ from .dense import full6, inv3, ldl_inertia, lu_factor, mm3, segment_blocks
 
 
 def factor_scratch(nf):
-    """The scratch arrays of :func:`factor_configuration` (``nf`` free joint DOFs): ``(Kc, T6, t6,
-    tmp6, Kff, Ks, work, c5, sp, T11, T12, T21, T22, A, Bm, C, D, t1, t2)``."""
+    """The scratch record of :func:`factor_configuration` (``nf`` free joint DOFs): ``(Kc, T6, t6,
+    tmp6, Kff, Ks, work, c5, sp, T11, T12, T21, T22, A, Bm, C, D, t1, t2, zi, fi)``, the last two
+    the index vectors of the state's displacement and force rows."""
     return (np.zeros((6, 6)), np.zeros((6, 6)), np.zeros(6), np.zeros((6, 6)), np.zeros((nf, nf)), np.zeros((nf, nf)),
             np.zeros((max(nf, 3), max(nf, 3))), np.zeros(5), np.zeros(10), np.zeros((3, 3)), np.zeros((3, 3)),
             np.zeros((3, 3)), np.zeros((3, 3)), np.zeros((3, 3)), np.zeros((3, 3)), np.zeros((3, 3)), np.zeros((3, 3)),
-            np.zeros(3), np.zeros(3))
+            np.zeros(3), np.zeros(3), np.array([0, 1, 2]), np.array([5, 4, 3]))
 
 
-def factor_configuration(bi, inv_fact, seg_off, L, EA, EI, rigid, factor, P, qloc, Kn, angle, ends, free, count,
-                         negative, pivots, status, M, nd, nf, lead, prefix, lcol, B0, T220, SP, TL, Gis, Xs, BGis,
-                         HGis, Cs, Ds, Af, Bf, firsts, Kc, T6, t6, tmp6, Kfull, Kff, Ks, lu, piv, work, c5, sp, T11,
-                         T12, T21, T22, A, Bm, C, D, t1, t2, zi, fi):
-    """Factorize configuration ``bi`` into the work arrays of :func:`tmm_core.compiled.structure.solve_range`
-    (load-independent member factors, joint stiffness ``Kfull``, LU factors ``lu``, ``piv``) and set its
-    ``status``, ``negative`` and ``pivots`` entries. False if the joint system is singular."""
+def factor_configuration(bi, segments, configuration, joints, checks, factors, scratch):
+    """Factorize configuration ``bi`` into the per-configuration ``factors`` record (load-independent
+    member factors, joint stiffness ``Kfull``, LU factors ``lu``, ``piv``) and set its ``status``,
+    ``negative`` and ``pivots`` entries. False if the joint system is singular.
+
+    Records (tuples of arrays, unpacked below; names and units as
+    :func:`tmm_core.compiled.structure.solve_range`): ``segments = (inv_fact, seg_off, L, EA, EI,
+    rigid)``, ``configuration = (factor, P, qloc, Kn, angle)`` (batch axis first), ``joints =
+    (ends, free, count)``, ``checks = (negative, pivots, status)``, ``factors`` as
+    :data:`tmm_core.compiled.time_step.STORED` for one configuration, ``scratch`` from
+    :func:`factor_scratch`."""
+    inv_fact, seg_off, L, EA, EI, rigid = segments
+    factor, P, qloc, Kn, angle = configuration
+    ends, free, count = joints
+    negative, pivots, status = checks
+    lead, prefix, lcol, B0, T220, SP, TL, Gis, Xs, BGis, HGis, Cs, Ds, Af, Bf, firsts, Kfull, lu, piv = factors
+    Kc, T6, t6, tmp6, Kff, Ks, work, c5, sp, T11, T12, T21, T22, A, Bm, C, D, t1, t2, zi, fi = scratch
+    M, nd, nf = seg_off.shape[0] - 1, Kfull.shape[0], lu.shape[0]
     status[bi] = 0
     neg_chain = 0
     for i in range(nd):

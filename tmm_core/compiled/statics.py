@@ -292,20 +292,25 @@ def _run(prep, P, check_buckling, count_inertia, node_loads, compact_nodes, iter
     linear_states = None if cond_limit is None else np.empty((B, 1, Nn, 2, 6))
     if linear_states is not None:       # written by the call (not the default's shared array)
         start, scales = linear_states[:, 0], np.zeros(2)
-    inputs = (structure_kernel.INV_FACT, lay.seg_off, lay.L, lay.EA, lay.EI, lay.rigid, prep.factor, P, prep.qloc,
-              prep.Kn, Fn, prep.angle, lay.ends, lay.free, count)
-    outputs = (q, reaction, negative, pivots, status, zout, nout, gnode, gstate)
+    # The kernel's records (tmm_core.compiled.structure.solve_range).
+    segments = (structure_kernel.INV_FACT, lay.seg_off, lay.L, lay.EA, lay.EI, lay.rigid)
+    configuration = (prep.factor, P, prep.qloc, prep.Kn, prep.angle)
+    joints = (lay.ends, lay.free, count)
+    outputs = (states, q, reaction, zout, nout, gnode, gstate)
+    checks = (negative, pivots, status)
     control = (np.asarray(weights, dtype=float),
                np.empty((B, 0, 2, 6)) if start is None else np.ascontiguousarray(start),
                np.asarray(scales, dtype=float), iterations, last_change)
     if linear_states is not None:
         # The linear solve, its checks, the change scales and the initial axial forces
         # (iteration_start), then the iteration: every part of the batch on the same call.
-        _in_parts(solve_range, B, chunks, *inputs, linear_states, *outputs, (0.0, 1, False), *control)
+        linear_outputs = (linear_states,) + outputs[1:]
+        _in_parts(solve_range, B, chunks, segments, configuration, Fn, joints, linear_outputs, checks, (0.0, 1, False),
+                  control)
         if not iteration_start(start, P, lay.seg_off, lay.L, lay.EI, prep.factor, lay.rigid, negative, pivots,
                                status, control[0], scales, float(cond_limit), bool(check_buckling)):
             return None
-    _in_parts(solve_range, B, chunks, *inputs, states, *outputs, iteration, *control)
+    _in_parts(solve_range, B, chunks, segments, configuration, Fn, joints, outputs, checks, iteration, control)
     if compact_nodes is not None:
         states = (zout, nout, gstate)
     elif node_loads is None:
@@ -378,9 +383,10 @@ def factor_prepared(prep: Prepared, P: np.ndarray, *, cond_limit: float = 1e12):
     pivots = np.empty((B, 2))
     status = np.zeros(B, dtype=np.int64)
     factor_range, _ = binding.factored()
-    args = (structure_kernel.INV_FACT, lay.seg_off, lay.L, lay.EA, lay.EI, lay.rigid, prep.factor, P, prep.qloc, prep.Kn,
-            prep.angle, lay.ends, lay.free, np.ones(M, dtype=np.bool_), negative, pivots, status, stored)
-    _in_parts(factor_range, B, _thread_chunks(B, B), *args)
+    segments = (structure_kernel.INV_FACT, lay.seg_off, lay.L, lay.EA, lay.EI, lay.rigid)
+    configuration = (prep.factor, P, prep.qloc, prep.Kn, prep.angle)
+    joints = (lay.ends, lay.free, np.ones(M, dtype=np.bool_))
+    _in_parts(factor_range, B, _thread_chunks(B, B), segments, configuration, joints, (negative, pivots, status), stored)
     return stored, _checked(prep, P, s, (None, None, None, negative, pivots, status), False, cond_limit)[3]
 
 

@@ -155,14 +155,19 @@ def copy_sweep(mi, l0, l1, src, m, first, pcol, cs, ys, af):
                     ys[mi, j, r, ri] = v
 
 
-def solve_loads_many(bi, Fn, seg_off, rigid, angle, ends, free, q_out, reaction, zout, nout, gnode, gstate, R, M, nd,
-                     nf, lead, prefix, lcol, B0, T220, SP, TL, Gis, Xs, BGis, HGis, Cs, Ds, Af, Bf, firsts, Kfull, lu,
-                     piv, scratch):
+def solve_loads_many(bi, Fn, joints, outputs, factors, scratch):
     """:func:`tmm_core.compiled.structure.solve_loads` for ``R`` load sets and the compact outputs only
     (``zout``, ``nout``, ``gstate``, with ``q_out`` and ``reaction``; units and layout as
     :func:`tmm_core.compiled.structure.solve_range`), vectorized across the load sets; ``scratch`` from
     :func:`maps_scratch` (one per batch loop: the transposed loads are kept between configurations
-    when ``Fn`` has no batch entries)."""
+    when ``Fn`` has no batch entries).
+
+    Records as :func:`tmm_core.compiled.structure.solve_loads` (``outputs``' station states are not
+    written)."""
+    seg_off, rigid, angle, ends, free = joints
+    _states, q_out, reaction, zout, nout, gnode, gstate = outputs
+    lead, prefix, lcol, B0, T220, SP, TL, Gis, Xs, BGis, HGis, Cs, Ds, Af, Bf, firsts, Kfull, lu, piv = factors
+    R, M, nd, nf = Fn.shape[1], seg_off.shape[0] - 1, Kfull.shape[0], lu.shape[0]
     FT, ranges, filled, pcol, cs, ys, af, rfull, xf, qv, S0, st, zc, F5 = scratch
     G = gnode.shape[0]
     # The work arrays' lanes (load sets, then zero-load ones): the loops over them have no

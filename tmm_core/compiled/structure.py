@@ -65,9 +65,7 @@ AVAILABLE = cache.AVAILABLE
 INV_FACT = np.array(matrices.INV_FACT)        # the Stumpff series' 1/k! (the numpy path's table)
 
 
-def solve_range(b_start, b_stop, inv_fact, seg_off, L, EA, EI, rigid, factor, P, qloc, Kn, Fn, angle, ends, free,
-                count, states, q_out, reaction, negative, pivots, status, zout, nout, gnode, gstate, iteration, weights,
-                start, scales, iterations, last_change):
+def solve_range(b_start, b_stop, segments, configuration, Fn, joints, outputs, checks, iteration, control):
     """Factorize the configurations ``b_start <= b < b_stop`` of a batch once each and solve
     them for ``R`` sets of node loads (see the module docstring); or, with
     ``iteration = (tol, max_iter, count from P)`` and ``max_iter > 1``, iterate each one on its
@@ -95,7 +93,18 @@ def solve_range(b_start, b_stop, inv_fact, seg_off, L, EA, EI, rigid, factor, P,
     (:func:`tmm_core.compiled.dense.state_change`); ``iterations (B,)`` solves made (the first
     included), ``last_change (B,)``; ``status`` 3 a non-finite iterate, 4 not converged in
     ``max_iter`` solves; ``count`` the members to count, or with ``count from P`` recounted
-    before every solve (the members in compression)."""
+    before every solve (the members in compression).
+
+    Records (tuples of arrays, unpacked below): ``segments = (inv_fact, seg_off, L, EA, EI,
+    rigid)``, ``configuration = (factor, P, qloc, Kn, angle)``, ``joints = (ends, free, count)``,
+    ``outputs = (states, q_out, reaction, zout, nout, gnode, gstate)``, ``checks = (negative,
+    pivots, status)``, ``control = (weights, start, scales, iterations, last_change)``."""
+    inv_fact, seg_off, L, EA, EI, rigid = segments
+    factor, P, qloc, Kn, angle = configuration
+    ends, free, count = joints
+    states, q_out, reaction, zout, nout, gnode, gstate = outputs
+    negative, pivots, status = checks
+    weights, start, scales, iterations, last_change = control
     R = Fn.shape[1]
     full = states.shape[1] > 0
     compact = zout.shape[1] > 0
@@ -129,7 +138,8 @@ def solve_range(b_start, b_stop, inv_fact, seg_off, L, EA, EI, rigid, factor, P,
     ys = np.zeros((M, mmax, 3))
     cs = np.zeros((M, mmax + 1, 3))
     af = np.zeros((M, 3))
-    Kc, T6, t6, tmp6, Kff, Ks, work, c5, sp, T11, T12, T21, T22, A, Bm, C, D, t1, t2 = factor_scratch(nf)
+    scratch_factor = factor_scratch(nf)
+    t6, t1, t2 = scratch_factor[2], scratch_factor[17], scratch_factor[18]     # shared with the load solve
     Kfull = np.zeros((nd, nd))
     rfull = np.zeros(nd)
     lu = np.zeros((nf, nf))
@@ -147,13 +157,15 @@ def solve_range(b_start, b_stop, inv_fact, seg_off, L, EA, EI, rigid, factor, P,
     S0 = np.zeros(6)
     zl = np.zeros(6)
     qe = np.zeros(6)
-    zi = np.array([0, 1, 2])
-    fi = np.array([5, 4, 3])
+    zi, fi = scratch_factor[19], scratch_factor[20]
     stn = np.zeros((Kn.shape[1], 2, 6))
     # Many load sets with compact outputs (the maps): the load solve vectorized across them.
     many = compact and R > 1 and not full
     R_many = R if many else 0
     scratch = maps_scratch(M, mmax, nd, nf, Kn.shape[1], R_many)
+    factors = (lead, prefix, lcol, B0, T220, SP, TL, Gis, Xs, BGis, HGis, Cs, Ds, Af, Bf, firsts, Kfull, lu, piv)
+    load_joints = (seg_off, rigid, angle, ends, free)
+    load_work = (pcol, ys, cs, af, t6, t1, t2, a, c, y, v3, rfull, rhs, xf, qv, zl, zs, ze, qe, S0, zj, stn, zi, fi)
 
     tol, max_iter, recount = iteration
     cnt = count.copy()
@@ -173,21 +185,13 @@ def solve_range(b_start, b_stop, inv_fact, seg_off, L, EA, EI, rigid, factor, P,
                     for sg in range(seg_off[mi], seg_off[mi + 1]):
                         if P[bi, sg] < 0.0:
                             cnt[mi] = True
-            if not factor_configuration(bi, inv_fact, seg_off, L, EA, EI, rigid, factor, P, qloc, Kn, angle, ends,
-                                        free, cnt, negative, pivots, status, M, nd, nf, lead, prefix, lcol, B0, T220,
-                                        SP, TL, Gis, Xs, BGis, HGis, Cs, Ds, Af, Bf, firsts, Kc, T6, t6, tmp6, Kfull,
-                                        Kff, Ks, lu, piv, work, c5, sp, T11, T12, T21, T22, A, Bm, C, D, t1, t2, zi,
-                                        fi):
+            if not factor_configuration(bi, segments, configuration, (ends, free, cnt), checks, factors,
+                                        scratch_factor):
                 break
             if many:
-                solve_loads_many(bi, Fn, seg_off, rigid, angle, ends, free, q_out, reaction, zout, nout, gnode, gstate,
-                                 R, M, nd, nf, lead, prefix, lcol, B0, T220, SP, TL, Gis, Xs, BGis, HGis, Cs, Ds, Af,
-                                 Bf, firsts, Kfull, lu, piv, scratch)
+                solve_loads_many(bi, Fn, load_joints, outputs, factors, scratch)
             else:
-                solve_loads(bi, Fn, seg_off, rigid, angle, ends, free, states, q_out, reaction, zout, nout, gnode,
-                            gstate, R, M, nd, nf, full, compact, lead, prefix, lcol, B0, T220, SP, TL, Gis, Xs, BGis,
-                            HGis, Cs, Ds, Af, Bf, firsts, Kfull, lu, piv, pcol, ys, cs, af, t6, t1, t2, a, c, y, v3,
-                            rfull, rhs, xf, qv, zl, zs, ze, qe, S0, zj, stn, zi, fi)
+                solve_loads(bi, Fn, load_joints, outputs, factors, load_work)
             if max_iter <= 1:
                 break
             iterations[bi] = it
@@ -214,16 +218,25 @@ def solve_range(b_start, b_stop, inv_fact, seg_off, L, EA, EI, rigid, factor, P,
             it += 1
 
 
-def solve_loads(bi, Fn, seg_off, rigid, angle, ends, free, states, q_out, reaction, zout, nout, gnode, gstate, R, M,
-                nd, nf, full, compact, lead, prefix, lcol, B0, T220, SP, TL, Gis, Xs, BGis, HGis, Cs, Ds, Af, Bf,
-                firsts, Kfull, lu, piv, pcol, ys, cs, af, t6, t1, t2, a, c, y, v3, rfull, rhs, xf, qv, zl, zs, ze, qe,
-                S0, zj, stn, zi, fi):
+def solve_loads(bi, Fn, joints, outputs, factors, work):
     """Solve the factorized configuration ``bi`` (:func:`tmm_core.compiled.riccati.factor_configuration`)
     for every load set: the load sweep (:func:`tmm_core.riccati.sweep_loads`), the joint solve and the
     back-substitution to the station states (outputs as :func:`solve_range`). One load set at a
     time: the one-load-set callers (a time step on the stored factorizations, the quasi-static
     solves); many load sets with compact outputs go to
-    :func:`tmm_core.compiled.step_data.solve_loads_many`."""
+    :func:`tmm_core.compiled.step_data.solve_loads_many`.
+
+    Records: ``joints = (seg_off, rigid, angle, ends, free)``, ``outputs = (states, q_out,
+    reaction, zout, nout, gnode, gstate)`` (as :func:`solve_range`), ``factors`` the
+    configuration's factorization (:func:`tmm_core.compiled.riccati.factor_configuration`),
+    ``work = (pcol, ys, cs, af, t6, t1, t2, a, c, y, v3, rfull, rhs, xf, qv, zl, zs, ze, qe, S0,
+    zj, stn, zi, fi)`` scratch arrays."""
+    seg_off, rigid, angle, ends, free = joints
+    states, q_out, reaction, zout, nout, gnode, gstate = outputs
+    lead, prefix, lcol, B0, T220, SP, TL, Gis, Xs, BGis, HGis, Cs, Ds, Af, Bf, firsts, Kfull, lu, piv = factors
+    pcol, ys, cs, af, t6, t1, t2, a, c, y, v3, rfull, rhs, xf, qv, zl, zs, ze, qe, S0, zj, stn, zi, fi = work
+    R, M, nd, nf = Fn.shape[1], seg_off.shape[0] - 1, Kfull.shape[0], lu.shape[0]
+    full, compact = states.shape[1] > 0, zout.shape[1] > 0
     # -- every load set: load sweep (tmm_core.riccati.sweep_loads), joint solve, states ------
     fb = bi if Fn.shape[0] > 1 else 0
     for ri in range(R):

@@ -32,24 +32,16 @@ STORED = {"lead": 5, "prefix": 5, "lcol": 3, "B0": 4, "T220": 4, "SP": 4, "TL": 
 INTEGER = ("firsts", "piv")
 
 
-def factor_range(b_start, b_stop, inv_fact, seg_off, L, EA, EI, rigid, factor, P, qloc, Kn, angle, ends, free, count,
-                 negative, pivots, status, stored):
+def factor_range(b_start, b_stop, segments, configuration, joints, checks, stored):
     """Factorize the configurations ``b_start <= b < b_stop`` into ``stored`` (the arrays of
-    :data:`STORED`, each with the batch axis first; inputs and ``negative``, ``pivots``,
-    ``status`` as :func:`tmm_core.compiled.structure.solve_range`)."""
+    :data:`STORED`, each with the batch axis first; the records ``segments``, ``configuration``,
+    ``joints`` and ``checks`` as :func:`tmm_core.compiled.riccati.factor_configuration`)."""
     lead, prefix, lcol, B0, T220, SP, TL, Gis, Xs, BGis, HGis, Cs, Ds, Af, Bf, firsts, Kfull, lu, piv = stored
-    M = seg_off.shape[0] - 1
-    nd = Kfull.shape[1]
-    nf = lu.shape[1]
-    Kc, T6, t6, tmp6, Kff, Ks, work, c5, sp, T11, T12, T21, T22, A, Bm, C, D, t1, t2 = factor_scratch(nf)
-    zi = np.array([0, 1, 2])
-    fi = np.array([5, 4, 3])
+    scratch = factor_scratch(lu.shape[1])
     for bi in range(b_start, b_stop):
-        factor_configuration(bi, inv_fact, seg_off, L, EA, EI, rigid, factor, P, qloc, Kn, angle, ends, free, count,
-                             negative, pivots, status, M, nd, nf, lead[bi], prefix[bi], lcol[bi], B0[bi], T220[bi],
-                             SP[bi], TL[bi], Gis[bi], Xs[bi], BGis[bi], HGis[bi], Cs[bi], Ds[bi], Af[bi], Bf[bi],
-                             firsts[bi], Kc, T6, t6, tmp6, Kfull[bi], Kff, Ks, lu[bi], piv[bi], work, c5, sp, T11, T12,
-                             T21, T22, A, Bm, C, D, t1, t2, zi, fi)
+        factors = (lead[bi], prefix[bi], lcol[bi], B0[bi], T220[bi], SP[bi], TL[bi], Gis[bi], Xs[bi], BGis[bi],
+                   HGis[bi], Cs[bi], Ds[bi], Af[bi], Bf[bi], firsts[bi], Kfull[bi], lu[bi], piv[bi])
+        factor_configuration(bi, segments, configuration, joints, checks, factors, scratch)
 
 
 def march_arrays(factors, n_nodes: int, n_seg: int, n_out: int) -> tuple:
@@ -95,19 +87,17 @@ def factored_solve(k, f, layout, stored, work, zn, N, y):
     for node in range(Nn):
         for r in range(3):
             Fn[0, 0, node, r] = f[3 * node + r]
-    M = seg_off.shape[0] - 1
     nd = Kfull.shape[1]
-    nf = lu.shape[1]
-    # Entry 0 of a one-entry batch, one load set, compact outputs only: read from the shapes, not
-    # written as constants, so that numba compiles solve_loads once (constants would be typed as
-    # literals and compile a second, specialised solve_loads).
-    entry, load_sets = Fn.shape[0] - 1, Fn.shape[1]
-    full, compact = states.shape[1] > 0, zout.shape[1] > 0
-    solve_loads(entry, Fn, seg_off, rigid, angle[k:k + 1], ends, free, states, q_out, reaction, zout, nout, gnode,
-                gstate, load_sets, M, nd, nf, full, compact, lead[k], prefix[k], lcol[k], B0[k], T220[k], SP[k],
-                TL[k], Gis[k], Xs[k], BGis[k], HGis[k], Cs[k], Ds[k], Af[k], Bf[k], firsts[k], Kfull[k], lu[k],
-                piv[k], pcol, ys, cs, af, t6, t1, t2, a, c, yv, v3, rfull, rhs, xf, qv, zl, zs, ze, qe, S0, zj, stn,
-                zi, fi)
+    # Entry 0 of a one-entry batch: read from the shape, not written as a constant, so that numba
+    # compiles solve_loads once (a constant would be typed as a literal and compile a second,
+    # specialised solve_loads).
+    entry = Fn.shape[0] - 1
+    factors = (lead[k], prefix[k], lcol[k], B0[k], T220[k], SP[k], TL[k], Gis[k], Xs[k], BGis[k], HGis[k], Cs[k],
+               Ds[k], Af[k], Bf[k], firsts[k], Kfull[k], lu[k], piv[k])
+    joints = (seg_off, rigid, angle[k:k + 1], ends, free)
+    outputs = (states, q_out, reaction, zout, nout, gnode, gstate)
+    load_work = (pcol, ys, cs, af, t6, t1, t2, a, c, yv, v3, rfull, rhs, xf, qv, zl, zs, ze, qe, S0, zj, stn, zi, fi)
+    solve_loads(entry, Fn, joints, outputs, factors, load_work)
     for i in range(3 * Nn):
         zn[i] = zout[0, i, 0]
     for s in range(N.shape[0]):
