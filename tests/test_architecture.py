@@ -40,7 +40,7 @@ LONG_FUNCTIONS = {
     "cosim.run.run_scenario": "one run end to end; issue 35 item 3 (a short pipeline)",
     "cosim.scenario.from_dict": "the scenario loader; issue 35 item 1 (a loader package)",
     "cosim.structure_scenario.build": "the structure format's builder; issue 35 item 3",
-    "tmm_core.compiled.march.march": "the compiled march: numba kernels take arrays, not records; issue 33 item 5",
+    "tmm_core.compiled.march.march": "the compiled march of the time step (8 records): the step loop with its axial iteration; issue 33 item 4 (one step)",
     "tmm_core.compiled.riccati.factor_configuration": "compiled factorization of one configuration (7 records), one loop over the chain; issue 33",
     "tmm_core.compiled.step_data.solve_loads_many": "compiled load solve of many load sets (6 records), one sweep; issue 33",
     "tmm_core.compiled.periodic.push": "compiled linearized step; issue 33 items 4-5 (one step)",

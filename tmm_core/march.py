@@ -129,14 +129,18 @@ class March:
         zs = np.empty((len(indices), n)) if record_z else np.empty((0, n))
         Ps = np.empty((len(indices), len(seg.length))) if record_axial else np.empty((0, len(seg.length)))
         iterations = np.zeros(len(indices), dtype=np.int64)
+        # The compiled march's records (tmm_core.compiled.march.march).
+        integrator = (code, params, self.dt, c_a, c_v)
+        model = (td.m_vec, td.aM_vec, td.beta_node, seg.start, seg.end, seg.length, seg.EA, seg.beta, td.seg_blocks,
+                 td.gauge_segment)
+        settings = (td.coupling.coriolis, td.has_kv, dynamic, "shortening" in td.dynamic_terms,
+                    "axial_force" in td.dynamic_terms, td.axial_tolerance, AXIAL_FORCE_TOLERANCE, td.axial_iterations,
+                    ANDERSON_DEPTH)
         j = 0
         while j < len(indices):
-            done = kernel_binding.march()(
-                code, params, self.dt, c_a, c_v, indices[j:], *data, td.m_vec, td.aM_vec, td.beta_node, seg.start,
-                seg.end, seg.length, seg.EA, seg.beta, td.seg_blocks, td.gauge_segment, td.coupling.coriolis,
-                td.has_kv, dynamic, "shortening" in td.dynamic_terms, "axial_force" in td.dynamic_terms,
-                td.axial_tolerance, AXIAL_FORCE_TOLERANCE, td.axial_iterations, ANDERSON_DEPTH, *arrays, P, outs[j:],
-                zs[j:] if record_z else zs, Ps[j:] if record_axial else Ps, iterations[j:])
+            recorded = (outs[j:], zs[j:] if record_z else zs, Ps[j:] if record_axial else Ps, iterations[j:])
+            done = kernel_binding.march()(integrator, indices[j:], data[:6], data[6:], model, settings,
+                                          (*arrays, P), recorded)
             self.state = {key: arr.copy() for key, arr in zip(("d", "v", "a", "acc", "d1", "d2"), arrays) if key in st}
             self.axial = P.copy() if dynamic else self.axial
             j += done

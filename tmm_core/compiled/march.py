@@ -148,11 +148,7 @@ def anderson_coefficients(dR, h, r, gamma, Q, R):
         gamma[c] = acc / R[c, c]
 
 
-def march(code, params, dt, c_a, c_v, idx,
-          Zx, Ox, Ax, P0, rigid, omega, factored, flayout, fstored, fwork, Ocx,
-          m, aM, beta_node, seg_start, seg_end, seg_L, seg_EA, seg_beta, seg_K, gauge_seg,
-          coriolis, has_kv, dynamic, shortening, own_force, tol_z, tol_P, max_iterations, depth,
-          d, v, a, acc, d1, d2, P, out_hist, z_hist, P_hist, iterations):
+def march(integrator, idx, maps, on_factors, model, settings, state, recorded):
     """March the steps whose configuration indices are ``idx`` (into the map batch), updating
     the state ``d, v, a, acc, d1, d2`` and the segment axial forces ``P`` in place and writing
     the outputs of each step into ``out_hist`` / ``z_hist`` / ``P_hist`` (rows; an array with no
@@ -161,7 +157,23 @@ def march(code, params, dt, c_a, c_v, idx,
     solves on the stored factorizations (:func:`tmm_core.compiled.time_step.factored_solve`:
     ``flayout, fstored, fwork``; the outputs ``Ocx`` applied to ``y``).
     Returns the number of steps done (``len(idx)`` unless a step failed: then the state is that
-    of the step before it)."""
+    of the step before it).
+
+    Records (tuples, unpacked below): ``integrator = (code, params, dt [s], c_a, c_v)``;
+    ``maps = (Zx, Ox, Ax, P0, rigid, omega)`` and ``on_factors = (factored, flayout, fstored,
+    fwork, Ocx)``, the configuration batch's data
+    (:meth:`tmm_core.time_step.StepSolver.kernel_data`); ``model = (m, aM, beta_node, seg_start,
+    seg_end, seg_L, seg_EA, seg_beta, seg_K, gauge_seg)``; ``settings = (coriolis, has_kv,
+    dynamic, shortening, own_force, tol_z, tol_P, max_iterations, depth)``; ``state = (d, v, a,
+    acc, d1, d2, P)``, updated in place; ``recorded = (out_hist, z_hist, P_hist, iterations)``."""
+    code, params, dt, c_a, c_v = integrator
+    Zx, Ox, Ax, P0, rigid, omega = maps
+    factored, flayout, fstored, fwork, Ocx = on_factors
+    m, aM, beta_node, seg_start, seg_end, seg_L, seg_EA, seg_beta, seg_K, gauge_seg = model
+    coriolis, has_kv, dynamic, shortening, own_force, tol_z, tol_P, max_iterations, depth = settings
+    d, v, a, acc, d1, d2, P = state
+    out_hist, z_hist, P_hist, iterations = recorded
+
     n = d.shape[0]
     ns = seg_L.shape[0]
     no = Ox.shape[1]
