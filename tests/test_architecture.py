@@ -43,7 +43,7 @@ LONG_FUNCTIONS = {
     "tmm_core.compiled.march.march": "the compiled march of the time step (8 records): the step loop with its axial iteration; issue 33 item 4 (one step)",
     "tmm_core.compiled.riccati.factor_configuration": "compiled factorization of one configuration (7 records), one loop over the chain; issue 33",
     "tmm_core.compiled.step_data.solve_loads_many": "compiled load solve of many load sets (6 records), one sweep; issue 33",
-    "tmm_core.compiled.periodic.push": "compiled linearized step; issue 33 items 4-5 (one step)",
+    "tmm_core.compiled.periodic.push": "compiled linearized step (9 records); issue 33 item 4 (one step)",
     "tmm_core.compiled.reduced_periodic.second_order": "reduced model's second-order step; issue 33 items 4-5",
     "tmm_core.compiled.reduced_periodic.revolution": "reduced model's revolution; issue 33 items 4-5",
     "tmm_core.compiled.structure.solve_range": "compiled static solve and beam-column iteration (10 records); issue 33",

@@ -131,8 +131,7 @@ class March:
         iterations = np.zeros(len(indices), dtype=np.int64)
         # The compiled march's records (tmm_core.compiled.march.march).
         integrator = (code, params, self.dt, c_a, c_v)
-        model = (td.m_vec, td.aM_vec, td.beta_node, seg.start, seg.end, seg.length, seg.EA, seg.beta, td.seg_blocks,
-                 td.gauge_segment)
+        model = td.kernel_model()
         settings = (td.coupling.coriolis, td.has_kv, dynamic, "shortening" in td.dynamic_terms,
                     "axial_force" in td.dynamic_terms, td.axial_tolerance, AXIAL_FORCE_TOLERANCE, td.axial_iterations,
                     ANDERSON_DEPTH)

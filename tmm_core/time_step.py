@@ -179,6 +179,16 @@ class StepSolver:
         return {l.name: loads[self.offsets[l.name]:self.offsets[l.name] + 3 * l.n_nodes]
                 .reshape(l.n_nodes, 3)[None, None] for l in self.links}
 
+    def kernel_model(self) -> tuple:
+        """The model record the compiled steps read (:func:`tmm_core.compiled.march.march`,
+        :func:`tmm_core.compiled.periodic.push`): ``(m, aM, beta_node, seg_start, seg_end, seg_L,
+        seg_EA, seg_beta, seg_K, gauge_seg)``: lumped masses [kg, kg m^2] and mass damping per
+        DOF, stiffness damping per node, each segment's end nodes, length [m], EA [N], stiffness
+        damping [s] and 4x4 bending blocks, and each gauge's segment."""
+        seg = self.segments
+        return (self.m_vec, self.aM_vec, self.beta_node, seg.start, seg.end, seg.length, seg.EA, seg.beta,
+                self.seg_blocks, self.gauge_segment)
+
     def kernel_data(self, cfg):
         """The arrays of a configuration batch the compiled march reads (cached in the batch):
         its maps, or its stored factorizations (:class:`tmm_core.configuration_batch.StepFactors`)

@@ -66,8 +66,7 @@ def integrator_coefficients(integrator, dt: float):
     return slots, Hc, Gc, ez
 
 
-def push(S, Hc, Gc, ez, idx, forced, Zx, Ax, P0, rigid, omega, m, aM, beta_node,
-         seg_start, seg_end, seg_L, seg_EA, seg_beta, seg_K, coriolis, has_kv, dynamic, c_v, zs, vs, Ps):
+def push(S, coef, idx, forced, maps, model, flags, c_v, trajectory):
     """March the states ``S`` (K slots, n_dof, M columns) in place through the steps at
     configurations ``idx`` of a map batch (augmented maps ``Zx``, ``Ax``:
     :class:`tmm_core.configuration_batch.StepMaps`): the linear step (``dynamic`` False: loads
@@ -77,7 +76,17 @@ def push(S, Hc, Gc, ez, idx, forced, Zx, Ax, P0, rigid, omega, m, aM, beta_node,
     (the affine response of the linear step); the others are homogeneous (unit states).
 
     Columns are the last axis: every operation on a degree of freedom is a contiguous row
-    operation over the M columns, and the displacements are one matrix product per step."""
+    operation over the M columns, and the displacements are one matrix product per step.
+
+    Records (tuples, unpacked below): ``coef = (Hc, Gc, ez)`` (:func:`integrator_coefficients`);
+    ``maps = (Zx, Ax, P0, rigid, omega)``; ``model`` the march's model record
+    (:meth:`tmm_core.time_step.StepSolver.kernel_model`); ``flags = (coriolis, has_kv,
+    dynamic)``; ``trajectory = (zs, vs, Ps)``."""
+    Hc, Gc, ez = coef
+    Zx, Ax, P0, rigid, omega = maps
+    m, aM, beta_node, seg_start, seg_end, seg_L, seg_EA, seg_beta, seg_K, _gauge_seg = model
+    coriolis, has_kv, dynamic = flags
+    zs, vs, Ps = trajectory
     K, n, M = S.shape
     ns = seg_L.shape[0]
     nx = n + ns
@@ -259,16 +268,14 @@ def trajectory_velocities(integrator, state, zs, dt: float) -> np.ndarray:
 
 
 def _inputs(td, cfg, dt):
-    """The step data :func:`push` reads, from the batch's compiled-march arrays."""
+    """What :func:`push` reads, from the batch's compiled-march arrays: ``(slots, coef, maps,
+    model, (coriolis, has_kv), c_v)``."""
     if cfg.maps is None:
         raise ValueError("the compiled periodic solve needs the configurations' load-to-response maps")
     Zx, _, Ax, P0, rigid, omega = td.kernel_data(cfg)[:6]
-    seg = td.segments
     slots, Hc, Gc, ez = integrator_coefficients(td.integrator, dt)
     _, c_v = td.integrator.coefficients(dt)
-    data = (Zx, Ax, P0, rigid, omega, td.m_vec, td.aM_vec, td.beta_node, seg.start, seg.end, seg.length, seg.EA,
-            seg.beta, td.seg_blocks, td.coupling.coriolis, td.has_kv)
-    return slots, (Hc, Gc, ez), data, c_v
+    return slots, (Hc, Gc, ez), (Zx, Ax, P0, rigid, omega), td.kernel_model(), (td.coupling.coriolis, td.has_kv), c_v
 
 
 def _dependent_keys(slots, keys, Hc, Gc):
@@ -330,12 +337,12 @@ def linear_shooting(td, cfg, keys, N: int, dt: float):
     """The linear step's revolution ``x_N = Phi x_0 + c`` (as the first pass of
     :func:`tmm_core.periodic.periodic_steady_state`): ``(Phi, c)`` for the stacked state of
     ``keys``, the configurations of ``cfg`` being the N steps of the revolution."""
-    slots, coef, data, c_v = _inputs(td, cfg, dt)
+    slots, coef, maps, model, flags, c_v = _inputs(td, cfg, dt)
     n = td.n_dof
     marched, dependent, C = _dependent_keys(slots, keys, coef[0], coef[1])
     S = _initial_states(slots, keys, n, marched, extra=1)
-    empty = np.zeros((0, n))
-    single(push)(S, *coef, np.arange(1, N + 1) % N, 1, *data, False, c_v, empty, empty, np.zeros((0, len(td.segments.length))))
+    no_trajectory = (np.zeros((0, n)), np.zeros((0, n)), np.zeros((0, len(td.segments.length))))
+    single(push)(S, coef, np.arange(1, N + 1) % N, 1, maps, model, (*flags, False), c_v, no_trajectory)
     X = _stacked(S, slots, keys)
     return _expand(X[:, 1:], marched, dependent, C, n), X[:, 0].copy()
 
@@ -343,10 +350,10 @@ def linear_shooting(td, cfg, keys, N: int, dt: float):
 def monodromy(td, cfg, keys, trajectory, dt: float) -> np.ndarray:
     """Monodromy matrix of the second-order step linearized about ``trajectory`` (a list of
     ``(idx, z, v, P)`` per step, as :func:`tmm_core.periodic._revolution` returns it)."""
-    slots, coef, data, c_v = _inputs(td, cfg, dt)
+    slots, coef, maps, model, flags, c_v = _inputs(td, cfg, dt)
     idx = np.array([t[0] for t in trajectory], dtype=np.int64)
-    zs, vs, Ps = (np.ascontiguousarray(np.array([t[i] for t in trajectory]), dtype=float) for i in (1, 2, 3))
+    linearized_about = tuple(np.ascontiguousarray(np.array([t[i] for t in trajectory]), dtype=float) for i in (1, 2, 3))
     marched, dependent, C = _dependent_keys(slots, keys, coef[0], coef[1])
     S = _initial_states(slots, keys, td.n_dof, marched)
-    single(push)(S, *coef, idx, 0, *data, True, c_v, zs, vs, Ps)
+    single(push)(S, coef, idx, 0, maps, model, (*flags, True), c_v, linearized_about)
     return _expand(_stacked(S, slots, keys), marched, dependent, C, td.n_dof)
