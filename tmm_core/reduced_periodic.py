@@ -266,7 +266,6 @@ class ReducedModel:
             guess[0] = np.linalg.solve(self.Mr[0], self.fr[0] - self.Cr[0] @ x0[r:] - self.Kr[0] @ x0[:r])
         else:
             guess = self.stage_acc
-        args = self._kernel_data()
         x_end, mono, accs = np.empty(2 * r), np.empty((2 * r, 2 * r)), np.empty((self.N, 3, r))
         outs = np.empty((3 * self.N if outputs else 0, 1 + 2 * len(self.td.gauges)))
         if self._factors is None:
@@ -275,11 +274,13 @@ class ReducedModel:
             self._factors = (np.empty((self.N, 3 * r, 3 * r)), np.empty((self.N, 3 * r), dtype=np.int64),
                              np.zeros(self.N, dtype=np.bool_))
         counts = np.zeros(2, dtype=np.int64)
+        stages, segments, output_maps = self._kernel_data()
+        options = (bool(nonlinear), bool(jacobian), bool(outputs), self.stage_acc is not None, self.chord,
+                   compiled_reduced_periodic.CHORD_START, compiled_reduced_periodic.CHORD_CONTRACTION)
+        newton = (compiled_reduced_periodic.STAGE_TOL, compiled_reduced_periodic.STAGE_ITERATIONS)
         failed = kernel_binding.reduced_revolution()(
-            x0, bool(nonlinear), bool(jacobian), bool(outputs), self.stage_acc is not None, self.chord,
-            compiled_reduced_periodic.CHORD_START, compiled_reduced_periodic.CHORD_CONTRACTION, guess,
-            self.h, RADAU_A, self.A2, RADAU_C, *args, compiled_reduced_periodic.STAGE_TOL, compiled_reduced_periodic.STAGE_ITERATIONS,
-            *self._factors, x_end, mono, outs, accs, counts)
+            x0, guess, options, (self.h, RADAU_A, self.A2, RADAU_C), stages, segments, output_maps, newton,
+            self._factors, (x_end, mono, outs, accs, counts))
         self.counts = counts
         if failed >= 0:
             raise ConvergenceError(f"reduced model: the stage equations of step {failed} did not converge (crank "
@@ -288,17 +289,20 @@ class ReducedModel:
         return x_end, mono if jacobian else None, outs if outputs else None
 
     def _kernel_data(self):
-        """The arrays the compiled revolution reads (built once): stage matrices, basis, segment
-        data and the output maps (:meth:`output_maps`)."""
+        """The records the compiled revolution reads (built once): ``(stages, segments,
+        output_maps)``, the stage matrices and basis ``(Mr, Cr, Kr, fr, T, Td)``, the segment data
+        ``(seg_w, seg_u, G, k, beta)`` and the output maps (:meth:`output_maps`) with the gauges'
+        segments and lengths."""
         if self._kernel_args is None:
             seg = self.td.segments
             c = np.ascontiguousarray
-            self._kernel_args = (
-                c(self.Mr), c(self.Cr), c(self.Kr), c(self.fr), c(self.T), c(self.Td),
-                np.stack([seg.start + 1, seg.start + 2, seg.end + 1, seg.end + 2], axis=1).astype(np.int64),
-                np.stack([seg.start, seg.end], axis=1).astype(np.int64), c(self.G, dtype=float),
-                c(self.k, dtype=float), c(self.beta, dtype=float), *self.output_maps(),
-                self.gauge_segment.astype(np.int64), c(seg.length[self.gauge_segment], dtype=float))
+            stages = (c(self.Mr), c(self.Cr), c(self.Kr), c(self.fr), c(self.T), c(self.Td))
+            segments = (np.stack([seg.start + 1, seg.start + 2, seg.end + 1, seg.end + 2], axis=1).astype(np.int64),
+                        np.stack([seg.start, seg.end], axis=1).astype(np.int64), c(self.G, dtype=float),
+                        c(self.k, dtype=float), c(self.beta, dtype=float))
+            output_maps = (*self.output_maps(), self.gauge_segment.astype(np.int64),
+                           c(seg.length[self.gauge_segment], dtype=float))
+            self._kernel_args = (stages, segments, output_maps)
         return self._kernel_args
 
     def output_maps(self):

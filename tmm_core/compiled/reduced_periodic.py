@@ -193,14 +193,19 @@ def stage_states(h, A, A2, c, eta, v, acc, es, vs):
             es[i, j] = eta[j] + hc * v[j] + (a2[0] * acc[0, j] + a2[1] * acc[1, j] + a2[2] * acc[2, j])
 
 
-def second_order(Tp, Tdp, eta, v, jac, seg_w, seg_u, G, k, beta, q, dq, g, w4, N, Lt, Re, Rv, Z, Ne, Nv):
+def second_order(Tp, Tdp, eta, v, jac, segments, work, terms):
     """Second-order term at one stage point (basis ``Tp``, ``Tdp`` = T' theta', (n, r)) for the
     coordinates ``eta``, ``v``: ``N`` (r,) and, with ``jac``, ``Ne = dN/deta``, ``Nv = dN/deta'``
     (r, r). Segment ``s``: bending DOFs ``seg_w[s]`` (w0, theta0, w1, theta1), axial DOFs
     ``seg_u[s]`` (u0, u1), geometric matrix ``G[s]`` [1/m], stiffness ``k[s]`` = EA/L [N/m],
     damping ``beta[s]`` [s]. Same quantities as ReducedModel.second_order (its notation).
     Work arrays: ``q, dq, g`` (n,), ``w4`` (4, 4), ``Lt, Re, Rv`` (2 n_seg, r), ``Z`` (n, r).
-    The loops over the r coordinates run on one-dimensional row views (they vectorize)."""
+    The loops over the r coordinates run on one-dimensional row views (they vectorize).
+    Records: ``segments = (seg_w, seg_u, G, k, beta)``, ``work = (q, dq, g, w4, Lt, Re, Rv,
+    Z)``, ``terms = (N, Ne, Nv)`` (written)."""
+    seg_w, seg_u, G, k, beta = segments
+    q, dq, g, w4, Lt, Re, Rv, Z = work
+    N, Ne, Nv = terms
     n, r = Tp.shape
     ns = seg_w.shape[0]
     # Node displacements and rates (BLAS matrix-vector products).
@@ -295,10 +300,7 @@ def newton_matrix(h, A, A2, Mr, Cr, Kr, Ne, Nv, P0, J):
                 Jrow[b] += Mrow[b]
 
 
-def revolution(x0, nonlinear, want_jac, want_out, have_guess, chord, chord_start, chord_rate, guess,
-               h, A, A2, c, Mr, Cr, Kr, fr, T, Td,
-               seg_w, seg_u, G, k, beta, O0, Oe, Ov, Oa, gauge_seg, gauge_len, tol, iterations,
-               LUs, pivs, stored, x_end, mono, outs, accs, counts):
+def revolution(x0, guess, options, tableau, stages, segments, output_maps, newton, kept, results):
     """March one period (N = ``accs.shape[0]`` Radau IIA steps of ``h`` [s]) from ``x0 = (eta,
     eta')`` (2r,). Stage point ``p = 3 n + i`` of step ``n``: ``Mr, Cr, Kr`` (P, r, r), ``fr``
     (P, r), basis ``T`` and ``Td = T' theta'`` (P, n_dof, r); ``A``, ``A2 = A A``, ``c``: the
@@ -318,7 +320,21 @@ def revolution(x0, nonlinear, want_jac, want_out, have_guess, chord, chord_start
     iterations the state hardly moves, and the step needs no factorization at all).
 
     Returns -1, or the index of the step whose Newton iteration did not converge in
-    ``iterations`` (``x_end`` then unset)."""
+    ``iterations`` (``x_end`` then unset).
+
+    Records (tuples, unpacked below): ``options = (nonlinear, want_jac, want_out, have_guess,
+    chord, chord_start, chord_rate)``; ``tableau = (h, A, A2, c)``; ``stages = (Mr, Cr, Kr, fr,
+    T, Td)``; ``segments = (seg_w, seg_u, G, k, beta)`` (as :func:`second_order`);
+    ``output_maps = (O0, Oe, Ov, Oa, gauge_seg, gauge_len)``; ``newton = (tol, iterations)``;
+    ``kept = (LUs, pivs, stored)``; ``results = (x_end, mono, outs, accs, counts)`` (written)."""
+    nonlinear, want_jac, want_out, have_guess, chord, chord_start, chord_rate = options
+    h, A, A2, c = tableau
+    Mr, Cr, Kr, fr, T, Td = stages
+    seg_w, seg_u, G, k, beta = segments
+    O0, Oe, Ov, Oa, gauge_seg, gauge_len = output_maps
+    tol, iterations = newton
+    LUs, pivs, stored = kept
+    x_end, mono, outs, accs, counts = results
     r = x0.shape[0] // 2
     N = accs.shape[0]
     n = T.shape[1]
@@ -331,6 +347,7 @@ def revolution(x0, nonlinear, want_jac, want_out, have_guess, chord, chord_start
     Nn, Ne, Nv = np.zeros((3, r)), np.zeros((3, r, r)), np.zeros((3, r, r))   # stay 0 in the linear model
     Lt, Re, Rv, Z = np.empty((2 * ns, r)), np.empty((2 * ns, r)), np.empty((2 * ns, r)), np.zeros((n, r))
     Rm, S, prod = np.empty((n3, 2 * r)), np.empty((2 * r, 2 * r)), np.empty((2 * r, 2 * r))
+    work = (q, dq, g, w4, Lt, Re, Rv, Z)
     if want_jac:
         mono[:, :] = 0.0
         for i in range(2 * r):
@@ -364,8 +381,7 @@ def revolution(x0, nonlinear, want_jac, want_out, have_guess, chord, chord_start
             for i in range(3):
                 p = P0 + i
                 if nonlinear:
-                    second_order(T[p], Td[p], es[i], vs[i], refresh, seg_w, seg_u, G, k, beta, q, dq, g, w4,
-                                  Nn[i], Lt, Re, Rv, Z, Ne[i], Nv[i])
+                    second_order(T[p], Td[p], es[i], vs[i], refresh, segments, work, (Nn[i], Ne[i], Nv[i]))
                 for a in range(r):
                     s = dot(Mr[p, a], acc[i], 0, r) + dot(Cr[p, a], vs[i], 0, r) + dot(Kr[p, a], es[i], 0, r)
                     res[i * r + a] = -(s - fr[p, a] + Nn[i, a])
