@@ -22,7 +22,7 @@ def _both(sc, revolutions=1.0, **kw):
                 axial_force=s.axial_force, axial_tolerance=1e-14)
     opts.update(kw)
     crank = CrankMotion.constant_speed(sc.drive.speed_rad_s, step_s=sc.engine_step_s("tmm"), revolutions=revolutions)
-    return [TimeDomain(sc.mechanism, compiled=c, **opts).run(crank, start="quasi_static") for c in (False, True)]
+    return [TimeDomain(sc.mechanism, backend=c, **opts).run(crank, start="quasi_static") for c in ("numpy", "compiled")]
 
 
 def _assert_same(a, b, rtol=1e-12):
@@ -52,7 +52,7 @@ def test_compiled_march_on_stored_factorizations_equals_numpy_over_a_revolution(
     _assert_same(numpy_run, compiled_run)
     s = sc.tmm
     td = TimeDomain(sc.mechanism, integrator=s.integrator, coupling=s.coupling, gravity=sc.gravity, gauges=sc.gauges,
-                    axial_force=s.axial_force, compiled=True)
+                    axial_force=s.axial_force, backend="compiled")
     th = np.radians(np.arange(0.0, 360.0, 30.0))
     cfg = td.configurations(th, np.full(len(th), sc.drive.speed_rad_s), np.zeros(len(th)), 1e-4)
     assert cfg.maps is None and cfg.factors is not None and "factor" not in cfg.cache
@@ -85,8 +85,7 @@ def test_the_engine_uses_the_compiled_path_and_gets_the_same_answer():
         original = TimeDomain.__init__
 
         def init(self, *a, _c=compiled, **k):
-            original(self, *a, **k)
-            self.compiled = _c and compiled_march.AVAILABLE
+            original(self, *a, **k, backend="compiled" if _c else "numpy")
         TimeDomain.__init__ = init
         try:
             runs.append(run_prescribed(engine, sc, revolutions=1.0))
@@ -111,8 +110,7 @@ def test_motor_driven_steps_use_the_stored_factorizations_and_agree_with_numpy()
         return original_factors(*a, **k)
     for compiled in (False, True):
         def init(self, *a, _c=compiled, **k):
-            original_init(self, *a, **k)
-            self.compiled = _c and compiled_march.AVAILABLE
+            original_init(self, *a, **k, backend="compiled" if _c else "numpy")
         TimeDomain.__init__, step_data.compiled_factors = init, counted
         try:
             res = CoSimulation(sc, {"tmm": make_engine("tmm")}, mode="motor").run(revolutions=0.15)
@@ -168,7 +166,7 @@ def test_compiled_quasi_static_revolution_equals_numpy():
     sc, mech, _ = _fe_quasi_static_case()
     th = np.radians(np.arange(0.0, 360.0, 5.0))
     runs = [quasi_static(mech, th, sc.drive.speed_rad_s, beam_column=True, coupling=sc.tmm.coupling,
-                         gravity=sc.gravity, gauges=sc.gauges, compiled=c) for c in (False, True)]
+                         gravity=sc.gravity, gauges=sc.gauges, backend=c) for c in ("numpy", "compiled")]
     assert runs[0].solution.iterations == runs[1].solution.iterations
     assert _rel(runs[0].drive_torque, runs[1].drive_torque) < 1e-12
     for g in runs[0].gauges:
@@ -268,7 +266,7 @@ def test_compiled_configuration_maps_equal_numpy(scenario):
     sc = load(scenario)
     s = sc.tmm
     tds = [TimeDomain(sc.mechanism, integrator=s.integrator, coupling=s.coupling, gravity=sc.gravity, gauges=sc.gauges,
-                      axial_force=s.axial_force, compiled=c) for c in (False, True)]
+                      axial_force=s.axial_force, backend=c) for c in ("numpy", "compiled")]
     assert tds[1].compiled_factorization and not tds[0].compiled_factorization
     th = np.radians(np.arange(0.0, 360.0, 10.0))
     w = sc.drive.speed_rad_s
@@ -294,7 +292,7 @@ def test_vectorized_map_solve_equals_the_per_load_set_solve(scenario, monkeypatc
     sc = load(scenario).with_overrides({"solver.tmm.segments": 4})
     s = sc.tmm
     td = TimeDomain(sc.mechanism, integrator=s.integrator, coupling=s.coupling, gravity=sc.gravity, gauges=sc.gauges,
-                    axial_force=s.axial_force, compiled=True)
+                    axial_force=s.axial_force, backend="compiled")
     assert td.axial_force == "dynamic" and td.gauges
     calls = []
     solve = compiled_statics.solve_prepared

@@ -181,7 +181,7 @@ def test_compiled_revolution_matches_the_numpy_reference(beam_column):
     if not compiled_reduced_periodic.AVAILABLE:
         pytest.skip("numba not installed")
     _, td, _, basis, crank = _small_rig(beam_column)
-    ref, fast = ReducedModel(td, crank, basis, compiled=False), ReducedModel(td, crank, basis, compiled=True)
+    ref, fast = ReducedModel(td, crank, basis, backend="numpy"), ReducedModel(td, crank, basis, backend="compiled")
     assert (ref.compiled, fast.compiled, ref.nonlinear) == (False, True, beam_column)
     r = basis.size
     x_lin, mono, outs = ref.revolution(np.zeros(2 * r), False, outputs=True)
@@ -215,8 +215,8 @@ def test_compiled_periodic_solve_matches_the_numpy_reference():
         pytest.skip("numba not installed")
     sc, td, options, basis, _ = _small_rig()
     kw = dict(options=options, basis=basis)
-    ref = periodic_steady_state_reduced(td, sc.drive.speed_rad_s, compiled=False, **kw)
-    fast = periodic_steady_state_reduced(td, sc.drive.speed_rad_s, compiled=True, **kw)
+    ref = periodic_steady_state_reduced(td, sc.drive.speed_rad_s, backend="numpy", **kw)
+    fast = periodic_steady_state_reduced(td, sc.drive.speed_rad_s, backend="compiled", **kw)
     assert ref.residual < 1e-9 and fast.residual < 1e-9
     assert _rel(fast.drive_torque, ref.drive_torque) < 1e-10
     for g, (bend, axial) in ref.gauges.items():
@@ -232,7 +232,7 @@ def test_a_step_whose_accelerations_pass_near_zero_converges():
     sc = load("crank_rocker_241rpm").with_overrides({"drive.speed": "120 rpm"})
     td = sc.time_domain()
     runs = [periodic_steady_state_reduced(td, sc.drive.speed_rad_s, options=ReducedOptions(modes=sc.tmm.modes),
-                                          compiled=c) for c in (True, False)]
+                                          backend=c) for c in ("compiled", "numpy")]
     for g in runs[0].gauges:
         b0, b1 = runs[0].gauges[g][0], runs[1].gauges[g][0]
         assert np.max(np.abs(b0 - b1)) <= 1e-9 * np.ptp(b1)

@@ -136,7 +136,7 @@ def test_the_linear_axial_force_estimate_equals_the_numpy_linear_quasi_static_so
     td = sc.time_domain()
     th = np.radians(np.arange(0.0, 360.0, 15.0))
     w, a = np.full(th.shape, sc.drive.speed_rad_s), np.zeros(th.shape)
-    ref = quasi_static(td.mech, th, w, a, beam_column=False, coupling=Coupling(), gravity=td.gravity, compiled=False)
+    ref = quasi_static(td.mech, th, w, a, beam_column=False, coupling=Coupling(), gravity=td.gravity, backend="numpy")
     got = linear_axial_forces(td.mech, td.mech.motion(th, w, a), td.gravity)
     assert set(got) == set(ref.solution.members)
     for name, r in ref.solution.members.items():
@@ -215,3 +215,37 @@ def test_the_engines_node_positions_are_the_rigid_ones_plus_the_rotated_displace
             rigid_links += 1
         np.testing.assert_allclose(last.nodes[link.name][-1], expected, rtol=0, atol=1e-12)
     assert rigid_links == 1
+
+
+# -- the backend, chosen once when the model is built (issue 33, item 3) ----------------------
+def test_the_backend_is_checked_when_the_model_is_built(monkeypatch):
+    """An unknown backend is refused naming it; 'compiled' without numba is refused, not run in
+    numpy; the default is compiled where numba is installed, numpy where it is not."""
+    from tmm_core import InputError, TimeDomain
+    from tmm_core import backend as backend_module
+    mechanism = load("slider_crank_600rpm").mechanism
+    with pytest.raises(InputError, match="backend = 'fortran'"):
+        TimeDomain(mechanism, backend="fortran")
+    monkeypatch.setattr(backend_module, "AVAILABLE", False)
+    with pytest.raises(InputError, match="needs numba"):
+        TimeDomain(mechanism, backend="compiled")
+    assert TimeDomain(mechanism).backend == "numpy"
+
+
+def test_a_numpy_model_runs_no_compiled_kernel(monkeypatch):
+    """Every stage of a numpy model reads its backend: the quasi-static start, the configurations
+    and the march run without a compiled entry point (the quasi-static start took the compiled
+    solve before the backend was the model's)."""
+    from tmm_core import CrankMotion, TimeDomain
+    from tmm_core.compiled import binding, statics
+
+    def refuse(*args, **kwargs):
+        raise AssertionError("a compiled kernel ran in a numpy model")
+    for name in ("static_solve", "factored", "march", "reduced_revolution", "single"):
+        monkeypatch.setattr(binding, name, refuse)
+    monkeypatch.setattr(statics, "solve_static", refuse)
+    sc = load("crank_rocker_373rpm")
+    td = TimeDomain(sc.mechanism, backend="numpy", gauges=sc.gauges)
+    crank = CrankMotion.constant_speed(sc.drive.speed_rad_s, step_deg=2.0, revolutions=0.05)
+    result = td.run(crank, start="quasi_static")
+    assert np.all(np.isfinite(result.drive_torque))

@@ -42,6 +42,7 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from .compiled import statics as compiled_statics
+from .backend import choose_backend
 from .errors import InputError, SingularStructureError, require_finite, require_positive
 from .kinematics import FourBarMotion
 from .mechanism import FourBarMechanism
@@ -205,16 +206,17 @@ def coupling_stiffness(mech, motion, coupling: Coupling, c_a=0.0, c_v=0.0, mass_
 
 def quasi_static(mech: FourBarMechanism, crank_angle, crank_speed, crank_acceleration=0.0, *, beam_column: bool = True,
                  coupling: Coupling = Coupling(), gravity=None, gauges: Sequence[Gauge] = (),
-                 tol: float = 1e-10, compiled: bool = True) -> QuasiStaticResult:
+                 tol: float = 1e-10, backend: str | None = None) -> QuasiStaticResult:
     """Kineto-elastostatic response at the crank positions ``crank_angle`` (array), vectorised.
 
     ``beam_column``: iterate on the segment axial forces (Shin). ``coupling``: the centrifugal
     and angular-acceleration terms act as stiffness to ground in the rotating frame (Coriolis has
     no quasi-static effect). A speed at which ``K - w^2 M`` is singular raises
     :class:`tmm_core.errors.SingularStructureError`.
-    ``compiled``: solve in the compiled factorization (:mod:`tmm_core.compiled.structure`) when numba
-    is installed and the structure is one it handles (joints and members); the numpy path
-    (:func:`tmm_core.statics.solve_static`) is the reference and the fallback.
+    ``backend``: 'compiled' solves in the compiled factorization (:mod:`tmm_core.compiled.structure`)
+    where the structure is one it handles (joints and members), 'numpy' in the reference
+    (:func:`tmm_core.statics.solve_static`); None: compiled where numba is installed
+    (:func:`tmm_core.backend.choose_backend`).
     """
     motion = mech.motion(crank_angle, crank_speed, crank_acceleration)
     loads = rigid_body_loads(mech, motion, gravity)
@@ -225,7 +227,7 @@ def quasi_static(mech: FourBarMechanism, crank_angle, crank_speed, crank_acceler
     try:
         structure = mech.structure()
         solver = solve_static
-        if compiled and compiled_statics.AVAILABLE and np.ndim(crank_angle) == 1 \
+        if choose_backend(backend) == "compiled" and np.ndim(crank_angle) == 1 \
                 and compiled_statics.supported(structure):
             solver = compiled_statics.solve_static
         sol = solver(structure, case, beam_column=beam_column, tol=tol,

@@ -50,7 +50,7 @@ class March:
         # are undeformed (zero strain) and the drive torque is the rigid-body one.
         if start != "quasi_static" or initial is not None:
             qs0 = quasi_static(td.mech, a1, speed, accel, beam_column=td.beam_column, gravity=td.gravity,
-                               gauges=td.gauges)
+                               gauges=td.gauges, backend=td.backend)
             out = np.concatenate([qs0.drive_torque] + [np.r_[b, a] for b, a in qs0.gauges.values()])
             if start == "rest" and initial is None:
                 out[1:] = 0.0

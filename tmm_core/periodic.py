@@ -24,7 +24,7 @@ the linearization about the periodic orbit.
 
 The linearized revolutions run in compiled kernels (:mod:`tmm_core.compiled.periodic`; 0.05 s for
 the linear pass and 0.14 s per monodromy on the FE rig, 216 states, 720 steps); the numpy code
-here is their reference (``TimeDomain(compiled=False)`` or without numba).
+here is their reference (``TimeDomain(backend="numpy")``, the default without numba).
 
 Owns: periodic steady state and Floquet multipliers. Boundaries: the step is tmm_core's public
 step API.
@@ -111,8 +111,8 @@ def periodic_steady_state(td: TimeDomain, speed_rad_s: float, *, step_s: float |
     n = td.n_dof
     ns = len(keys) * n
     # The linearized revolutions in the compiled kernels (tmm_core.compiled.periodic) or in numpy
-    # (the reference; td.compiled = False, or without numba).
-    compiled = td.compiled and compiled_periodic.AVAILABLE
+    # (the reference: the numpy backend).
+    compiled = td.compiled
     monodromy = compiled_periodic.monodromy if compiled else _monodromy
     if compiled:
         Phi, c = compiled_periodic.linear_shooting(td, cfg, keys, N, dt)
@@ -225,7 +225,7 @@ def _revolution(td: TimeDomain, cfg, keys, x0, N, dt):
     zs, outs, Ps = march.step_many(cfg, indices, record_axial=True)
     # The trajectory for the linearization: displacements, velocities (v = c_v z + h_v, the
     # history from the state before each step) and axial forces per step.
-    if td.compiled and compiled_periodic.AVAILABLE:
+    if td.compiled:
         # The same recursion compiled (in Python it took 2/3 of the revolution's time).
         vs = compiled_periodic.trajectory_velocities(td.integrator, state, zs, dt)
         trajectory = [(idx, zs[j], vs[j], Ps[j]) for j, idx in enumerate(indices)]

@@ -27,7 +27,7 @@ part gives the first guess in one linear solve ``(I - Phi) x0 = c``; Newton on `
 (state ``x = (eta, eta')``, 2r) then handles the axial-force term.
 
 The revolutions run in the compiled kernel :mod:`tmm_core.compiled.reduced_periodic` (numba) unless
-``compiled`` is False (default ``td.compiled``) or numba is missing; the numpy code here is the
+the model's backend is 'numpy' (default ``td.backend``); the numpy code here is the
 reference it is tested against. FE rig, r = 23, 360 steps, one thread: a periodic solve about
 0.3 s compiled against 2.8 s in numpy (the set-up of the stage matrices included).
 
@@ -49,6 +49,7 @@ from scipy.interpolate import CubicHermiteSpline
 from scipy.linalg import lu_factor, lu_solve
 
 from .compiled import binding as kernel_binding, reduced_periodic as compiled_reduced_periodic
+from .backend import choose_backend
 from .errors import ConvergenceError, InputError
 from .ked import CrankMotion
 from .periodic import PeriodicResult
@@ -85,13 +86,13 @@ class ReducedModel:
     coupling, axial-force model, gravity, gauges). ``crank``: one period of the crank history
     (N + 1 samples, the last one revolution after the first). ``basis``: from
     :func:`tmm_core.reduced.build_basis` (geometry only: it may serve every speed).
-    ``compiled``: march revolutions in the compiled kernel (:mod:`tmm_core.compiled.reduced_periodic`) when
-    numba is installed; default ``td.compiled``; False keeps this module's numpy path (the
-    reference). ``stages``: :class:`tmm_core.reduced_stages.StageCoefficients` of ``td`` and
+    ``backend``: 'compiled' marches revolutions in the compiled kernel
+    (:mod:`tmm_core.compiled.reduced_periodic`), 'numpy' in this module's numpy path (the
+    reference); default ``td.backend``. ``stages``: :class:`tmm_core.reduced_stages.StageCoefficients` of ``td`` and
     ``basis`` to combine for this crank history when its stage angles are theirs (else, and by
     default, the stage matrices are built directly)."""
 
-    def __init__(self, td, crank: CrankMotion, basis: ReducedBasis, compiled: bool | None = None,
+    def __init__(self, td, crank: CrankMotion, basis: ReducedBasis, backend: str | None = None,
                  stages: StageCoefficients | None = None):
         if any(link.viscoelastic is not None for link in td.links):
             raise InputError("the reduced model does not carry viscoelastic (standard-linear-solid) links; use "
@@ -103,7 +104,8 @@ class ReducedModel:
         if td.axial_force == "dynamic" and set(td.dynamic_terms) != {"shortening", "axial_force"}:
             raise InputError("the reduced model carries both second-order terms or neither")
         self.td, self.basis = td, basis
-        self.compiled = bool(td.compiled if compiled is None else compiled) and compiled_reduced_periodic.AVAILABLE
+        self.backend = td.backend if backend is None else choose_backend(backend)
+        self.compiled = self.backend == "compiled"
         #: Compiled path: chord Newton iterations in the revolutions without the monodromy (see
         #: tmm_core.compiled.reduced_periodic); False refactorizes every iteration, as the numpy path does.
         self.chord = True
@@ -369,7 +371,7 @@ class ReducedModel:
 def periodic_steady_state_reduced(td, speed_rad_s: float | None = None, *, crank: CrankMotion | None = None,
                                   start_angle: float = 0.0, options: ReducedOptions = ReducedOptions(),
                                   basis: ReducedBasis | None = None, newton_tolerance: float = 1e-9,
-                                  newton_iterations: int = 20, compiled: bool | None = None,
+                                  newton_iterations: int = 20, backend: str | None = None,
                                   stages: StageCoefficients | None = None) -> PeriodicResult:
     """Periodic steady revolution of the reduced model of ``td`` at constant ``speed_rad_s``
     (``options.steps`` steps per revolution) or over one period of a periodic ``crank`` history
@@ -377,7 +379,7 @@ def periodic_steady_state_reduced(td, speed_rad_s: float | None = None, *, crank
     (outputs at the 3 collocation points of each step, 3N samples: the continuous solution, so that
     sampling does not clip sharp peaks; Floquet multipliers of the reduced model, the residual of a
     revolution marched from the periodic state). ``basis``: reuse one (it depends on the
-    geometry only); else built from ``options``. ``compiled``, ``stages``: see
+    geometry only); else built from ``options``. ``backend``, ``stages``: see
     :class:`ReducedModel`."""
     if crank is None:
         if not speed_rad_s:
@@ -390,7 +392,7 @@ def periodic_steady_state_reduced(td, speed_rad_s: float | None = None, *, crank
             raise InputError("reduced model: the crank history must span exactly one revolution")
     if basis is None:
         basis = build_basis(td, float(crank.angle[0]), options)
-    model = ReducedModel(td, crank, basis, compiled, stages)
+    model = ReducedModel(td, crank, basis, backend, stages)
     r = basis.size
     x_lin, mono, _ = model.revolution(np.zeros(2 * r), False)
     x0 = np.linalg.solve(np.eye(2 * r) - mono, x_lin)

@@ -23,8 +23,9 @@ from typing import Callable, Mapping, Sequence
 
 import numpy as np
 
-from .compiled import march as compiled_march, statics as compiled_statics
+from .compiled import statics as compiled_statics
 from .configuration_batch import ConfigurationBatch, CrankStates, OutputLayout
+from .backend import choose_backend
 from .errors import ConvergenceError, DynamicStabilityError, InputError, require_positive
 from .integrators import get_integrator
 from .ked import (Coupling, CrankMotion, KEDResult, coupling_stiffness, linear_axial_forces, node_mass_arrays,
@@ -85,8 +86,9 @@ class TimeDomain(StepSolver):
         step iteration.
     dynamic_terms : the second-order terms of the 'dynamic' step: 'shortening' (axial shortening
         from bending) and 'axial_force' (the step's own axial force in the bending equations).
-    compiled : march configurations with cached maps or stored factorizations in the compiled
-        kernel (:mod:`tmm_core.compiled.march`); the numpy path is the reference and the fallback.
+    backend : 'compiled' (the numba kernels of :mod:`tmm_core.compiled`), 'numpy' (the reference)
+        or None (compiled where numba is installed): chosen once here, read by every stage
+        (:func:`tmm_core.backend.choose_backend`).
     gravity : gravity vector [m/s^2] in the mechanism plane, or None.
     gauges : gauges whose strains are recorded.
     max_map_bytes : memory budget for the stored load-to-response maps or factorizations of a
@@ -96,11 +98,12 @@ class TimeDomain(StepSolver):
     def __init__(self, mech: FourBarMechanism, *, integrator: str = "newmark", coupling: Coupling = Coupling(),
                  beam_column: bool = True, gravity=None, gauges: Sequence[Gauge] = (),
                  max_map_bytes: float = MAX_STEP_DATA_BYTES, axial_force: str = "dynamic", axial_tolerance: float = 1e-8,
-                 axial_iterations: int = 60, dynamic_terms: tuple = DYNAMIC_TERMS, compiled: bool = True):
+                 axial_iterations: int = 60, dynamic_terms: tuple = DYNAMIC_TERMS, backend: str | None = None):
         self.mech = mech
-        #: March cached configurations in the compiled kernel (tmm_core.compiled.march) when numba is
-        #: installed; False keeps the numpy reference path.
-        self.compiled = bool(compiled) and compiled_march.AVAILABLE
+        #: 'compiled' or 'numpy', for every stage of this model (tmm_core.backend).
+        self.backend = choose_backend(backend)
+        #: Whether the stages run the compiled kernels (the backend, as a flag).
+        self.compiled = self.backend == "compiled"
         if not set(dynamic_terms) <= set(DYNAMIC_TERMS):
             raise InputError(f"dynamic_terms must be a subset of {DYNAMIC_TERMS}, got {dynamic_terms!r}")
         #: The second-order terms the 'dynamic' step carries (both by default; one alone is for
@@ -248,7 +251,7 @@ class TimeDomain(StepSolver):
             # quasi-static model uses the beam-column estimate, whose segment forces are the ones
             # in its field matrices.
             qs = quasi_static(mech, angle, speed, accel, beam_column=self.axial_force == "quasi_static",
-                              coupling=Coupling(), gravity=self.gravity, tol=1e-8)
+                              coupling=Coupling(), gravity=self.gravity, tol=1e-8, backend=self.backend)
             P = {k: segment_forces(r) for k, r in qs.solution.members.items()}
         # Batch (B, 1): the second axis carries the unit loads. Gravity acts through the lumped
         # node masses (rigid_body_loads), like every other inertial load.
@@ -317,7 +320,7 @@ class TimeDomain(StepSolver):
         """Build the configurations' load-to-response maps in the compiled factorization
         (:mod:`tmm_core.compiled.structure`): with ``compiled``, for a structure of joints and members
         whose members are the elastic links in order."""
-        if not self.compiled or not compiled_statics.AVAILABLE or not compiled_statics.supported(self.structure):
+        if not self.compiled or not compiled_statics.supported(self.structure):
             return False
         return [m.name for m in self.structure.members] == [l.name for l in self.links] and \
             all(m.n_segments + 1 == l.n_nodes for m, l in zip(self.structure.members, self.links))
@@ -491,7 +494,7 @@ class TimeDomain(StepSolver):
         instead of a second one for the outputs: ~2 ms of a set-up)."""
         angles = th + np.array([-2.0, -1.0, 0.0, 1.0]) * w * dt
         qs = quasi_static(self.mech, angles, w, a, beam_column=self.beam_column, coupling=Coupling(),
-                          gravity=self.gravity, gauges=self.gauges)
+                          gravity=self.gravity, gauges=self.gauges, backend=self.backend)
         z = np.concatenate([qs.solution.members[l.name].state[:, :, 0, :3].reshape(4, -1) for l in self.links], -1)
         d2, d1, d0, dp = z
         v0 = (dp - d1) / (2 * dt)

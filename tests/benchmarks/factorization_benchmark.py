@@ -44,12 +44,12 @@ def side_by_side(segments: int, repeats: int) -> dict:
     th = np.radians(np.arange(360.0))
     w = sc.drive.speed_rad_s
     tds = {c: TimeDomain(mech, integrator=s.integrator, coupling=s.coupling, gravity=sc.gravity, gauges=sc.gauges,
-                         axial_force=s.axial_force, compiled=c) for c in (False, True)}
+                         axial_force=s.axial_force, backend="compiled" if c else "numpy") for c in (False, True)}
     dt = np.radians(1.0) / abs(w)
 
     def qs(compiled):
         return lambda: quasi_static(mech, th, w, beam_column=True, coupling=s.coupling, gravity=sc.gravity,
-                                    gauges=sc.gauges, compiled=compiled)
+                                    gauges=sc.gauges, backend="compiled" if compiled else "numpy")
 
     def cfg(compiled):
         return lambda: tds[compiled].configurations(th, np.full(360, w), np.zeros(360), dt)
