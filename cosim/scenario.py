@@ -287,7 +287,7 @@ def from_dict(data: dict, path: str = "<dict>", default_name: str = "scenario") 
         raise r.fail("output.steady_tolerance", "must be below 100 % (revolutions that differ by more are not "
                                                 "steady)", out["steady_tolerance"])
     motor = read_motor(r, top["motor"], drive, mech) if "motor" in top else None
-    if drive.mode == "motor" and motor is None:
+    if drive.mode == "motor" and motor is None and drive.type != "fmu":
         raise r.fail("drive.mode", "needs a [motor] table", "motor")
     coupling = rd.coupling(r, top.get("coupling", {}))
     _check_steps(r, drive, tmm, exudyn, mujoco, coupling)
