@@ -32,11 +32,12 @@ def model_identifier(scenario_name: str, model: str) -> str:
     return ident if ident[0].isalpha() else f"fmu_{ident}"
 
 
-def export_fmu(scenario, out, engine: str = "tmm", drive_input: str = "prescribed") -> Path:
+def export_fmu(scenario, out, engine: str = "tmm", drive_input: str = "prescribed", name: str | None = None) -> Path:
     """Write the FMU of ``engine`` ('tmm', 'exudyn', 'mujoco', or 'motor' for the scenario's DC
     motor) on ``scenario`` (a name, a path or a loaded scenario) to ``out`` (an .fmu path).
     ``drive_input``: 'prescribed' (crank angle, speed, acceleration in) or 'torque' (drive torque
-    in; torque-driven engines only). Returns the FMU's path."""
+    in; torque-driven engines only). ``name``: the model identifier (default: scenario and
+    engine). Returns the FMU's path."""
     sc = load(scenario)
     out = Path(out)
     if out.suffix != ".fmu":
@@ -48,7 +49,7 @@ def export_fmu(scenario, out, engine: str = "tmm", drive_input: str = "prescribe
     drive.pop("type", None), drive.pop("fmu", None)
     drive["mode"] = "prescribed"
     raw.setdefault("scenario", {})["name"] = sc.name
-    ident = model_identifier(sc.name, engine)
+    ident = model_identifier(sc.name, engine) if name is None else model_identifier(name, "fmu")
     base = ("motor_slave", "MotorSlave") if engine == MOTOR else ("linkage_slave", "LinkageSlave")
     with tempfile.TemporaryDirectory(prefix="cosim_fmu_") as tmp:
         tmp = Path(tmp)
