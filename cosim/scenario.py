@@ -27,7 +27,8 @@ File layout (all tables except ``[scenario]``, ``[linkage]``, ``[links.*]`` are 
                     inertia, label}], damping = {ratio, frequency} | {stiffness, mass},
                     start_block / end_block = {length, section, material},
                     rigid = true | false (only the crank; its section and material give its mass)
-    [drive]         mode = "prescribed" | "motor", speed, rotation = "ccw" | "cw", start_angle
+    [drive]         mode = "prescribed" | "motor", speed, rotation = "ccw" | "cw", start_angle,
+                    type = "motor" | "fmu" (an FMU drive, [drive.fmu]: cosim.fmi.drive_spec)
     [gravity]       vector = [gx, gy]
     [gauges.X]      link, position, face = "top" | "bottom"
     [solver.tmm]    segments, integrator, step, beam_column, start,

@@ -227,3 +227,22 @@ def test_torque_input_refused_for_a_kinematic_engine(tmp_path):
     from tmm_core import InputError
     with pytest.raises(InputError, match="clamps its crank"):
         export_fmu("crank_rocker_373rpm", tmp_path / "x.fmu", engine="tmm", drive_input="torque")
+
+
+SECOND = """
+import os, sys, json
+from cosim.master import CoSimulation
+from cosim.scenario import load
+sc = load("crank_rocker_373rpm").with_overrides(json.loads(sys.argv[1]))
+assert CoSimulation(sc, ("tmm",)).run(revolutions=0.02)["tmm"].status == "completed"
+second = CoSimulation(sc, ("tmm",)).run(revolutions=0.02)["tmm"]
+assert second.status == "failed", second.status
+assert sys.argv[2] in second.error and "one model instance per process" in second.error, second.error
+os._exit(0)
+"""
+
+
+def test_a_second_pythonfmu_instance_in_a_process_is_refused(fe_motor_fmu):
+    """PythonFMU 0.7 runs one model instance per process: the second run fails saying so, naming
+    the file (the master ends the engine's channel with the message), and nothing crashes."""
+    _python(SECOND, json.dumps(_fmu_drive(fe_motor_fmu)), fe_motor_fmu)

@@ -27,9 +27,8 @@ import zipfile
 
 import numpy as np
 
-from tmm_core import InputError
+from tmm_core import InputError, TMMError
 
-from ..engines.base import EngineError
 from ..motor import MotorState, MotorTrace
 from ..units import UnitError, factor
 from .drive_spec import FmuDriveSpec
@@ -45,6 +44,13 @@ CAUSALITIES = {"torque": ("output",), "speed": ("input",), "angle": ("input",),
 #: instance corrupts the interpreter (crashes in the garbage collector later; PythonFMU's open
 #: issue 228). So one such FMU instance runs per process, is never freed, and a second is refused.
 PYTHONFMU_USED: dict = {}
+
+
+class FmuStepError(TMMError):
+    """The FMU failed during a run (a failed step, a non-finite output, a step it cannot repeat):
+    the master ends the engine's channel with it, as with an engine's failure. (A TMMError, not
+    cosim.engines' EngineError: the drive sits below the master, which the engines' module
+    imports.)"""
 
 
 class FmuRefused(InputError):
@@ -118,9 +124,9 @@ class FmuDrive:
 
     def __init__(self, spec: FmuDriveSpec, integrates_crank: bool):
         self.spec, self.integrates_crank = spec, integrates_crank
-        self.md = checked_model_description(spec)
-        self.vr = {v.name: v.valueReference for v in self.md.modelVariables}
-        self.can_restore = bool(self.md.coSimulation.canGetAndSetFMUstate)
+        self.model_description = checked_model_description(spec)
+        self.vr = {v.name: v.valueReference for v in self.model_description.modelVariables}
+        self.can_restore = bool(self.model_description.coSimulation.canGetAndSetFMUstate)
         self.fmu, self.folder, self.saved = None, None, None
         self.t, self.torque = 0.0, 0.0
         self.crank_side_inertia_kg_m2 = spec.inertia_kg_m2
@@ -156,7 +162,7 @@ class FmuDrive:
     @property
     def pythonfmu(self) -> bool:
         """Whether PythonFMU built the FMU (see :data:`PYTHONFMU_USED`)."""
-        return (self.md.generationTool or "").startswith("PythonFMU")
+        return (self.model_description.generationTool or "").startswith("PythonFMU")
 
     def _load(self):
         """The FMU's binary loaded from a fresh extraction (freed by :meth:`close`)."""
@@ -164,18 +170,18 @@ class FmuDrive:
         from fmpy.fmi2 import FMU2Slave
         self.folder = tempfile.mkdtemp(prefix="cosim_fmu_drive_")
         extract(self.spec.file, self.folder)
-        return FMU2Slave(guid=self.md.guid, unzipDirectory=self.folder,
-                         modelIdentifier=self.md.coSimulation.modelIdentifier, instanceName="drive")
+        return FMU2Slave(guid=self.model_description.guid, unzipDirectory=self.folder,
+                         modelIdentifier=self.model_description.coSimulation.modelIdentifier, instanceName="drive")
 
     def _claim(self) -> None:
         """Refuse a PythonFMU FMU in a process that has run one already (:data:`PYTHONFMU_USED`)."""
         if not self.pythonfmu:
             return
         if PYTHONFMU_USED:
-            raise EngineError(f"FMU '{self.spec.file}': PythonFMU built it, and this process has run a PythonFMU "
+            raise FmuStepError(f"FMU '{self.spec.file}': PythonFMU built it, and this process has run a PythonFMU "
                               f"FMU already ({next(iter(PYTHONFMU_USED.values()))}); PythonFMU 0.7's binary "
                               f"runs one model instance per process: run this one in a process of its own")
-        PYTHONFMU_USED[self.md.coSimulation.modelIdentifier] = self.spec.file
+        PYTHONFMU_USED[self.model_description.coSimulation.modelIdentifier] = self.spec.file
 
     @staticmethod
     def _state(t, angle, speed) -> MotorState:
@@ -217,7 +223,7 @@ class FmuDrive:
                 self.saved = (t, self.fmu.getFMUState(), self.torque)
             return
         if self.saved is None or abs(self.saved[0] - t) > 1e-12 * max(1.0, abs(t)):
-            raise EngineError(f"FMU '{self.spec.file}': asked to repeat a step from t = {t:.9g} s, and it "
+            raise FmuStepError(f"FMU '{self.spec.file}': asked to repeat a step from t = {t:.9g} s, and it "
                               f"{'has no saved state there' if self.can_restore else 'cannot restore its state (canGetAndSetFMUstate is false): use coupling.scheme jacobi or gauss_seidel'}")
         self.fmu.setFMUState(self.saved[1])
         self.t, self.torque = t, self.saved[2]
@@ -227,10 +233,10 @@ class FmuDrive:
         self._set(self.spec.speed, speed)
         status = self.fmu.doStep(currentCommunicationPoint=t, communicationStepSize=h)
         if status not in (None, 0):
-            raise EngineError(f"FMU '{self.spec.file}': fmi2DoStep failed at t = {t:.9g} s (status {status})")
+            raise FmuStepError(f"FMU '{self.spec.file}': fmi2DoStep failed at t = {t:.9g} s (status {status})")
         self.t, self.torque = t + h, self._get(self.spec.torque)
         if not math.isfinite(self.torque):
-            raise EngineError(f"FMU '{self.spec.file}': {self.spec.torque.name} is not finite at t = {self.t:.9g} s")
+            raise FmuStepError(f"FMU '{self.spec.file}': {self.spec.torque.name} is not finite at t = {self.t:.9g} s")
         return self.torque
 
     def advance(self, state: MotorState, t_next: float, *, crank=None, load_torque=None, load_inertia=None,
