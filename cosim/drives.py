@@ -13,10 +13,12 @@ from __future__ import annotations
 from .motor import Motor
 
 
-def make_drive(scenario, integrates_crank: bool):
+def make_drive(scenario, integrates_crank: bool, repeatable: bool = True):
     """The drive of ``scenario`` for one engine: ``integrates_crank`` for kinematic engines
-    (the drive integrates the crank against the load torque), else it takes the crank's motion."""
+    (the drive integrates the crank against the load torque), else it takes the crank's motion.
+    ``repeatable``: the coupling repeats macro steps (the iterated scheme), so an FMU drive
+    saves its state at each step's start."""
     if scenario.drive.type == "fmu":
         from .fmi.drive import FmuDrive
-        return FmuDrive(scenario.drive.fmu, integrates_crank)
+        return FmuDrive(scenario.drive.fmu, integrates_crank, repeatable=repeatable)
     return Motor(scenario.motor, integrates_crank=integrates_crank)

@@ -156,7 +156,8 @@ class _Channel:
         self.outputs, self.traces, self.passes = [], [], []
         self.keep_rad = keep_rad            # crank angle of the outputs held (None: all of them)
         self.motor_extrema = {}
-        self.motor = make_drive(scenario, integrates_crank=engine.kinematic) if mode == "motor" else None
+        self.motor = make_drive(scenario, integrates_crank=engine.kinematic,
+                                repeatable=coupling.scheme == "iterated") if mode == "motor" else None
         self.J_r = None     # interface Jacobian, set at start
         self.t0, self.angle0, self.t_end = 0.0, 0.0, None
         self.steps, self.angle_end = 0, None   # macro steps done, the crank angle at the last one's end [rad]
@@ -212,6 +213,8 @@ class _Channel:
         self.passes.append(passes)
         for name in ("current_A", "voltage_V"):
             x = getattr(trace, name)
+            if not np.all(np.isfinite(x)):
+                continue            # an FMU drive does not give them (NaN)
             lo, hi = self.motor_extrema.get(name, (math.inf, -math.inf))
             self.motor_extrema[name] = (min(lo, float(np.min(x))), max(hi, float(np.max(x))))
         for hist in (self.crank_hist, self.drive_hist, self.load_hist):

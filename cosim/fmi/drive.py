@@ -15,14 +15,15 @@ integrates with its own torque. The iterated coupling repeats a macro step: the 
 then saved at the step's start and restored (fmi2GetFMUstate/fmi2SetFMUstate; an FMU without
 them is refused for that scheme only).
 
+The FMU runs in a process of its own (:mod:`cosim.fmi.host`): a crashing or interpreter-bound
+binary (PythonFMU's) cannot take the master down.
+
 Owns: ``FmuDrive``, ``checked_model_description``, ``FmuRefused``. Boundaries: the FMU file is
 read by FMPy (imported here, lazily by cosim.drives); the coupling schemes are cosim.master's.
 """
 from __future__ import annotations
 
 import math
-import shutil
-import tempfile
 import zipfile
 
 import numpy as np
@@ -38,12 +39,6 @@ CAUSALITIES = {"torque": ("output",), "speed": ("input",), "angle": ("input",),
                "inertia": ("parameter", "calculatedParameter", "constant")}
 
 
-#: PythonFMU FMUs instantiated in this process, {model identifier: file}. PythonFMU 0.7's binary
-#: (a wrapper around the interpreter it is loaded into) runs one model instance per process: a
-#: second instance, of the same FMU or another, fails to find its model class, and freeing an
-#: instance corrupts the interpreter (crashes in the garbage collector later; PythonFMU's open
-#: issue 228). So one such FMU instance runs per process, is never freed, and a second is refused.
-PYTHONFMU_USED: dict = {}
 
 
 class FmuStepError(TMMError):
@@ -122,12 +117,12 @@ class FmuDrive:
 
     p = None                 # no bench motor parameters: the FMU keeps its own
 
-    def __init__(self, spec: FmuDriveSpec, integrates_crank: bool):
-        self.spec, self.integrates_crank = spec, integrates_crank
+    def __init__(self, spec: FmuDriveSpec, integrates_crank: bool, repeatable: bool = True):
+        self.spec, self.integrates_crank, self.repeatable = spec, integrates_crank, repeatable
         self.model_description = checked_model_description(spec)
         self.vr = {v.name: v.valueReference for v in self.model_description.modelVariables}
         self.can_restore = bool(self.model_description.coSimulation.canGetAndSetFMUstate)
-        self.fmu, self.folder, self.saved = None, None, None
+        self.fmu, self.saved = None, None
         self.t, self.torque = 0.0, 0.0
         self.crank_side_inertia_kg_m2 = spec.inertia_kg_m2
 
@@ -142,11 +137,12 @@ class FmuDrive:
     def start(self, t0: float, crank_angle: float, crank_speed: float, load_torque: float = 0.0) -> MotorState:
         """Instantiate and initialise the FMU with the crank at ``crank_angle`` [rad] and
         ``crank_speed`` [rad/s] (the FMU decides its own start from them)."""
+        from .host import FmuProcess
         self.close()
-        self._claim()
-        self.fmu = self._load()
+        md = self.model_description
+        self.fmu = FmuProcess(self.spec.file, md.guid, md.coSimulation.modelIdentifier)
         self.fmu.instantiate()
-        self.fmu.setupExperiment(startTime=t0)
+        self.fmu.setupExperiment(None, t0)          # (tolerance, start time)
         self.fmu.enterInitializationMode()
         self._set(self.spec.speed, crank_speed)
         self._set(self.spec.angle, crank_angle)
@@ -159,30 +155,6 @@ class FmuDrive:
         self.t, self.torque = t0, self._get(self.spec.torque)
         return self._state(t0, crank_angle, crank_speed)
 
-    @property
-    def pythonfmu(self) -> bool:
-        """Whether PythonFMU built the FMU (see :data:`PYTHONFMU_USED`)."""
-        return (self.model_description.generationTool or "").startswith("PythonFMU")
-
-    def _load(self):
-        """The FMU's binary loaded from a fresh extraction (freed by :meth:`close`)."""
-        from fmpy import extract
-        from fmpy.fmi2 import FMU2Slave
-        self.folder = tempfile.mkdtemp(prefix="cosim_fmu_drive_")
-        extract(self.spec.file, self.folder)
-        return FMU2Slave(guid=self.model_description.guid, unzipDirectory=self.folder,
-                         modelIdentifier=self.model_description.coSimulation.modelIdentifier, instanceName="drive")
-
-    def _claim(self) -> None:
-        """Refuse a PythonFMU FMU in a process that has run one already (:data:`PYTHONFMU_USED`)."""
-        if not self.pythonfmu:
-            return
-        if PYTHONFMU_USED:
-            raise FmuStepError(f"FMU '{self.spec.file}': PythonFMU built it, and this process has run a PythonFMU "
-                              f"FMU already ({next(iter(PYTHONFMU_USED.values()))}); PythonFMU 0.7's binary "
-                              f"runs one model instance per process: run this one in a process of its own")
-        PYTHONFMU_USED[self.model_description.coSimulation.modelIdentifier] = self.spec.file
-
     @staticmethod
     def _state(t, angle, speed) -> MotorState:
         nan = float("nan")
@@ -193,18 +165,10 @@ class FmuDrive:
         return self.torque
 
     def close(self) -> None:
-        """Free the FMU and its extracted files."""
+        """End the FMU's process."""
         if self.fmu is not None:
-            # A PythonFMU FMU's instance is left to the process (PYTHONFMU_USED).
-            if not self.pythonfmu:
-                if self.saved is not None:
-                    self.fmu.freeFMUState(self.saved[1])
-                self.fmu.terminate()
-                self.fmu.freeInstance()
+            self.fmu.close()
             self.fmu, self.saved = None, None
-        if self.folder is not None:
-            shutil.rmtree(self.folder, ignore_errors=True)
-            self.folder = None
 
     def __del__(self):
         try:
@@ -217,7 +181,7 @@ class FmuDrive:
         """Bring the FMU to ``t`` [s]: save it there if it is there, else restore the state
         saved there (a repeated macro step)."""
         if abs(self.t - t) <= 1e-12 * max(1.0, abs(t)):
-            if self.can_restore:
+            if self.can_restore and self.repeatable:
                 if self.saved is not None:
                     self.fmu.freeFMUState(self.saved[1])
                 self.saved = (t, self.fmu.getFMUState(), self.torque)
@@ -229,12 +193,13 @@ class FmuDrive:
         self.t, self.torque = t, self.saved[2]
 
     def _step(self, t: float, h: float, angle: float, speed: float) -> float:
-        self._set(self.spec.angle, angle)
-        self._set(self.spec.speed, speed)
-        status = self.fmu.doStep(currentCommunicationPoint=t, communicationStepSize=h)
-        if status not in (None, 0):
-            raise FmuStepError(f"FMU '{self.spec.file}': fmi2DoStep failed at t = {t:.9g} s (status {status})")
-        self.t, self.torque = t + h, self._get(self.spec.torque)
+        """One FMU step from ``t`` by ``h`` [s] with the crank inputs held; the torque at its end [N m]."""
+        spec, vrs, values = self.spec, [self.vr[self.spec.speed.name]], [speed / self.spec.speed.to_si]
+        if spec.angle is not None:
+            vrs.append(self.vr[spec.angle.name])
+            values.append(angle / spec.angle.to_si)
+        torque = self.fmu.step(t, h, vrs, values, [self.vr[spec.torque.name]])[0]
+        self.t, self.torque = t + h, torque * spec.torque.to_si
         if not math.isfinite(self.torque):
             raise FmuStepError(f"FMU '{self.spec.file}': {self.spec.torque.name} is not finite at t = {self.t:.9g} s")
         return self.torque

@@ -4,8 +4,8 @@ Exports the transfer-matrix engine on a scenario as an FMU, then advances the na
 (``Engine.advance`` with the same prescribed crank the FMU builds from its inputs) and the FMU
 (FMPy: set the three crank inputs, ``fmi2DoStep``, get the drive torque and every strain) over
 the same macro steps, and prints the wall time per macro step of each and their difference.
-PythonFMU runs one model instance per process (cosim.fmi.drive), so this script is a process of
-its own:
+A PythonFMU binary corrupts the interpreter it is loaded into (cosim.fmi.host), so this script
+is a process of its own, loading one instance, and ends without tearing it down:
 
     python -m tests.benchmarks.fmu_overhead crank_rocker_373rpm --degrees 2
 """
@@ -89,7 +89,7 @@ def main(argv=None) -> int:
     print(f"native engine {native * per:.3f} ms/step, FMU {fmu * per:.3f} ms/step, "
           f"overhead {(fmu - native) * per:.3f} ms/step ({(fmu / native - 1) * 100:.1f} %)")
     sys.stdout.flush()
-    os._exit(0)          # PythonFMU's instance is not torn down (cosim.fmi.drive)
+    os._exit(0)          # PythonFMU's instance is not torn down (cosim.fmi.host)
 
 
 if __name__ == "__main__":
