@@ -194,6 +194,11 @@ def test_wrong_causality_refused(fe_motor_fmu):
     assert str(fe_motor_fmu) in msg and "'motor_speed'" in msg and "causality 'output'" in msg
 
 
+def test_unit_of_another_kind_refused(fe_motor_fmu):
+    msg = _refused(_fmu_drive(fe_motor_fmu, torque={"variable": "current", "unit": "N*m"}))
+    assert str(fe_motor_fmu) in msg and "'current'" in msg and "is in A" in msg
+
+
 def test_model_exchange_only_refused(fe_motor_fmu, tmp_path):
     bad = tmp_path / "me_only.fmu"
     with zipfile.ZipFile(fe_motor_fmu) as src, zipfile.ZipFile(bad, "w") as dst:

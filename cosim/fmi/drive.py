@@ -24,6 +24,7 @@ read by FMPy (imported here, lazily by cosim.drives); the coupling schemes are c
 from __future__ import annotations
 
 import math
+import re
 import zipfile
 
 import numpy as np
@@ -37,8 +38,6 @@ from .drive_spec import FmuDriveSpec
 #: The causalities each mapped signal may have.
 CAUSALITIES = {"torque": ("output",), "speed": ("input",), "angle": ("input",),
                "inertia": ("parameter", "calculatedParameter", "constant")}
-
-
 
 
 class FmuStepError(TMMError):
@@ -91,24 +90,24 @@ def _check_variable(path, var, variables: dict, causalities: tuple) -> None:
     if causality not in causalities:
         raise FmuRefused(f"FMU '{path}': variable '{var.name}' ({var.key}) has causality '{v.causality}'; "
                          f"the mapping needs {' or '.join(causalities)}")
-    if v.unit:
+    fmu_unit = pint_spelling(v.unit) if v.unit else None
+    if fmu_unit is not None:
         try:
-            factor(var.unit, v.unit.replace(".", "*").replace("rad/s2", "rad/s^2"))
+            factor(var.unit, fmu_unit)
         except UnitError:
-            pass                 # an FMU unit pint cannot read: the scenario's unit stands
-        else:
-            return
-        if _pint_readable(v.unit):
-            raise FmuRefused(f"FMU '{path}': variable '{var.name}' ({var.key}) is in {v.unit}, "
-                             f"not of the kind of the declared unit {var.unit}")
+            raise FmuRefused(f"FMU '{path}': variable '{var.name}' ({var.key}) is in {v.unit}, not of the kind "
+                             f"of the unit the scenario declares for it, {var.unit}") from None
 
 
-def _pint_readable(unit: str) -> bool:
+def pint_spelling(fmi_unit: str) -> str | None:
+    """An FMI unit name in pint's spelling (``"N.m"`` -> ``"N*m"``, ``"rad/s2"`` -> ``"rad/s**2"``),
+    or None if pint cannot read it (the scenario's unit then stands unchecked)."""
+    spelling = re.sub(r"([A-Za-z])(-?\d+)", r"\1**\2", fmi_unit.replace(".", "*"))
     try:
-        factor(unit.replace(".", "*"), unit.replace(".", "*"))
-        return True
+        factor(spelling, spelling)
     except UnitError:
-        return False
+        return None
+    return spelling
 
 
 class FmuDrive:
