@@ -48,6 +48,9 @@ def test_exported_fmu_validates_with_units(fe_linkage_fmu):
     for g in sc.gauges:
         assert units[f"{g.name}.bending"] == ("output", "1") and units[f"{g.name}.axial"] == ("output", "1")
     assert units["internal_step"][0] == "calculatedParameter"
+    assert units["coupler.length"] == ("calculatedParameter", "m")
+    starts = {v.name: v.start for v in md.modelVariables}
+    assert starts["coupler_mid.position"] is None                 # calculated: read after initialisation
     assert md.coSimulation.canGetAndSetFMUstate
     assert {u.name for u in md.unitDefinitions} >= {"rad", "rad/s", "N.m", "1"}
 
@@ -113,6 +116,7 @@ fmu.instantiate()
 fmu.setupExperiment(startTime=0.0)
 fmu.enterInitializationMode()
 fmu.exitInitializationMode()
+assert abs(fmu.getReal([vr["coupler.length"]])[0] - 10 * 0.0254) < 1e-12      # the FE rig's 10 in coupler
 step = fmu.getReal([vr["internal_step"]])[0] * 4
 fmu.doStep(0.0, step)
 saved = fmu.getFMUState()

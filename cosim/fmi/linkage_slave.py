@@ -14,8 +14,8 @@ on the gauged face; :mod:`cosim.engines.base` for the sign conventions). Paramet
 ``start_angle`` [rad] and ``start_speed`` [rad/s] (fixed: set before the initialisation) start
 the crank; ``drive_inertia`` [kg.m2] (torque input) is the drive's inertia carried on the crank.
 Read-only (calculated parameters: changing them needs a new export): ``drive_speed`` [rad/s],
-the scenario's crank speed, and ``internal_step`` [s], the engine's step, of which every
-communication step must be a whole multiple. Outputs are the engine's values at the step's end.
+the scenario's crank speed, ``internal_step`` [s], the engine's step, of which every
+communication step must be a whole multiple, ``<gauge>.position`` [m] and ``<link>.length`` [m]. Outputs are the engine's values at the step's end.
 
 fmi2GetFMUstate/fmi2SetFMUstate save and restore the engine (``Engine.save``/``restore``, as the
 master does for its iterated coupling); the state lives in memory (not serialisable).
@@ -24,6 +24,8 @@ Owns: ``LinkageSlave``. Boundaries: the engines behind their protocol; the packa
 cosim.fmi.export.
 """
 from __future__ import annotations
+
+import re
 
 from ..engines import make_engine
 from ..engines.base import DriveInput
@@ -60,6 +62,12 @@ class LinkageSlave(BenchSlave):
         for g in sc.gauges:
             self.add(f"{g.name}.bending", "1", "output", 0.0, f"bending strain at gauge {g.name}")
             self.add(f"{g.name}.axial", "1", "output", 0.0, f"axial strain at gauge {g.name}")
+            self.add(f"{g.name}.position", "m", "calculatedParameter", g.position_m,
+                     f"gauge {g.name}: distance along link {g.link} from its start")
+        for link in sc.mechanism.links():
+            # FMI's structured names allow [integer] subscripts only: "rocker[D-E]" -> "rocker_D_E".
+            name = re.sub(r"\W+", "_", link.name).strip("_")
+            self.add(f"{name}.length", "m", "calculatedParameter", link.length_m, f"length of link {link.name}")
 
     def exit_initialization_mode(self):
         v = self.values

@@ -31,7 +31,7 @@ CONFIG_FILE = "bench_fmu.json"
 #: FMI unit name -> (pint spelling, exponent of rad). pint counts the radian as 1, so the
 #: angle's exponent is kept here (FMI's BaseUnit has a ``rad`` exponent of its own).
 FMI_UNITS = {"rad": ("rad", 1), "rad/s": ("rad/s", 1), "rad/s2": ("rad/s^2", 1), "N.m": ("N*m", 0),
-             "kg.m2": ("kg*m^2", 0), "s": ("s", 0), "A": ("A", 0), "V": ("V", 0), "1": ("dimensionless", 0)}
+             "kg.m2": ("kg*m^2", 0), "m": ("m", 0), "s": ("s", 0), "A": ("A", 0), "V": ("V", 0), "1": ("dimensionless", 0)}
 _BASE = {"[mass]": "kg", "[length]": "m", "[time]": "s", "[current]": "A", "[temperature]": "K"}
 
 CAUSALITY = {"input": Fmi2Causality.input, "output": Fmi2Causality.output,
