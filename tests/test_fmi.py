@@ -163,6 +163,21 @@ def test_motor_fmu_drive_equals_native_motor(scenario, tmp_path):
     assert np.max(np.abs(drive - driven.motor.drive_torque_Nm)) <= TORQUE_RTOL * np.max(np.abs(drive))
 
 
+@pytest.mark.slow
+def test_motor_fmu_drives_a_torque_driven_engine_as_the_native_motor(tmp_path):
+    """MuJoCo carries the drive's inertia (read from the FMU before the run) and takes the FMU's
+    torque; the crank and strains equal the native motor's run (slow: two FMU processes and a
+    round trip per MuJoCo sample, about 8 s)."""
+    sc = load("crank_rocker_373rpm")
+    fmu = export_fmu(sc, tmp_path / "motor.fmu", engine="motor")
+    native = CoSimulation(sc.with_overrides({"drive.mode": "motor"}), ("mujoco",)).run(revolutions=0.5)["mujoco"]
+    driven = CoSimulation(sc.with_overrides(_fmu_drive(fmu)), ("mujoco",)).run(revolutions=0.5)["mujoco"]
+    assert native.status == driven.status == "completed", driven.error
+    assert np.max(np.abs(native.run.crank_speed - driven.run.crank_speed)) <= SPEED_RTOL * abs(sc.drive.speed_rad_s)
+    for g, (bending, _) in native.run.gauges.items():
+        assert np.max(np.abs(driven.run.gauges[g][0] - bending)) <= GAUGE_RTOL * np.ptp(bending), g
+
+
 def test_iterated_coupling_repeats_steps_through_the_fmu_state(tmp_path):
     """The iterated scheme restores the FMU drive's state to repeat a macro step and converges to
     the native motor's iterated run."""

@@ -123,7 +123,7 @@ class FmuDrive:
         self.can_restore = bool(self.model_description.coSimulation.canGetAndSetFMUstate)
         self.fmu, self.saved = None, None
         self.t, self.torque = 0.0, 0.0
-        self.crank_side_inertia_kg_m2 = spec.inertia_kg_m2
+        self._inertia = spec.inertia_kg_m2
 
     # -- FMU values in SI --------------------------------------------------------------------------
     def _get(self, var) -> float:
@@ -133,9 +133,9 @@ class FmuDrive:
         if var is not None:
             self.fmu.setReal([self.vr[var.name]], [value / var.to_si])
 
-    def start(self, t0: float, crank_angle: float, crank_speed: float, load_torque: float = 0.0) -> MotorState:
-        """Instantiate and initialise the FMU with the crank at ``crank_angle`` [rad] and
-        ``crank_speed`` [rad/s] (the FMU decides its own start from them)."""
+    def _open(self, t0: float, crank_angle: float, crank_speed: float) -> None:
+        """The FMU's process, instantiated and initialised with the crank at ``crank_angle``
+        [rad] and ``crank_speed`` [rad/s] (the FMU decides its own start from them)."""
         from .host import FmuProcess
         self.close()
         md = self.model_description
@@ -147,10 +147,25 @@ class FmuDrive:
         self._set(self.spec.angle, crank_angle)
         self.fmu.exitInitializationMode()
         if self.spec.inertia is not None:
-            self.crank_side_inertia_kg_m2 = self._get(self.spec.inertia)
-        if not self.crank_side_inertia_kg_m2 > 0:
-            raise FmuRefused(f"FMU '{self.spec.file}': the drive inertia ({self.spec.inertia.name if self.spec.inertia else 'drive.fmu.inertia'}) "
-                             f"is {self.crank_side_inertia_kg_m2!r} kg m^2; it must be positive")
+            self._inertia = self._get(self.spec.inertia)
+        if not self._inertia > 0:
+            name = self.spec.inertia.name if self.spec.inertia else "drive.fmu.inertia"
+            raise FmuRefused(f"FMU '{self.spec.file}': the drive inertia ({name}) is {self._inertia!r} kg m^2; "
+                             f"it must be positive")
+
+    @property
+    def crank_side_inertia_kg_m2(self) -> float:
+        """The drive's inertia turning with the crank [kg m^2]: the scenario's value, or the FMU's
+        variable (read from an instance initialised for the purpose when asked before ``start``,
+        as a torque-driven engine's reset asks)."""
+        if self._inertia is None:
+            self._open(0.0, 0.0, 0.0)
+            self.close()
+        return self._inertia
+
+    def start(self, t0: float, crank_angle: float, crank_speed: float, load_torque: float = 0.0) -> MotorState:
+        """Start the FMU with the crank at ``crank_angle`` [rad] and ``crank_speed`` [rad/s]."""
+        self._open(t0, crank_angle, crank_speed)
         self.t, self.torque = t0, self._get(self.spec.torque)
         return self._state(t0, crank_angle, crank_speed)
 
