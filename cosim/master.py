@@ -2,7 +2,8 @@
 
 Time runs on a fixed macro step H: the end of macro step k is ``t0 + (k + 1) H``, computed from
 the integer step count, never accumulated. H must be a whole multiple of every engine's internal
-step. Each engine is one *channel* with its own :class:`cosim.motor.Motor`:
+step. Each engine is one *channel* with its own drive (:func:`cosim.drives.make_drive`: a
+:class:`cosim.motor.Motor`, or an FMU with ``[drive] type = "fmu"``, which the channel treats alike):
 
 * torque-driven engines (exudyn, MuJoCo) carry the motor's rotor and flywheel inertia on their
   crank; the motor receives the engine's crank motion and returns the drive torque;
@@ -188,8 +189,8 @@ class _Channel:
         self.load_hist = [(t0, load)]
 
     def _drive_torque_now(self) -> float:
-        """The motor's drive torque in its current state, n (Kt i - T_f(omega_m)) [N m] (with a
-        compliant shaft in its steady start the shaft carries the same torque)."""
+        """The drive's torque in its current state [N m] (the motor's n (Kt i - T_f(omega_m)),
+        an FMU drive's torque output)."""
         return self.motor.drive_torque_now(self.state)
 
     # -- one macro step ---------------------------------------------------------------------------
