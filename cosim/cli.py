@@ -8,6 +8,7 @@
     cosim compare <folder>                       the table of a run, sweep or uncertainty folder
     cosim new <name> [--like SCENARIO]           a commented scenario file to start from
     cosim synthesize --case I|II ...             link lengths of a rigid crank-rocker (cosim.synthesis)
+    cosim export-fmu <name|path> -o X.fmu        an FMI 2.0 FMU of one engine or the motor (cosim.fmi)
 
 Bad input (unknown scenario or engine, malformed range, bad scenario file) ends with a one-line
 ``error: ...`` on stderr and exit status 2; a run in which an engine failed, or that ran out of
@@ -190,7 +191,7 @@ def build_parser() -> argparse.ArgumentParser:
                "logs/crank_rocker_373rpm-<timestamp>")
     p.add_argument("--version", action="version", version=f"cosim {__version__}")
     _verbosity_arguments(p, top=True)
-    sub = p.add_subparsers(dest="command", metavar="{list,run,sweep,uncertainty,identify,compare,new,synthesize}")
+    sub = p.add_subparsers(dest="command", metavar="{list,run,sweep,uncertainty,identify,compare,new,synthesize,export-fmu}")
 
     sub.add_parser("list", help="show the scenarios and their one-line descriptions",
                    description="Show the scenario files under scenarios/ with their one-line descriptions.")
@@ -283,6 +284,8 @@ def build_parser() -> argparse.ArgumentParser:
     _verbosity_arguments(add_synthesize_parser(sub))
     from .identify import add_parser as add_identify_parser
     _verbosity_arguments(add_identify_parser(sub))
+    from .fmi.command import add_parser as add_export_fmu_parser
+    _verbosity_arguments(add_export_fmu_parser(sub))
     return p
 
 
@@ -388,6 +391,9 @@ def _dispatch(parser, args) -> int:
         print(f"wrote {path}" + (f" and its base file(s) {', '.join(str(b) for b in bases)}" if bases else ""))
         print(f"run it with: cosim run {path}")
         return 0
+    if args.command == "export-fmu":
+        from .fmi.command import run_command as export_fmu_command
+        return export_fmu_command(args)
     if args.command == "identify":
         from .identify import run_command as identify_command
         return identify_command(args, progress=not _quiet(args))

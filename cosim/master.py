@@ -2,7 +2,8 @@
 
 Time runs on a fixed macro step H: the end of macro step k is ``t0 + (k + 1) H``, computed from
 the integer step count, never accumulated. H must be a whole multiple of every engine's internal
-step. Each engine is one *channel* with its own :class:`cosim.motor.Motor`:
+step. Each engine is one *channel* with its own drive (:func:`cosim.drives.make_drive`: a
+:class:`cosim.motor.Motor`, or an FMU with ``[drive] type = "fmu"``, which the channel treats alike):
 
 * torque-driven engines (exudyn, MuJoCo) carry the motor's rotor and flywheel inertia on their
   crank; the motor receives the engine's crank motion and returns the drive torque;
@@ -60,7 +61,8 @@ from .engines.base import DriveInput, EngineError, EngineRun, concatenate, const
 from .interface_signals import (ReflectedInertia, crank_extrapolation, crank_interpolation, extrapolate,
                                 linear_interpolation)
 from .metrics import SteadyWatch, energy_balance, revolutions_completed, speed_fluctuation
-from .motor import Motor, MotorState, MotorTrace
+from .drives import make_drive
+from .motor import MotorState, MotorTrace
 from .scenario import CouplingSettings, Scenario
 
 MODES = ("prescribed", "motor")
@@ -155,7 +157,8 @@ class _Channel:
         self.outputs, self.traces, self.passes = [], [], []
         self.keep_rad = keep_rad            # crank angle of the outputs held (None: all of them)
         self.motor_extrema = {}
-        self.motor = Motor(scenario.motor, integrates_crank=engine.kinematic) if mode == "motor" else None
+        self.motor = make_drive(scenario, integrates_crank=engine.kinematic,
+                                repeatable=coupling.scheme == "iterated") if mode == "motor" else None
         self.J_r = None     # interface Jacobian, set at start
         self.t0, self.angle0, self.t_end = 0.0, 0.0, None
         self.steps, self.angle_end = 0, None   # macro steps done, the crank angle at the last one's end [rad]
@@ -186,11 +189,9 @@ class _Channel:
         self.load_hist = [(t0, load)]
 
     def _drive_torque_now(self) -> float:
-        """The motor's drive torque in its current state, n (Kt i - T_f(omega_m)) [N m] (with a
-        compliant shaft in its steady start the shaft carries the same torque)."""
-        p = self.motor.p
-        wm = p.gear_ratio * self.state.rotor_speed_rad_s
-        return p.gear_ratio * (p.torque_constant_Nm_A * self.state.current_A - self.motor.friction(wm))
+        """The drive's torque in its current state [N m] (the motor's n (Kt i - T_f(omega_m)),
+        an FMU drive's torque output)."""
+        return self.motor.drive_torque_now(self.state)
 
     # -- one macro step ---------------------------------------------------------------------------
     def step(self, t_a: float, t_b: float):
@@ -213,6 +214,8 @@ class _Channel:
         self.passes.append(passes)
         for name in ("current_A", "voltage_V"):
             x = getattr(trace, name)
+            if not np.all(np.isfinite(x)):
+                continue            # an FMU drive does not give them (NaN)
             lo, hi = self.motor_extrema.get(name, (math.inf, -math.inf))
             self.motor_extrema[name] = (min(lo, float(np.min(x))), max(hi, float(np.max(x))))
         for hist in (self.crank_hist, self.drive_hist, self.load_hist):
@@ -411,9 +414,10 @@ class CoSimulation:
         self.mode = mode or scenario.drive.mode
         if self.mode not in MODES:
             raise InputError(f"drive mode must be one of {MODES}, got {self.mode!r}")
-        if self.mode == "motor" and scenario.motor is None:
+        fmu_drive = scenario.drive.type == "fmu"
+        if self.mode == "motor" and scenario.motor is None and not fmu_drive:
             raise InputError(f"scenario '{scenario.name}' has no [motor] table; run it in 'prescribed' mode or add one")
-        if self.mode == "motor":
+        if self.mode == "motor" and not fmu_drive:
             scenario.motor.check_setpoint()
         if not scenario.drive.speed_rad_s:
             raise InputError(f"scenario '{scenario.name}': drive.speed (the crank speed or set-point) must not be zero")
@@ -452,7 +456,9 @@ class CoSimulation:
         n_steps = int(math.ceil(duration_s / H - 1e-9))
         start_speed = sc.drive.speed_rad_s
         if self.mode == "motor":
-            start_speed = 0.0 if self.coupling.start == "rest" else float(sc.motor.setpoint(t0))
+            # An FMU drive starts at the drive speed (its own set-point is inside the FMU).
+            setpoint = sc.drive.speed_rad_s if sc.drive.type == "fmu" else float(sc.motor.setpoint(t0))
+            start_speed = 0.0 if self.coupling.start == "rest" else setpoint
         angle0 = sc.drive.start_angle_rad
 
         channels, clocks, status, errors = {}, {}, {}, {}

@@ -283,6 +283,13 @@ class Motor:
                               current_integrator_V=v)
         return MotorState(t0, i, v, crank_angle, crank_speed, crank_angle + twist, crank_speed)
 
+    def drive_torque_now(self, state: MotorState) -> float:
+        """The drive torque in ``state``, n (Kt i - T_f(omega_m)) [N m] at the crank (with a
+        compliant shaft in its steady start the shaft carries the same torque)."""
+        p = self.p
+        wm = p.gear_ratio * state.rotor_speed_rad_s
+        return p.gear_ratio * (p.torque_constant_Nm_A * state.current_A - self.friction(wm))
+
     # -- the physics: one right-hand side -----------------------------------------------------------
     def friction(self, wm: float) -> float:
         """Motor friction torque [N m] at motor speed ``wm``: viscous plus Coulomb, the sign

@@ -27,7 +27,8 @@ File layout (all tables except ``[scenario]``, ``[linkage]``, ``[links.*]`` are 
                     inertia, label}], damping = {ratio, frequency} | {stiffness, mass},
                     start_block / end_block = {length, section, material},
                     rigid = true | false (only the crank; its section and material give its mass)
-    [drive]         mode = "prescribed" | "motor", speed, rotation = "ccw" | "cw", start_angle
+    [drive]         mode = "prescribed" | "motor", speed, rotation = "ccw" | "cw", start_angle,
+                    type = "motor" | "fmu" (an FMU drive, [drive.fmu]: cosim.fmi.drive_spec)
     [gravity]       vector = [gx, gy]
     [gauges.X]      link, position, face = "top" | "bottom"
     [solver.tmm]    segments, integrator, step, beam_column, start,
@@ -287,7 +288,7 @@ def from_dict(data: dict, path: str = "<dict>", default_name: str = "scenario") 
         raise r.fail("output.steady_tolerance", "must be below 100 % (revolutions that differ by more are not "
                                                 "steady)", out["steady_tolerance"])
     motor = read_motor(r, top["motor"], drive, mech) if "motor" in top else None
-    if drive.mode == "motor" and motor is None:
+    if drive.mode == "motor" and motor is None and drive.type != "fmu":
         raise r.fail("drive.mode", "needs a [motor] table", "motor")
     coupling = rd.coupling(r, top.get("coupling", {}))
     _check_steps(r, drive, tmm, exudyn, mujoco, coupling)

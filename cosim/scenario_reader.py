@@ -375,12 +375,19 @@ def coupling(r: Reader, data) -> CouplingSettings:
 
 
 def drive(r: Reader, data) -> DriveSpec:
-    d = r.table(data, "drive", {"mode", "speed", "rotation", "start_angle"})
+    d = r.table(data, "drive", {"mode", "speed", "rotation", "start_angle", "type", "fmu"})
     mode = r.number(d.get("mode", "prescribed"), "drive.mode", choices=("prescribed", "motor"))
     speed = r.quantity(d.get("speed", "0 rpm"), "drive.speed", "rad/s", nonnegative=True)
     rotation = r.number(d.get("rotation", "ccw"), "drive.rotation", choices=("ccw", "cw"))
+    kind = r.number(d.get("type", "motor"), "drive.type", choices=("motor", "fmu"))
+    fmu = None
+    if kind == "fmu":
+        from .fmi.drive_spec import read_fmu_drive
+        fmu = read_fmu_drive(r, d.get("fmu"))
+    elif "fmu" in d:
+        raise r.fail("drive.fmu", 'is read only with drive.type = "fmu"')
     return DriveSpec(mode, speed if rotation == "ccw" else -speed,
-                     r.quantity(d.get("start_angle", "0 deg"), "drive.start_angle", "rad"))
+                     r.quantity(d.get("start_angle", "0 deg"), "drive.start_angle", "rad"), kind, fmu)
 
 
 def tmm_settings(r: Reader, data) -> TMMSettings:

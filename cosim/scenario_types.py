@@ -36,6 +36,10 @@ class DriveSpec:
     mode: str = "prescribed"
     speed_rad_s: float = 0.0
     start_angle_rad: float = 0.0
+    #: What drives the crank in 'motor' mode: "motor" (the [motor] table) or "fmu" (``fmu``, a
+    #: :class:`cosim.fmi.drive_spec.FmuDriveSpec`: an FMU with its variables mapped).
+    type: str = "motor"
+    fmu: object = None
 
     @property
     def speed_rpm(self) -> float:
