@@ -1,0 +1,274 @@
+"""Issue 34, item 1: why the transfer-matrix model (TMM) parts from exudyn at light damping and on
+the resonance flank of the FE crank-rocker (rigid crank, prescribed speed), found by experiment.
+
+Every case is a variant of the shipped scenario ``crank_rocker_373rpm`` made with
+``Scenario.with_overrides`` (speed ``drive.speed``, damping ``links.coupler.damping.ratio`` and
+``links.rocker.damping.ratio``, meshes and steps ``solver.*``); nothing is edited by hand.
+
+Reference: exudyn (geometrically exact ANCF cables, generalized-alpha 0.9), started from rest and
+run until its last two revolutions agree (``exudyn`` sub-command; results cached in
+``studies/light_damping_exudyn.json`` with the per-revolution peaks, so the table can be rebuilt
+without re-running it). Its mesh and step are refined (16 elements / 0.2 deg, the shipped
+setting, against 32 / 0.1 deg) to show it converged.
+
+TMM: the periodic steady state is found by Newton shooting (tmm_core.periodic), continued in the
+damping ratio from 2 % (where the solver converges from its own start) down to the case's ratio,
+each solve starting from the previous orbit. The Floquet multipliers of the orbit say whether time
+marching can settle on it (all inside the unit circle) and how fast. Where the continuation
+fails the case is marched in time (``march`` sub-command) and the revolution-to-revolution
+change reported. Each candidate cause is a variant of the TMM (``VARIANTS``): step halved, mesh
+doubled, integrator dissipation changed, second-order terms switched, rotating-frame terms off.
+
+    python -m studies.light_damping exudyn [--elements 16 --step-deg 0.2] [--cases 373:0.5,...]
+    python -m studies.light_damping tmm [--variants base,step,...] [--cases ...]
+    python -m studies.light_damping march --case 373:0.5 [--variant base] [--revolutions 40]
+    python -m studies.light_damping table      # the markdown table of docs/light_damping.md
+
+Run heavy parts with ``nice``; the exudyn references take ~4 s per revolution at 16 elements.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+HERE = Path(__file__).resolve().parent
+EXUDYN_CACHE = HERE / "light_damping_exudyn.json"
+TMM_CACHE = HERE / "light_damping_tmm.json"
+GAUGES = ("coupler_mid", "rocker_mid")
+
+#: (rpm, damping ratio [%]) of the issue's cases, and the shipped setting for comparison.
+CASES = ((373, 0.5), (373, 1.0), (373, 2.0), (241, 0.5), (241, 1.0), (365, 2.0), (381, 2.0))
+
+
+def case_key(rpm, zeta) -> str:
+    return f"{rpm:g}rpm_{zeta:g}%"
+
+
+def parse_cases(text):
+    if not text:
+        return CASES
+    return tuple((float(a), float(b)) for a, b in (c.split(":") for c in text.split(",")))
+
+
+def scenario(rpm, zeta, overrides=None):
+    """The FE rig at ``rpm`` with damping ratio ``zeta`` [%] on coupler and rocker."""
+    from cosim.scenario import load
+    o = {"drive.speed": f"{rpm:g} rpm", "links.coupler.damping.ratio": f"{zeta:g} %",
+         "links.rocker.damping.ratio": f"{zeta:g} %"}
+    o.update(overrides or {})
+    return load("crank_rocker_373rpm").with_overrides(o)
+
+
+def peaks(gauges, mask=slice(None)):
+    """``{gauge: [bend max, bend min, axial max, axial min]}`` [microstrain]."""
+    return {g: [float(x) * 1e6 for x in (b[mask].max(), b[mask].min(), a[mask].max(), a[mask].min())]
+            for g, (b, a) in gauges.items()}
+
+
+def per_revolution(angle, gauges):
+    """Peaks of every complete revolution (list over revolutions)."""
+    a = np.asarray(angle) - angle[0]
+    rev = np.floor(a / (2 * math.pi) + 1e-9).astype(int)
+    out = []
+    for k in range(int(rev.max()) + 1):
+        m = rev == k
+        if m.sum() > 10:
+            out.append(peaks(gauges, m))
+    return out
+
+
+def change_of(revs):
+    """Largest change of any peak between the last two revolutions, relative to that gauge's
+    bending peak-to-peak (the size the steady verdict measures changes against)."""
+    if len(revs) < 2:
+        return float("nan")
+    a, b = revs[-1], revs[-2]
+    return max(max(abs(x - y) for x, y in zip(a[g], b[g])) / (a[g][0] - a[g][1]) for g in a)
+
+
+def load_json(path):
+    return json.loads(path.read_text()) if path.exists() else {}
+
+
+def save_json(path, data):
+    path.write_text(json.dumps(data, indent=1, sort_keys=True) + "\n")
+
+
+# -- exudyn reference -----------------------------------------------------------------------------
+def run_exudyn(rpm, zeta, elements=16, step_deg=0.2, revolutions=40, settle=3):
+    """exudyn from rest for up to ``revolutions``; stops early once ``settle`` consecutive
+    revolutions changed by less than 1e-4 (relative peak change)."""
+    from cosim.engines import make_engine, run_prescribed
+    sc = scenario(rpm, zeta, {"solver.exudyn.elements": elements, "solver.exudyn.step": f"{step_deg:g} deg"})
+    t0 = time.time()
+    r = run_prescribed(make_engine("exudyn"), sc, revolutions=revolutions)
+    revs = per_revolution(r.crank_angle, r.gauges)
+    return {"rpm": rpm, "zeta_pct": zeta, "elements": elements, "step_deg": step_deg, "revolutions": len(revs),
+            "last": revs[-1], "change": change_of(revs), "per_revolution": revs, "wall_s": time.time() - t0}
+
+
+def cmd_exudyn(args):
+    cache = load_json(EXUDYN_CACHE)
+    for rpm, zeta in parse_cases(args.cases):
+        key = f"{case_key(rpm, zeta)}_{args.elements}el_{args.step_deg:g}deg"
+        if key in cache and not args.force:
+            continue
+        res = run_exudyn(rpm, zeta, args.elements, args.step_deg, args.revolutions)
+        cache = load_json(EXUDYN_CACHE)
+        cache[key] = res
+        save_json(EXUDYN_CACHE, cache)
+        print(key, {g: [round(x, 1) for x in v] for g, v in res["last"].items()}, f"change {res['change']:.2e}",
+              f"{res['wall_s']:.0f} s", flush=True)
+    return 0
+
+
+# -- transfer-matrix model: periodic orbits continued in speed and damping -------------------------
+#: Candidate causes: each a change of the TMM against the shipped setting ('base': 8 segments per
+#: link, 0.5 deg step, generalized-alpha rho_inf 0.9, second-order step with the shortening from
+#: bending and the step's own axial force, rotating-frame terms on).
+VARIANTS = {
+    "base": ("shipped TMM setting", {}),
+    "step": ("step halved (0.25 deg)", {"step_deg": 0.25}),
+    "mesh": ("mesh doubled (16 segments per link)", {"segments": 16}),
+    "rho1": ("no numerical dissipation (generalized-alpha rho_inf 1.0)", {"rho_inf": 1.0}),
+    "rho07": ("more numerical dissipation (rho_inf 0.7)", {"rho_inf": 0.7}),
+    "no_shortening": ("second order: shortening from bending off", {"dynamic_terms": ("axial_force",)}),
+    "no_own_force": ("second order: step's own axial force off (quasi-static P0 in bending)",
+                     {"dynamic_terms": ("shortening",)}),
+    "quasi_static": ("linear step, quasi-static axial force", {"axial_force": "quasi_static"}),
+    "no_rotating": ("rotating-frame terms off", {"coupling": "none"}),
+}
+
+
+def time_domain(rpm, zeta, spec):
+    """``(TimeDomain, speed [rad/s], step [deg])`` of the FE rig variant ``spec`` (VARIANTS)."""
+    from tmm_core import Coupling, TimeDomain
+    from tmm_core.integrators import GeneralizedAlpha
+    over = {"solver.tmm.segments": spec["segments"]} if "segments" in spec else {}
+    sc = scenario(rpm, zeta, over)
+    s = sc.tmm
+    extra = {k: spec[k] for k in ("dynamic_terms", "compiled") if k in spec}
+    extra.update(spec.get("td", {}))
+    td = TimeDomain(sc.mechanism, integrator=GeneralizedAlpha(spec.get("rho_inf", 0.9)),
+                    coupling=Coupling() if spec.get("coupling") == "none" else s.coupling,
+                    beam_column=s.beam_column, gravity=sc.gravity, gauges=sc.gauges,
+                    axial_force=spec.get("axial_force", s.axial_force), **extra)
+    return td, sc.drive.speed_rad_s, spec.get("step_deg", math.degrees(s.step_rad))
+
+
+def periodic_orbit(td, speed, step_deg, x0=None, iterations=25):
+    """Newton shooting (tmm_core.periodic) from the state ``x0`` (None: the solver's own start).
+    Returns ``(x0, {gauge: peaks}, multipliers, newton iterations)``."""
+    from tmm_core import CrankMotion, kernels_periodic
+    from tmm_core import periodic as per
+    crank = CrankMotion.constant_speed(speed, step_deg=step_deg, revolutions=1.0)
+    N, dt = crank.steps_per_revolution(), crank.dt
+    keys = per.STATE_KEYS[td.integrator.name]
+    if x0 is None or td.axial_force != "dynamic":
+        p = per.periodic_steady_state(td, speed, step_deg=step_deg)
+        # The periodic state itself: one more Newton pass from the linear solution is cheap, but
+        # the state is not returned; rebuild it from the zero state below when needed.
+        if td.axial_force != "dynamic":
+            return None, peaks(p.gauges), p.multipliers, 0
+        x0 = np.zeros(len(keys) * td.n_dof)
+    cfg = td.configurations(crank.angle[:N], crank.speed[:N], crank.acceleration[:N], dt, maps=True)
+    mono = kernels_periodic.monodromy if (td.compiled and kernels_periodic.AVAILABLE) else per._monodromy
+    shot = per._shoot(td, cfg, keys, x0, N, dt, 1)
+    x0, shot, its = per._newton(td, cfg, keys, N, dt, mono, x0, shot, None, 1e-7, iterations, strict=False)
+    mu = np.linalg.eigvals(mono(td, cfg, keys, shot[1], dt))
+    mu = mu[np.argsort(-np.abs(mu))]
+    outs = np.array(shot[2])
+    return x0, peaks(td.outputs.split(outs)), mu, its
+
+
+def continuation_path(rpm, zeta, start=(373.0, 2.0)):
+    """Points (rpm, zeta) from ``start``: speed first at 2 % (steps of at most 4 rpm), then the
+    damping down (each step at most 25 % of the ratio)."""
+    path, (r, z) = [start], start
+    while abs(r - rpm) > 1e-9:
+        r = r + max(-4.0, min(4.0, rpm - r))
+        path.append((r, z))
+    while z > zeta + 1e-9:
+        z = max(zeta, z * 0.8)
+        path.append((rpm, z))
+    return path
+
+
+def tmm_case(rpm, zeta, spec, log=print):
+    """The TMM's periodic orbit at (rpm, zeta) for variant ``spec``, continued from 373 rpm / 2 %;
+    a failed step is retried from the last orbit with the step halved (down to 1/8). Returns a
+    dict with the peaks, the largest multiplier modulus, and where the continuation stopped."""
+    from tmm_core.errors import TMMError
+    path = continuation_path(rpm, zeta)
+    x0, last, res = None, None, None
+    i, t0 = 0, time.time()
+    target = path[0]
+    while True:
+        try:
+            td, speed, step = time_domain(target[0], target[1], spec)
+            x0n, pk, mu, its = periodic_orbit(td, speed, step, x0)
+        except (TMMError, np.linalg.LinAlgError) as exc:
+            if last is None or abs(target[1] - last[1]) < 1e-3 * last[1] and abs(target[0] - last[0]) < 0.05:
+                return {"ok": False, "stopped_at": last, "failed_at": list(target), "error": str(exc)[:300],
+                        "last": res, "wall_s": time.time() - t0}
+            target = ((target[0] + last[0]) / 2, (target[1] + last[1]) / 2)
+            continue
+        x0, last = x0n, target
+        res = {"rpm": target[0], "zeta_pct": target[1], "peaks": pk, "mu_max": float(np.abs(mu[0])),
+               "mu": [[float(m.real), float(m.imag)] for m in mu[:4]], "newton": its}
+        log(f"    {target[0]:6.1f} rpm {target[1]:5.3f} %  rocker {pk['rocker_mid'][0]:7.1f} {pk['rocker_mid'][1]:7.1f}  "
+            f"|mu| {abs(mu[0]):.4f}  newton {its}")
+        if abs(target[0] - rpm) < 1e-9 and abs(target[1] - zeta) < 1e-9:
+            return {"ok": True, **res, "wall_s": time.time() - t0}
+        i = next(j for j, p in enumerate(path) if p == target) if target in path else i
+        nxt = [p for p in path if (abs(p[0] - target[0]) > 1e-9 or p[1] < target[1] - 1e-9)]
+        # the next point of the path beyond the current one
+        after = path[path.index(target) + 1] if target in path else next(
+            p for p in path if (p[1] < target[1] - 1e-12 and abs(p[0] - rpm) < 1e-9) or
+            (abs(p[1] - path[0][1]) < 1e-12 and abs(p[0] - rpm) < abs(target[0] - rpm) - 1e-9))
+        target = after
+
+
+def cmd_tmm(args):
+    cache = load_json(TMM_CACHE)
+    for name in args.variants.split(","):
+        label, spec = VARIANTS[name]
+        for rpm, zeta in parse_cases(args.cases):
+            key = f"{name}|{case_key(rpm, zeta)}"
+            if key in cache and not args.force:
+                continue
+            print(f"{name} ({label}) at {rpm:g} rpm, {zeta:g} %", flush=True)
+            res = tmm_case(rpm, zeta, spec, log=lambda m: print(m, flush=True))
+            cache = load_json(TMM_CACHE)
+            cache[key] = res
+            save_json(TMM_CACHE, cache)
+    return 0
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    sub = ap.add_subparsers(dest="cmd", required=True)
+    e = sub.add_parser("exudyn", help="exudyn reference runs (cached)")
+    e.add_argument("--cases", default="")
+    e.add_argument("--elements", type=int, default=16)
+    e.add_argument("--step-deg", type=float, default=0.2)
+    e.add_argument("--revolutions", type=float, default=40)
+    e.add_argument("--force", action="store_true")
+    e.set_defaults(func=cmd_exudyn)
+    t = sub.add_parser("tmm", help="TMM periodic orbits of the variants (cached)")
+    t.add_argument("--cases", default="")
+    t.add_argument("--variants", default=",".join(VARIANTS))
+    t.add_argument("--force", action="store_true")
+    t.set_defaults(func=cmd_tmm)
+    args = ap.parse_args(argv)
+    return args.func(args)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
