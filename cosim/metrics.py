@@ -86,10 +86,78 @@ def steadiness(run, tolerance: float) -> dict:
     """Whether an engine run ended steady: its last two revolutions agree within ``tolerance``
     (relative to each signal's peak-to-peak, :func:`run_change`); never assumed, so
     a run shorter than two revolutions is not steady. ``{"steady", "revolution_change" (None when
-    undefined), "steady_tolerance"}``."""
+    undefined), "steady_tolerance"}``, and for a run that is not steady after three revolutions or
+    more ``"unsteady"``: what it shows (:func:`revolution_trend`)."""
     change = run_change(run)
-    return {"steady": bool(change < tolerance), "revolution_change": None if change != change else float(change),
-            "steady_tolerance": tolerance}
+    out = {"steady": bool(change < tolerance), "revolution_change": None if change != change else float(change),
+           "steady_tolerance": tolerance}
+    if not out["steady"] and len(run.t):
+        signals = [run.drive_torque] + [bending for bending, _ in run.gauges.values()]
+        trend = revolution_trend(run.crank_angle, [s for s in signals if np.all(np.isfinite(s))], tolerance)
+        if trend is not None:
+            out["unsteady"] = trend
+    return out
+
+
+TREND_REVOLUTIONS = 6       # complete revolutions (counted back from the end) a trend is read from
+
+
+def revolution_trend(angle, signals, tolerance: float = STEADY_TOLERANCE,
+                     revolutions: int = TREND_REVOLUTIONS) -> dict | None:
+    """What a run that is not steady shows over its last (up to ``revolutions``) complete
+    revolutions, counted back from the last sample: the revolution-to-revolution change (as
+    :func:`revolution_change`, oldest first) and each revolution's peak-to-peak, of the signal
+    that changes most. ``kind``: 'grows' (the peak-to-peak grows by more than 1 % per revolution,
+    in most revolutions), 'decays slowly' (the change falls by 10 % or more per revolution, in
+    most revolutions: ``revolutions_to_steady`` more would reach ``tolerance`` at that rate) or
+    'bounded, not periodic' (neither: the response stays within its peak-to-peak range but does
+    not repeat). None with fewer than three complete revolutions. ``text``: one sentence."""
+    a = np.asarray(angle, dtype=float)
+    n = min(int(math.floor(revolutions_completed(a) + 1e-9)), int(revolutions))
+    if n < 3:
+        return None
+    ph = _phase(a)
+    two_pi = 2 * math.pi * (1 - 1e-12)
+    best = None
+    for x in signals:
+        x = np.asarray(x, dtype=float)
+        windows = [(ph > -(j + 1) * two_pi) & (ph <= -j * two_pi + 1e-12) for j in range(n)]   # 0 = last
+        spans = [float(np.ptp(x[w])) for w in windows]
+        if min(spans) <= 0.0:
+            continue
+        changes = [float(np.max(np.abs(x[w] - np.interp(ph[w] - 2 * math.pi, ph, x)))) / s
+                   for w, s in zip(windows[:-1], spans[:-1])]
+        if best is None or changes[0] > best[0][0]:
+            best = (changes, spans)
+    if best is None:
+        return None
+    changes, spans = best[0][::-1], best[1][::-1]               # oldest first
+    steps = len(changes) - 1
+    growth = (spans[-1] / spans[0]) ** (1.0 / (len(spans) - 1))
+    decay = (changes[-1] / changes[0]) ** (1.0 / steps) if changes[0] > 0 else 1.0
+    rising = sum(b > a_ for a_, b in zip(spans[:-1], spans[1:])) / (len(spans) - 1)
+    falling = sum(b < a_ for a_, b in zip(changes[:-1], changes[1:])) / steps
+    out = {"revolutions": len(spans), "changes": changes, "peak_to_peak": spans,
+           "peak_to_peak_ratio_per_revolution": growth, "change_ratio_per_revolution": decay,
+           "revolutions_to_steady": None}
+    if growth > 1.01 and rising > 0.5:
+        out["kind"] = "grows"
+        out["text"] = (f"grows: the peak-to-peak rose {100 * (growth - 1):.1f} % per revolution over the last "
+                       f"{len(spans)} revolutions")
+    elif decay < 0.9 and falling > 0.5:
+        out["kind"] = "decays slowly"
+        more = math.ceil(math.log(tolerance / changes[-1]) / math.log(decay)) if changes[-1] > tolerance else 0
+        out["revolutions_to_steady"] = more
+        out["text"] = (f"decays slowly: the change fell from {100 * changes[0]:.2g} % to {100 * changes[-1]:.2g} % "
+                       f"({100 * (1 - decay):.0f} % less per revolution); about {more} more revolutions would reach "
+                       f"the {100 * tolerance:.2g} % tolerance")
+    else:
+        out["kind"] = "bounded, not periodic"
+        out["text"] = (f"bounded, not periodic: over the last {len(spans)} revolutions the peak-to-peak stayed "
+                       f"within {min(spans) / spans[-1]:.2f}-{max(spans) / spans[-1]:.2f} x the last one's while "
+                       f"the change did not fall ({100 * min(changes):.2g}-{100 * max(changes):.2g} %): more "
+                       "revolutions are unlikely to make it steady")
+    return out
 
 
 class SteadyWatch:

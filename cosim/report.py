@@ -151,6 +151,9 @@ def comparison_table(summary: dict) -> str:
                      + (f"  {e['error']}" if e.get("error") else ""))
     lines.append("steady: the last two revolutions agree within the tolerance (change = their largest difference "
                  "relative to the peak-to-peak); results of an engine that is NOT STEADY are a transient")
+    for name, e in engines.items():
+        if e.get("unsteady"):
+            lines.append(f"  {name} NOT STEADY, {e['unsteady']['text']}")
     lines += _flag_lines(engines)
     speed = {n: e["speed"] for n, e in engines.items() if e.get("speed")}
     if speed:

@@ -89,3 +89,27 @@ def test_speed_fluctuation_of_a_run_holding_only_its_last_revolutions_warns_noth
     assert f["mean"] == pytest.approx(OMEGA, rel=1e-5)
     # (max - min) / mean of the speed OMEGA (1 + SWING cos(OMEGA t)) over a revolution.
     assert f["fluctuation"] == pytest.approx(2 * SWING, rel=1e-3)
+
+
+@pytest.mark.parametrize("kind", ["grows", "decays slowly", "bounded, not periodic"])
+def test_a_run_that_is_not_steady_says_what_it_sees(kind):
+    """revolution_trend on signals whose behaviour is known: an amplitude growing 5 % per
+    revolution, a transient whose revolution change falls to 0.7 of itself per revolution, and a
+    quasi-periodic response (an incommensurate ringing) that neither grows nor settles."""
+    from cosim.metrics import revolution_trend
+    t, theta = motor_like(revolutions=8.3)
+    rev = (theta - theta[0]) / (2 * math.pi)
+    base = periodic_signal(theta)
+    x = {"grows": base * 1.05 ** rev,
+         "decays slowly": base + 0.3 * 0.7 ** rev * np.sin(5 * theta + 0.4),
+         "bounded, not periodic": base + 0.3 * np.sin(math.sqrt(2) * theta)}[kind]
+    trend = revolution_trend(theta, [x], tolerance=5e-3)
+    assert trend["kind"] == kind and trend["revolutions"] == 6 and kind.split(",")[0] in trend["text"]
+    if kind == "grows":
+        assert trend["peak_to_peak_ratio_per_revolution"] == pytest.approx(1.05, abs=0.01)
+    if kind == "decays slowly":
+        assert trend["change_ratio_per_revolution"] == pytest.approx(0.7, abs=0.05)
+        # At 0.7 per revolution from the last change down to 0.5 %.
+        assert trend["revolutions_to_steady"] == math.ceil(math.log(5e-3 / trend["changes"][-1]) / math.log(0.7))
+    assert revolution_trend(theta[theta < theta[0] + 2.5 * 2 * math.pi], [x[theta < theta[0] + 2.5 * 2 * math.pi]]) \
+        is None
