@@ -76,11 +76,15 @@ def rate(seg: Segments, v: np.ndarray, Gd) -> np.ndarray:
 
 
 def pseudo_loads(seg: Segments, z: np.ndarray, v: np.ndarray, P: np.ndarray, P0: np.ndarray,
-                 shortening: bool = True):
+                 shortening: bool = True, exact: bool = False):
     """Nodal pseudo-loads (stacked local node vector) of the shortening and of the axial-force
     change ``P - P0`` for displacements ``z`` and velocities ``v``; also returns the shortening
     force ``F = EA/L (Delta + beta Delta_dot)`` [N] and ``Delta`` [m] per segment.
-    ``shortening=False`` leaves the shortening out (F = 0; for experiments)."""
+    ``shortening=False`` leaves the shortening out (F = 0; for experiments). ``exact=True``: the
+    geometrically exact strain of the segment instead of the second-order one (a prototype,
+    numpy step only: :func:`exact_pseudo_loads`)."""
+    if exact:
+        return exact_pseudo_loads(seg, z, v, P, P0)
     delta, Gd = shape_products(seg, z)
     F = seg.stiffness * (delta + seg.beta * rate(seg, v, Gd)) if shortening else np.zeros_like(delta)
     f = np.zeros(np.shape(z))
@@ -134,3 +138,62 @@ def linearization(seg: Segments, n: int, c_v: float, z, v, P, P0):
     f_P = np.zeros((n, ns))
     np.add.at(f_P, (idx, np.broadcast_to(np.arange(ns)[:, None], idx.shape)), -a)
     return f_z, f_P, Su @ F_v, F_z, F_v
+
+
+# -- prototype (issue 34): the exact strain of the segment instead of the second-order one ----------
+#: Gauss-Legendre points on [0, 1] and weights (summing to 1) of the exact-strain quadrature.
+_GAUSS_X, _GAUSS_W = (0.5 * (np.polynomial.legendre.leggauss(5)[0] + 1.0), 0.5 * np.polynomial.legendre.leggauss(5)[1])
+
+
+def _slope_rows(L):
+    """``B`` (n_seg, n_gauss, 4): the slope ``w'`` at each Gauss point of each segment is
+    ``B @ (w0, theta0, w1, theta1)`` (cubic Hermite shape)."""
+    x = _GAUSS_X[None, :]
+    L = np.asarray(L, dtype=float)[:, None]
+    shape = np.shape(L * x)
+    return np.stack([(-6 * x + 6 * x**2) / L, np.broadcast_to(1 - 4 * x + 3 * x**2, shape), (6 * x - 6 * x**2) / L,
+                     np.broadcast_to(-2 * x + 3 * x**2, shape)], axis=-1)
+
+
+def exact_strain(seg: Segments, z: np.ndarray, v: np.ndarray):
+    """Mean exact axial strain of every segment relative to its linear part and the derivatives
+    the pseudo-loads need, for node displacements ``z`` and velocities ``v`` (1-D):
+    ``(excess, excess_rate, c_a, g)``: ``excess = e - a`` with ``e`` the segment's mean of
+    ``sqrt((1 + a)^2 + w'^2) - 1`` and ``a = (u1 - u0)/L`` (in the second-order theory this is
+    ``Delta / L``), its rate, ``c_a = de/da`` and ``g = L de/dd`` (n_seg, 4)."""
+    L = seg.length
+    idx = np.stack([seg.start + 1, seg.start + 2, seg.end + 1, seg.end + 2], axis=1)
+    B = _slope_rows(L)
+    wp = np.einsum("sgj,sj->sg", B, z[idx])
+    wp_dot = np.einsum("sgj,sj->sg", B, v[idx])
+    a = ((z[seg.end] - z[seg.start]) / L)[:, None]
+    a_dot = ((v[seg.end] - v[seg.start]) / L)[:, None]
+    root = np.sqrt((1 + a) ** 2 + wp**2)
+    W = _GAUSS_W[None, :]
+    excess = np.sum(W * wp**2 / (root + 1 + a), axis=1)              # e - a, without cancellation
+    rate = np.sum(W * (a_dot * ((1 + a) - root) / root + wp * wp_dot / root), axis=1)
+    c_a = np.sum(W * (1 + a) / root, axis=1)
+    g = L[:, None] * np.einsum("sg,sgj->sj", W * wp / root, B)
+    return excess, rate, c_a, g
+
+
+def exact_pseudo_loads(seg: Segments, z: np.ndarray, v: np.ndarray, P: np.ndarray, P0: np.ndarray):
+    """:func:`pseudo_loads` with the segment's exact strain (prototype of issue 34). The strain
+    energy of a segment is ``1/2 EA L e^2`` with ``e`` its mean exact strain (:func:`exact_strain`)
+    and the physical axial force ``P = EA (e + beta e_dot)``. Nodal forces: ``P c_a`` on the axial
+    displacements (the linear solve carries ``EA (a + beta a_dot)``) and ``P g`` on ``(w0, theta0,
+    w1, theta1)`` (the factorization carries ``P0 G d``). Returns ``(f, F, Delta)`` as
+    :func:`pseudo_loads`, with ``F = EA ((e - a) + beta (e - a)_dot)`` (the force to add to the
+    solver's segment force for P) and ``Delta = L (e - a)``."""
+    excess, rate, c_a, g = exact_strain(seg, z, v)
+    EA = seg.EA
+    F = EA * (excess + seg.beta * rate)
+    # Axial: P c_a - (solver force) = P c_a - (P - F) = F + P (c_a - 1).
+    F_ax = F + P * (c_a - 1.0)
+    f = np.zeros(np.shape(z))
+    np.add.at(f, seg.start, F_ax)
+    np.add.at(f, seg.end, -F_ax)
+    _, Gd = shape_products(seg, z)
+    for j, (offset, idx) in enumerate(((1, seg.start), (2, seg.start), (1, seg.end), (2, seg.end))):
+        np.add.at(f, idx + offset, -(P * g[:, j] - P0 * Gd[j]))
+    return f, F, excess * seg.length

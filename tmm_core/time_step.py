@@ -34,6 +34,10 @@ ANDERSON_DEPTH = 4          # iterates mixed by the second-order step iteration
 AXIAL_FORCE_TOLERANCE = 1e-6
 AXIAL_RESTARTS = 3          # refactorizations of a second-order step that does not converge
 DYNAMIC_TERMS = ("shortening", "axial_force")
+#: Optional terms of the 'dynamic' step beyond DYNAMIC_TERMS (not in the default): 'exact_strain',
+#: the segments' geometrically exact strain instead of the second-order one (prototype of issue
+#: 34; numpy step only, so a TimeDomain asking for it marches without the compiled kernels).
+OPTIONAL_TERMS = ("exact_strain",)
 
 
 class StepSolution(NamedTuple):
@@ -107,9 +111,10 @@ class StepSolver:
         scale_P = 1e-9 * float(np.max(seg.EA))
         dz = dP = float("nan")
         shorten, own_force = "shortening" in self.dynamic_terms, "axial_force" in self.dynamic_terms
+        exact = "exact_strain" in self.dynamic_terms
         for it in range(self.axial_iterations):
             z, P = x[:n], x[n:] / to_len
-            f, F, delta = pseudo_loads(seg, z, c_v * z + h_v, P if own_force else P0, P0, shorten)
+            f, F, delta = pseudo_loads(seg, z, c_v * z + h_v, P if own_force else P0, P0, shorten, exact)
             z_new, out, N = self._solve_one(cfg, k, loads + f)
             P_new = N + damping + F
             if not (np.all(np.isfinite(z_new)) and np.all(np.isfinite(P_new))):
@@ -120,7 +125,8 @@ class StepSolver:
             if dz < self.axial_tolerance and dP < AXIAL_FORCE_TOLERANCE:
                 if len(self.gauge_segment) and shorten:
                     # Gauge axial strain = the full axial strain, with the shortening from bending.
-                    delta = shape_products(seg, z_new)[0]
+                    delta = shape_products(seg, z_new)[0] if not exact else \
+                        pseudo_loads(seg, z_new, c_v * z_new + h_v, P_new, P0, True, True)[2]
                     out = out.copy()
                     out[self.outputs.axial_columns] += delta[self.gauge_segment] / seg.length[self.gauge_segment]
                 return StepSolution(z_new, out, P_new), None, (it + 1, dz, dP)

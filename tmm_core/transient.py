@@ -38,7 +38,7 @@ from .riccati import segment_stiffness
 from .second_order import Segments
 from . import step_data
 from .structure import LoadCase, factorize
-from .time_step import AXIAL_FORCE_MODELS, DYNAMIC_TERMS, StepSolver
+from .time_step import AXIAL_FORCE_MODELS, DYNAMIC_TERMS, OPTIONAL_TERMS, StepSolver
 
 # The dense load-to-response maps cost O(n_dof^2) per configuration to build (once per revolution
 # of a periodic run) and a mat-vec per step to apply; without them every step runs the Riccati load
@@ -85,7 +85,9 @@ class TimeDomain(StepSolver):
     axial_tolerance, axial_iterations : relative tolerance and iteration limit of the 'dynamic'
         step iteration.
     dynamic_terms : the second-order terms of the 'dynamic' step: 'shortening' (axial shortening
-        from bending) and 'axial_force' (the step's own axial force in the bending equations).
+        from bending) and 'axial_force' (the step's own axial force in the bending equations);
+        with both, 'exact_strain' replaces their second-order strain by the segments' geometrically
+        exact strain (prototype of issue 34: numpy step only, so it runs the 'numpy' backend).
     backend : 'compiled' (the numba kernels of :mod:`tmm_core.compiled`), 'numpy' (the reference)
         or None (compiled where numba is installed): chosen once here, read by every stage
         (:func:`tmm_core.backend.choose_backend`).
@@ -100,12 +102,18 @@ class TimeDomain(StepSolver):
                  max_map_bytes: float = MAX_STEP_DATA_BYTES, axial_force: str = "dynamic", axial_tolerance: float = 1e-8,
                  axial_iterations: int = 60, dynamic_terms: tuple = DYNAMIC_TERMS, backend: str | None = None):
         self.mech = mech
+        if not set(dynamic_terms) <= set(DYNAMIC_TERMS + OPTIONAL_TERMS):
+            raise InputError(f"dynamic_terms must be a subset of {DYNAMIC_TERMS + OPTIONAL_TERMS}, got {dynamic_terms!r}")
+        if "exact_strain" in dynamic_terms:
+            if not set(DYNAMIC_TERMS) <= set(dynamic_terms):
+                raise InputError("dynamic_terms: 'exact_strain' replaces the second-order strain of both terms; give it "
+                                 f"with {DYNAMIC_TERMS}")
+            # Prototype (issue 34): the numpy step only; the compiled march does not have it.
+            backend = "numpy"
         #: 'compiled' or 'numpy', for every stage of this model (tmm_core.backend).
         self.backend = choose_backend(backend)
         #: Whether the stages run the compiled kernels (the backend, as a flag).
         self.compiled = self.backend == "compiled"
-        if not set(dynamic_terms) <= set(DYNAMIC_TERMS):
-            raise InputError(f"dynamic_terms must be a subset of {DYNAMIC_TERMS}, got {dynamic_terms!r}")
         #: The second-order terms the 'dynamic' step carries (both by default; one alone is for
         #: the experiment that separates them, scenarios/engines_agree_experiment.py).
         self.dynamic_terms = tuple(dynamic_terms)
