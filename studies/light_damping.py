@@ -134,7 +134,10 @@ def cmd_exudyn(args):
 #: bending and the step's own axial force, rotating-frame terms on).
 VARIANTS = {
     "base": ("shipped TMM setting", {}),
+    "exact_strain": ("prototype: the segments' exact strain instead of the second-order one (numpy step)",
+                     {"dynamic_terms": ("shortening", "axial_force", "exact_strain")}),
     "step": ("step halved (0.25 deg)", {"step_deg": 0.25}),
+    "step8": ("step divided by 4 (0.125 deg)", {"step_deg": 0.125}),
     "mesh": ("mesh doubled (16 segments per link)", {"segments": 16}),
     "rho097": ("less numerical dissipation (generalized-alpha rho_inf 0.97)", {"rho_inf": 0.97}),
     "rho07": ("more numerical dissipation (rho_inf 0.7)", {"rho_inf": 0.7}),
@@ -276,6 +279,107 @@ def cmd_tmm(args):
     return 0
 
 
+# -- time marching: what a run that does not settle shows -----------------------------------------
+def march(rpm, zeta, spec, revolutions=40):
+    """The TMM marched from its quasi-static start: peaks per revolution, the last change and
+    the trend (cosim.metrics.revolution_trend) over the last revolutions."""
+    from cosim.metrics import revolution_change, revolution_trend
+    from tmm_core import CrankMotion
+    td, speed, step = time_domain(rpm, zeta, spec)
+    t0 = time.time()
+    r = td.run(CrankMotion.constant_speed(speed, step_deg=step, revolutions=revolutions), start="quasi_static",
+               record_displacements=False)
+    revs = per_revolution(r.crank_angle, r.gauges)
+    signals = [r.drive_torque] + [b for b, _ in r.gauges.values()]
+    trend = revolution_trend(r.crank_angle, signals)
+    lo = min(v["rocker_mid"][1] for v in revs[len(revs) // 2:])
+    hi = max(v["rocker_mid"][1] for v in revs[len(revs) // 2:])
+    return {"revolutions": len(revs), "change": revolution_change(r.crank_angle, signals), "last": revs[-1],
+            "rocker_min_range_second_half": [lo, hi], "trend": trend and {k: trend[k] for k in ("kind", "text")},
+            "per_revolution": revs, "wall_s": time.time() - t0}
+
+
+def cmd_march(args):
+    cache = load_json(TMM_CACHE)
+    rpm, zeta = parse_cases(args.case)[0]
+    res = march(rpm, zeta, VARIANTS[args.variant][1], args.revolutions)
+    cache = load_json(TMM_CACHE)
+    cache[f"march|{args.variant}|{case_key(rpm, zeta)}"] = res
+    save_json(TMM_CACHE, cache)
+    print(f"{args.variant} at {rpm:g} rpm {zeta:g} %: change {100 * res['change']:.2f} %, rocker min over the second "
+          f"half {res['rocker_min_range_second_half'][0]:.0f}..{res['rocker_min_range_second_half'][1]:.0f} ue; "
+          f"{res['trend'] and res['trend']['text']}")
+    return 0
+
+
+# -- the tables of docs/light_damping.md ----------------------------------------------------------
+PEAK_NAMES = ("bend max", "bend min", "axial max", "axial min")
+
+
+def reference(rpm, zeta):
+    """The converged exudyn peaks of a case: 32 elements / 0.1 deg where run, else 16 / 0.2 deg."""
+    cache = load_json(EXUDYN_CACHE)
+    for tag in ("32el_0.1deg", "16el_0.2deg"):
+        r = cache.get(f"{case_key(rpm, zeta)}_{tag}")
+        if r is not None:
+            return r["last"], tag
+    return None, None
+
+
+def errors(pk, ref, n=2):
+    """Relative errors [%] of the first ``n`` peaks of every gauge."""
+    return {g: [100 * (pk[g][i] / ref[g][i] - 1) for i in range(n)] for g in GAUGES}
+
+
+def worst(err):
+    return max((abs(x), x) for v in err.values() for x in v)[1]
+
+
+def cmd_table(args):
+    ex, tm = load_json(EXUDYN_CACHE), load_json(TMM_CACHE)
+    out = ["### exudyn references (from rest, until the last two revolutions agree)", "",
+           "| case | mesh / step | revs | change | coupler bend max / min | rocker bend max / min | "
+           "coupler axial max / min | rocker axial max / min |", "|---|---|---|---|---|---|---|---|"]
+    for key in sorted(ex, key=lambda k: (-ex[k]["zeta_pct"], ex[k]["rpm"], ex[k]["elements"])):
+        r = ex[key]
+        c, k = r["last"]["coupler_mid"], r["last"]["rocker_mid"]
+        out.append(f"| {r['rpm']:g} rpm, {r['zeta_pct']:g} % | {r['elements']} el / {r['step_deg']:g} deg | "
+                   f"{r['revolutions']} | {r['change']:.1e} | {c[0]:.0f} / {c[1]:.0f} | {k[0]:.0f} / {k[1]:.0f} | "
+                   f"{c[2]:.1f} / {c[3]:.1f} | {k[2]:.1f} / {k[3]:.1f} |")
+    out += ["", "### TMM periodic orbits against exudyn (peak errors, %)", "",
+            "| variant | case | orbit | largest multiplier | coupler bend max / min | rocker bend max / min | "
+            "coupler axial max / min | rocker axial max / min |", "|---|---|---|---|---|---|---|---|"]
+    for name, (label, _) in VARIANTS.items():
+        for rpm, zeta in CASES:
+            r = tm.get(f"{name}|{case_key(rpm, zeta)}")
+            if r is None:
+                continue
+            ref, _ = reference(rpm, zeta)
+            if not r["ok"]:
+                stop = r.get("stopped_at")
+                where = f"none below {stop[1]:.3g} % (continued from 2 %)" if stop else "not found"
+                last = r.get("last")
+                mu = f"{last['mu_max']:.3f} at {last['zeta_pct']:.3g} %" if last else "-"
+                out.append(f"| {name} | {rpm:g} rpm, {zeta:g} % | {where} | {mu} | | | | |")
+                continue
+            e = errors(r["peaks"], ref, 4) if ref else None
+            cells = ["-"] * 4 if e is None else [
+                f"{e['coupler_mid'][0]:+.1f} / {e['coupler_mid'][1]:+.1f}", f"{e['rocker_mid'][0]:+.1f} / {e['rocker_mid'][1]:+.1f}",
+                f"{e['coupler_mid'][2]:+.1f} / {e['coupler_mid'][3]:+.1f}", f"{e['rocker_mid'][2]:+.1f} / {e['rocker_mid'][3]:+.1f}"]
+            out.append(f"| {name} | {rpm:g} rpm, {zeta:g} % | steady | {r['mu_max']:.3f} | " + " | ".join(cells) + " |")
+    marches = {k: v for k, v in tm.items() if k.startswith("march|")}
+    if marches:
+        out += ["", "### TMM marched in time", "", "| variant | case | revolutions | last change | rocker bend min, "
+                "second half | verdict |", "|---|---|---|---|---|---|"]
+        for k, v in marches.items():
+            _, name, case = k.split("|")
+            lo, hi = v["rocker_min_range_second_half"]
+            out.append(f"| {name} | {case} | {v['revolutions']} | {100 * v['change']:.1f} % | {lo:.0f} .. {hi:.0f} ue | "
+                       f"{v['trend']['text'] if v['trend'] else 'steady'} |")
+    print("\n".join(out))
+    return 0
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     sub = ap.add_subparsers(dest="cmd", required=True)
@@ -291,6 +395,13 @@ def main(argv=None) -> int:
     t.add_argument("--variants", default=",".join(VARIANTS))
     t.add_argument("--force", action="store_true")
     t.set_defaults(func=cmd_tmm)
+    m = sub.add_parser("march", help="march the TMM in time and say what the response does")
+    m.add_argument("--case", default="373:0.5")
+    m.add_argument("--variant", default="base")
+    m.add_argument("--revolutions", type=float, default=40)
+    m.set_defaults(func=cmd_march)
+    tb = sub.add_parser("table", help="print the markdown tables from the cached results")
+    tb.set_defaults(func=cmd_table)
     args = ap.parse_args(argv)
     return args.func(args)
 
