@@ -35,6 +35,11 @@ EXUDYN_REFINED = {
     "slider_crank_600rpm": ("coupler_mid", 29.80, -29.81, 0.02),
     "watt_sixbar_600rpm": ("rocker_E", 216.48, -595.88, 0.02),
     "shin_multiloop_motion": ("coupler_at_3", 1545.19, -1670.25, 0.02),
+    # Light-damping variants (issue 34, docs/light_damping.md): exudyn from rest at its default 16
+    # elements / 0.2 deg (32 / 0.1 deg moved the bending peaks by 0.2 % at 381 rpm, 2 %; the
+    # refined run at these dampings is not done yet).
+    "crank_rocker_373rpm_damping_1pct": ("rocker_mid", 1630.3, -2357.3, 0.02),
+    "crank_rocker_373rpm_damping_0p5pct": ("rocker_mid", 1573.5, -2314.6, 0.02),
 }
 TMM_REFINED = {
     "wang_steel_342rpm": ("rocker_mid", 65.64, -105.69, 0.01),
@@ -43,11 +48,16 @@ TMM_REFINED = {
     "wang_composite_280rpm": ("rocker_mid", 26.81, -51.49, 0.01),
     "wang_composite_297rpm": ("rocker_mid", 30.22, -57.92, 0.01),
 }
-SLOW = {"bahgat_willmert_125rads"}
+SLOW = {"bahgat_willmert_125rads", "crank_rocker_373rpm_damping_1pct", "crank_rocker_373rpm_damping_0p5pct"}
+#: Known failures, each with its issue: the transfer-matrix model marched from its quasi-static
+#: start does not settle at 0.5 % damping (a large irregular response coexists with the steady one).
+XFAIL = {"crank_rocker_373rpm_damping_0p5pct": "issue 34: the TMM march does not reach its steady orbit at 0.5 %"}
 
 
 def _cases(table):
-    return [pytest.param(name, marks=pytest.mark.slow) if name in SLOW else name for name in table]
+    return [pytest.param(name, marks=[pytest.mark.slow] + ([pytest.mark.xfail(strict=True, reason=XFAIL[name])]
+                                                            if name in XFAIL else []))
+            if name in SLOW else name for name in table]
 
 
 def test_every_shipped_scenario_has_a_pinned_number():

@@ -1,0 +1,10 @@
+"""FE crank-rocker at 373 rpm with 0.5 % damping (light-damping variant, issue 34).
+
+Runs the scenario through every engine, like `cosim run crank_rocker_373rpm_damping_0p5pct` (same options; --help lists them).
+"""
+import sys
+
+from cosim.cli import run_main
+
+if __name__ == "__main__":
+    sys.exit(run_main("crank_rocker_373rpm_damping_0p5pct"))
