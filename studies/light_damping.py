@@ -150,6 +150,8 @@ VARIANTS = {
     "no_coriolis": ("Coriolis term off", {"coupling": (False, True, True)}),
     "no_centrifugal": ("centrifugal term off", {"coupling": (True, False, True)}),
     "no_angular_acceleration": ("angular-acceleration term off", {"coupling": (True, True, False)}),
+    "no_rotating_step": ("rotating-frame terms off, step halved (0.25 deg): does the step error live in them?",
+                         {"coupling": (False, False, False), "step_deg": 0.25}),
 }
 
 
