@@ -108,10 +108,12 @@ def revolution_trend(angle, signals, tolerance: float = STEADY_TOLERANCE,
     revolutions, counted back from the last sample: the revolution-to-revolution change (as
     :func:`revolution_change`, oldest first) and each revolution's peak-to-peak, of the signal
     that changes most. ``kind``: 'grows' (the peak-to-peak grows by more than 1 % per revolution,
-    in most revolutions), 'decays slowly' (the change falls by 10 % or more per revolution, in
-    most revolutions: ``revolutions_to_steady`` more would reach ``tolerance`` at that rate) or
-    'bounded, not periodic' (neither: the response stays within its peak-to-peak range but does
-    not repeat). None with fewer than three complete revolutions. ``text``: one sentence."""
+    in every revolution read), 'decays slowly' (the change falls by 10 % or more per revolution,
+    in every revolution read: ``revolutions_to_steady`` more would reach ``tolerance`` at that
+    rate) or 'bounded, not periodic' (neither: the response stays within its peak-to-peak range
+    but does not repeat). An irregular response can look like either over a few revolutions: the
+    verdict names how many it read (a ``cosim run`` holds the last four, cosim.run.KEEP_REVOLUTIONS).
+    None with fewer than three complete revolutions. ``text``: one sentence."""
     a = np.asarray(angle, dtype=float)
     n = min(int(math.floor(revolutions_completed(a) + 1e-9)), int(revolutions))
     if n < 3:
@@ -140,17 +142,18 @@ def revolution_trend(angle, signals, tolerance: float = STEADY_TOLERANCE,
     out = {"revolutions": len(spans), "changes": changes, "peak_to_peak": spans,
            "peak_to_peak_ratio_per_revolution": growth, "change_ratio_per_revolution": decay,
            "revolutions_to_steady": None}
-    if growth > 1.01 and rising > 0.5:
+    if growth > 1.01 and rising == 1.0:
         out["kind"] = "grows"
         out["text"] = (f"grows: the peak-to-peak rose {100 * (growth - 1):.1f} % per revolution over the last "
-                       f"{len(spans)} revolutions")
-    elif decay < 0.9 and falling > 0.5:
+                       f"{len(spans)} revolutions, in each of them")
+    elif decay < 0.9 and falling == 1.0:
         out["kind"] = "decays slowly"
         more = math.ceil(math.log(tolerance / changes[-1]) / math.log(decay)) if changes[-1] > tolerance else 0
         out["revolutions_to_steady"] = more
-        out["text"] = (f"decays slowly: the change fell from {100 * changes[0]:.2g} % to {100 * changes[-1]:.2g} % "
-                       f"({100 * (1 - decay):.0f} % less per revolution); about {more} more revolutions would reach "
-                       f"the {100 * tolerance:.2g} % tolerance")
+        out["text"] = (f"decays slowly: over the last {len(spans)} revolutions the change fell from "
+                       f"{100 * changes[0]:.2g} % to {100 * changes[-1]:.2g} % ({100 * (1 - decay):.0f} % less per "
+                       f"revolution); at that rate about {more} more revolutions would reach the "
+                       f"{100 * tolerance:.2g} % tolerance")
     else:
         out["kind"] = "bounded, not periodic"
         out["text"] = (f"bounded, not periodic: over the last {len(spans)} revolutions the peak-to-peak stayed "
