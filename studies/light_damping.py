@@ -22,6 +22,7 @@ doubled, integrator dissipation changed, second-order terms switched, rotating-f
     python -m studies.light_damping exudyn [--elements 16 --step-deg 0.2] [--cases 373:0.5,...]
     python -m studies.light_damping tmm [--variants base,step,...] [--cases ...]
     python -m studies.light_damping march --case 373:0.5 [--variant base] [--revolutions 40]
+    python -m studies.light_damping step-split [--case 241:0.5]
     python -m studies.light_damping table      # the markdown table of docs/light_damping.md
 
 Run heavy parts with ``nice``; the exudyn references take ~4 s per revolution at 16 elements.
@@ -387,6 +388,34 @@ def cmd_table(args):
     return 0
 
 
+# -- where the step error lives: the linear model's step sensitivity ------------------------------
+def cmd_step_split(args):
+    """Step sensitivity of the linear step (quasi-static axial force, no second-order
+    pseudo-loads) against the second-order one at a case where both apply (241 rpm: the rocker
+    stays well below its Euler load): periodic orbits at 0.5, 0.25 and 0.125 deg."""
+    from tmm_core.periodic import periodic_steady_state
+    rpm, zeta = parse_cases(args.case)[0]
+    ref, _ = reference(rpm, zeta)
+    cache = load_json(TMM_CACHE)
+    rows = ["| axial force model | step | coupler bend max / min | rocker bend max / min | errors (coupler, rocker) % |",
+            "|---|---|---|---|---|"]
+    for model in ("quasi_static", "dynamic"):
+        for step in (0.5, 0.25, 0.125):
+            key = f"stepsplit|{model}|{step:g}deg|{case_key(rpm, zeta)}"
+            if key not in cache:
+                td, speed, _ = time_domain(rpm, zeta, {"axial_force": model, "step_deg": step})
+                cache[key] = peaks(periodic_steady_state(td, speed, step_deg=step).gauges)
+                save_json(TMM_CACHE, cache)
+            pk = cache[key]
+            e = errors(pk, ref, 2)
+            rows.append(f"| {model} | {step:g} deg | {pk['coupler_mid'][0]:.1f} / {pk['coupler_mid'][1]:.1f} | "
+                        f"{pk['rocker_mid'][0]:.1f} / {pk['rocker_mid'][1]:.1f} | "
+                        f"{e['coupler_mid'][0]:+.1f} / {e['coupler_mid'][1]:+.1f}, "
+                        f"{e['rocker_mid'][0]:+.1f} / {e['rocker_mid'][1]:+.1f} |")
+    print("\n".join(rows))
+    return 0
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     sub = ap.add_subparsers(dest="cmd", required=True)
@@ -408,6 +437,9 @@ def main(argv=None) -> int:
     m.add_argument("--variant", default="base")
     m.add_argument("--revolutions", type=float, default=40)
     m.set_defaults(func=cmd_march)
+    sp = sub.add_parser("step-split", help="step sensitivity of the linear step against the second-order one")
+    sp.add_argument("--case", default="241:0.5")
+    sp.set_defaults(func=cmd_step_split)
     tb = sub.add_parser("table", help="print the markdown tables from the cached results")
     tb.set_defaults(func=cmd_table)
     args = ap.parse_args(argv)
