@@ -23,6 +23,7 @@ doubled, integrator dissipation changed, second-order terms switched, rotating-f
     python -m studies.light_damping tmm [--variants base,step,...] [--cases ...]
     python -m studies.light_damping march --case 373:0.5 [--variant base] [--revolutions 40]
     python -m studies.light_damping step-split [--case 241:0.5]
+    python -m studies.light_damping frequencies
     python -m studies.light_damping table      # the markdown table of docs/light_damping.md
 
 Run heavy parts with ``nice``; the exudyn references take ~4 s per revolution at 16 elements.
@@ -421,6 +422,22 @@ def cmd_step_split(args):
     return 0
 
 
+# -- the linear models: natural frequencies at rest ------------------------------------------------
+def cmd_frequencies(args):
+    """First two natural frequencies [Hz] of the rig at rest, crank held, at a few crank angles:
+    exudyn's constrained eigenvalues (16 and 32 elements) and the TMM's frequency search (8 and
+    16 segments)."""
+    from cosim.engines.exudyn import natural_frequencies
+    from tmm_core.frequencies import fourbar_frequencies
+    print("| crank angle [rad] | exudyn 16 el | exudyn 32 el | TMM 8 seg | TMM 16 seg |\n|---|---|---|---|---|")
+    for angle in (0.0, 1.0, 2.5, 4.5):
+        cells = [natural_frequencies(scenario(373, 2.0, {"solver.exudyn.elements": el}), angle, 2) for el in (16, 32)]
+        cells += [fourbar_frequencies(scenario(373, 2.0, {"solver.tmm.segments": seg}).mechanism, np.array([angle]), 2,
+                                      1000.0)[0] for seg in (8, 16)]
+        print(f"| {angle:g} | " + " | ".join(" / ".join(f"{f:.2f}" for f in c) for c in cells) + " |")
+    return 0
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     sub = ap.add_subparsers(dest="cmd", required=True)
@@ -445,6 +462,8 @@ def main(argv=None) -> int:
     sp = sub.add_parser("step-split", help="step sensitivity of the linear step against the second-order one")
     sp.add_argument("--case", default="241:0.5")
     sp.set_defaults(func=cmd_step_split)
+    fr = sub.add_parser("frequencies", help="natural frequencies at rest of both engines")
+    fr.set_defaults(func=cmd_frequencies)
     tb = sub.add_parser("table", help="print the markdown tables from the cached results")
     tb.set_defaults(func=cmd_table)
     args = ap.parse_args(argv)
