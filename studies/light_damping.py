@@ -292,10 +292,12 @@ def march(rpm, zeta, spec, revolutions=40):
                record_displacements=False)
     revs = per_revolution(r.crank_angle, r.gauges)
     signals = [r.drive_torque] + [b for b, _ in r.gauges.values()]
-    trend = revolution_trend(r.crank_angle, signals)
+    change = revolution_change(r.crank_angle, signals)
+    # What a run that is not steady shows (as cosim.metrics.steadiness reports it).
+    trend = revolution_trend(r.crank_angle, signals) if not change < 5e-3 else None
     lo = min(v["rocker_mid"][1] for v in revs[len(revs) // 2:])
     hi = max(v["rocker_mid"][1] for v in revs[len(revs) // 2:])
-    return {"revolutions": len(revs), "change": revolution_change(r.crank_angle, signals), "last": revs[-1],
+    return {"revolutions": len(revs), "change": change, "last": revs[-1],
             "rocker_min_range_second_half": [lo, hi], "trend": trend and {k: trend[k] for k in ("kind", "text")},
             "per_revolution": revs, "wall_s": time.time() - t0}
 
