@@ -160,7 +160,7 @@ def time_domain(rpm, zeta, spec):
     over = {"solver.tmm.segments": spec["segments"]} if "segments" in spec else {}
     sc = scenario(rpm, zeta, over)
     s = sc.tmm
-    extra = {k: spec[k] for k in ("dynamic_terms", "compiled") if k in spec}
+    extra = {k: spec[k] for k in ("dynamic_terms", "backend") if k in spec}
     extra.update(spec.get("td", {}))
     td = TimeDomain(sc.mechanism, integrator=GeneralizedAlpha(spec.get("rho_inf", 0.9)),
                     coupling=Coupling(*spec["coupling"]) if "coupling" in spec else s.coupling,
@@ -172,7 +172,7 @@ def time_domain(rpm, zeta, spec):
 def periodic_orbit(td, speed, step_deg, x0=None, iterations=12):
     """Newton shooting (tmm_core.periodic) from the state ``x0`` (None: the solver's own start).
     Returns ``(x0, {gauge: peaks}, multipliers, newton iterations)``."""
-    from tmm_core import CrankMotion, kernels_periodic
+    from tmm_core import CrankMotion
     from tmm_core import periodic as per
     crank = CrankMotion.constant_speed(speed, step_deg=step_deg, revolutions=1.0)
     N, dt = crank.steps_per_revolution(), crank.dt
@@ -185,7 +185,7 @@ def periodic_orbit(td, speed, step_deg, x0=None, iterations=12):
             return None, peaks(p.gauges), p.multipliers, 0
         x0 = np.zeros(len(keys) * td.n_dof)
     cfg = td.configurations(crank.angle[:N], crank.speed[:N], crank.acceleration[:N], dt, maps=True)
-    mono = kernels_periodic.monodromy if (td.compiled and kernels_periodic.AVAILABLE) else per._monodromy
+    mono = per.compiled_periodic.monodromy if td.compiled else per._monodromy     # as periodic_steady_state
     shot = per._shoot(td, cfg, keys, x0, N, dt, 1)
     x0, shot, its = per._newton(td, cfg, keys, N, dt, mono, x0, shot, None, 1e-7, iterations, strict=False)
     mu = np.linalg.eigvals(mono(td, cfg, keys, shot[1], dt))
