@@ -36,7 +36,7 @@ AXIAL_RESTARTS = 3          # refactorizations of a second-order step that does 
 DYNAMIC_TERMS = ("shortening", "axial_force")
 #: Optional terms of the 'dynamic' step beyond DYNAMIC_TERMS (not in the default): 'exact_strain',
 #: the segments' geometrically exact strain instead of the second-order one (prototype of issue
-#: 34; numpy step only, so a TimeDomain asking for it marches without the compiled kernels).
+#: 34; numpy step only, so a TimeDomain asking for it runs the numpy backend).
 OPTIONAL_TERMS = ("exact_strain",)
 
 
