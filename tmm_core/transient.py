@@ -108,7 +108,11 @@ class TimeDomain(StepSolver):
             if not set(DYNAMIC_TERMS) <= set(dynamic_terms):
                 raise InputError("dynamic_terms: 'exact_strain' replaces the second-order strain of both terms; give it "
                                  f"with {DYNAMIC_TERMS}")
-            # Prototype (issue 34): the numpy step only; the compiled march does not have it.
+            # A prototype of the numpy step only (the compiled march does not have it): the
+            # default backend becomes numpy, an explicit compiled one is refused.
+            if backend == "compiled":
+                raise InputError("dynamic_terms: 'exact_strain' runs in the numpy step only; build the model with "
+                                 "backend = 'numpy' (or leave the backend to its default)")
             backend = "numpy"
         #: 'compiled' or 'numpy', for every stage of this model (tmm_core.backend).
         self.backend = choose_backend(backend)
