@@ -106,7 +106,7 @@ from tmm_core.linkage import (MODULE_KINDS, GuidedSlider, LinkageKinematics, Lin
                               carrier_link, polygon_properties)
 
 from .joint_tables import joint_checker, joint_position, read_loads, read_springs
-from .scenario_reader import G0, MAX_SEGMENTS
+from .scenario_reader import G0, MAX_SEGMENTS, damping as damping_reader
 
 SUPPORTS = ("free", "pinned", "slider")
 REVOLUTION_CHECK = 1440
@@ -119,7 +119,6 @@ def build_mechanism(r, top: dict, materials: dict, sections: dict, viscos: dict,
     """Build the :class:`LinkageMechanism` of a ``type = "linkage"`` scenario. Returns the
     mechanism and ``gauge_link(key, table) -> (member, position_m)``, which places a gauge given
     along a link's path on the part that holds it."""
-    from .scenario_reader import damping as damping_reader
 
     def mass_reader(d, key):
         if ("mass" in d) == ("weight" in d):

@@ -42,7 +42,8 @@ After every macro step ``callback(MacroStep)`` is called; returning True stops t
 engine that fails stops only its own channel; every result up to the failure is kept. A
 KeyboardInterrupt during the run ends it with status ``interrupted`` and the results so far.
 
-Owns: ``CoSimulation``: macro steps, coupling schemes, motors per engine, the steady-state stop.
+Owns: ``CoSimulation``: macro steps, coupling schemes, motors per engine, the steady-state stop;
+``run_prescribed`` (one engine through it).
 Boundaries: no engine internals (protocol only) and no files (cosim.run).
 """
 from __future__ import annotations
@@ -507,3 +508,17 @@ class CoSimulation:
         overall = next((s for s in ("failed", "interrupted", "stopped") if s in sts), "completed")
         sim_time = max(r.sim_time_s for r in results.values())
         return CoSimResult(sc, self.mode, self.coupling, H, t0 + sim_time, results, overall, reason, sim_time)
+
+
+def run_prescribed(engine, scenario: Scenario, revolutions: float | None = None) -> EngineRun:
+    """Drive one engine at the scenario's constant crank speed for ``revolutions`` (default: the
+    scenario's output setting; without one, until the engine is steady or the scenario's
+    ``output.max_revolutions``). It is the co-simulation master's prescribed mode with a single
+    engine (one run loop, the scenario's macro step); an engine failure raises its error."""
+    result = CoSimulation(scenario, {engine.name: engine}, mode="prescribed").run(revolutions=revolutions)
+    channel = result[engine.name]
+    if channel.status == "failed":
+        raise EngineError(channel.error)
+    if channel.status == "interrupted":
+        raise KeyboardInterrupt
+    return channel.run

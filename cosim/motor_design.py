@@ -12,6 +12,7 @@ import numpy as np
 
 from tmm_core import InputError
 
+from .motor import MotorParameters, SetPoint
 from .scenario_reader import MAX_MAGNITUDE, Reader
 from .scenario_types import Assumption, DriveSpec
 
@@ -74,7 +75,6 @@ def derive_pm_dc_motor(rated_power_W: float, rated_speed_rad_s: float, rated_vol
 
 
 def motor(r: Reader, data, drive: DriveSpec, mech):
-    from .motor import MotorParameters, SetPoint
 
     knobs = {"efficiency": ("efficiency", ""), "copper_loss_share": ("copper_loss_share", ""),
              "coulomb_share": ("coulomb_share", ""), "electrical_time_constant": ("electrical_time_constant_s", "s"),

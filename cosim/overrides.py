@@ -10,8 +10,9 @@ does not exist is refused, naming the path, except a top-level table or one tabl
 (the loader refuses it if the table does not know it). The value ``None`` removes the key, so
 its default applies again (``{"motor": None}`` drops the motor table).
 
-Owns: key-path editing of scenario trees. Used by sweeps, uncertainty bands, the rigs of the
-scripts and tests; nothing else edits ``Scenario.raw``.
+Owns: key-path editing of scenario trees. Used by the scenario types' ``with_overrides``, sweeps,
+uncertainty bands, the rigs of the scripts and tests; nothing else edits ``Scenario.raw``.
+Boundaries: it knows no scenario type and no loader (it sits below both: imports run one way).
 """
 from __future__ import annotations
 
@@ -73,19 +74,3 @@ def apply_overrides(raw: dict, overrides: dict) -> dict:
     for key, value in overrides.items():
         set_key(data, str(key), value)
     return data
-
-
-class Variants:
-    """``with_overrides`` for a loaded scenario of any kind (it has ``raw``, ``path`` and ``name``)."""
-
-    def with_overrides(self, overrides: dict):
-        """A variant of this scenario with key paths of its file set to new values, e.g.
-        ``{"drive.speed": "300 rpm", "links.coupler.damping.ratio": "3 %"}``, validated by the
-        loader (its errors name the key)."""
-        from .scenario import ScenarioError, from_dict
-        label = f"{self.path or self.name} (with {', '.join(f'{k} = {v!r}' for k, v in overrides.items())})"
-        try:
-            data = apply_overrides(self.raw, overrides)
-        except OverrideError as exc:
-            raise ScenarioError(f"scenario '{self.path or self.name}': {exc}") from None
-        return from_dict(data, label, default_name=self.name)

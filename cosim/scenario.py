@@ -11,44 +11,8 @@ such as ``damping`` or a point mass may carry ``assumption`` / ``source`` keys t
 assumption is collected in :attr:`Scenario.assumptions` with its rationale and written into the
 run's resolved scenario. Errors name the file, the key and the value.
 
-File layout (all tables except ``[scenario]``, ``[linkage]``, ``[links.*]`` are optional)::
-
-    [scenario]      name, description, sources, rig (records of that rig are compared)
-    [linkage]       type = "four-bar", ground, pivot, ground_angle, branch = "open" | "crossed"
-                    type = "slider-crank", pivot, slide_angle, offset, slider_mass | slider_weight, branch
-                    type = "linkage" (any planar linkage in motion, with [joints.*], [plates.*],
-                    [sliders.*], [springs.*], [loads.*] and [[modules]]): see :mod:`cosim.linkage_scenario`
-                    type = "structure": see :mod:`cosim.structure_scenario`
-    [materials.X]   E, density, yield_strength, endurance_limit, poisson,
-                    viscoelastic = {instantaneous_modulus, relaxed_modulus, relaxation_time}
-    [sections.X]    width, depth  (or area, inertia, depth)
-    [links.crank|coupler|rocker]
-                    length, section, material, segments, point_masses = [{position, mass | weight,
-                    inertia, label}], damping = {ratio, frequency} | {stiffness, mass},
-                    start_block / end_block = {length, section, material},
-                    rigid = true | false (only the crank; its section and material give its mass)
-    [drive]         mode = "prescribed" | "motor", speed, rotation = "ccw" | "cw", start_angle
-    [gravity]       vector = [gx, gy]
-    [gauges.X]      link, position, face = "top" | "bottom"
-    [solver.tmm]    segments, integrator, step, beam_column, start,
-                    coupling = {coriolis, centrifugal, angular_acceleration} (all true by default),
-                    axial_force = "dynamic" (default) | "quasi_static" | "none"
-    [solver.exudyn] elements, step, spectral_radius, newton_tolerance
-    [solver.mujoco] step, servo_frequency, solref_factor, solimp
-    [motor]         rated_power, rated_speed, rated_voltage (derive the constants below that are not
-                    given: :func:`cosim.motor_design.derive_pm_dc_motor`, its knobs efficiency,
-                    copper_loss_share, coulomb_share, electrical_time_constant, rotor_inertia_per_power),
-                    resistance, inductance, torque_constant, back_emf, rotor_inertia, viscous_friction,
-                    coulomb_friction, supply_voltage, gear_ratio, flywheel_inertia | flywheels =
-                    [{diameter, thickness, density, count}], shaft_stiffness, shaft_damping,
-                    controller = {bandwidth, current_bandwidth, current_limit} | {kp, ki}, setpoint = {profile, start, t0, duration},
-                    reversible
-    [coupling]      macro_step, scheme = "jacobi" | "gauss_seidel" | "iterated", extrapolation =
-                    "constant" | "linear", interface_jacobian, tolerance, max_iterations,
-                    start = "steady" | "rest"
-    [output]        revolutions (a fixed run length; default: until steady), max_revolutions (30),
-                    steady_tolerance ("0.5 %"), engines (the default engines of `cosim run`)
-    [uncertainty]   samples, seed, parameters.<name> = {keys, distribution, ...}: see cosim.uncertainty
+The file format (every table and key, with units and defaults) is documented in one place:
+docs/scenario-format.md.
 
 A file may start with ``extends = "base/<rig>"``: it is merged over that base file.
 
@@ -58,8 +22,7 @@ of every engine's step.
 """
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
+import dataclasses
 import logging
 import math
 import re
@@ -74,17 +37,16 @@ from tmm_core.closed_forms import first_bending_frequency_Hz
 
 from . import scenario_reader as rd
 from .files import SCENARIO_BYTES, FileRefused, read_text_bounded
+from .linkage_scenario import build_mechanism
 from .motor_design import motor as read_motor
+from .overrides import OverrideError, apply_overrides, set_key
 from .scenario_reader import G0, Reader
 # The data types live in scenario_types; they stay importable from here, with the unit registry.
 from .scenario_types import (Assumption, CouplingSettings, DriveSpec, ExudynSettings, MujocoSettings,  # noqa: F401
-                             OutputSettings, Scenario, ScenarioError, TMMSettings)
-from .overrides import Variants, apply_overrides
+                             OutputSettings, Scenario, ScenarioError, TMMSettings, Variants)
+from .structure_scenario import StaticScenario, build as build_structure
 from .unknowns_table import declared, variant
 from .units import UREG  # noqa: F401
-
-if TYPE_CHECKING:
-    from .structure_scenario import StaticScenario
 
 SCENARIO_DIR = Path(__file__).resolve().parent.parent / "scenarios"
 log = logging.getLogger(__name__)
@@ -96,7 +58,7 @@ log = logging.getLogger(__name__)
 LINKAGE_TYPES = ("four-bar", "slider-crank", "linkage", "structure")
 
 
-def load(path_or_name) -> "Scenario | StaticScenario":
+def load(path_or_name) -> Scenario | StaticScenario:
     """Load a scenario from a path or from the name of a file in ``scenarios/``; a loaded
     scenario of any kind (a variant made with ``with_overrides``) is returned as it is."""
     if isinstance(path_or_name, Variants):
@@ -184,7 +146,7 @@ def scenario_names() -> list:
     return sorted(p.stem for p in SCENARIO_DIR.glob("*.toml"))
 
 
-def from_dict(data: dict, path: str = "<dict>", default_name: str = "scenario") -> "Scenario | StaticScenario":
+def from_dict(data: dict, path: str = "<dict>", default_name: str = "scenario") -> Scenario | StaticScenario:
     """Build a scenario from parsed TOML data (``path`` is only used in messages): a
     :class:`Scenario` for a mechanism in motion (``kind`` 'four-bar', 'slider-crank' or 'linkage',
     its ``mechanism`` of the matching type), a :class:`cosim.structure_scenario.StaticScenario`
@@ -217,12 +179,11 @@ def from_dict(data: dict, path: str = "<dict>", default_name: str = "scenario") 
         raise r.fail("linkage.type", f"is required (one of {', '.join(LINKAGE_TYPES)})")
     kind = r.number(top["linkage"]["type"], "linkage.type", choices=LINKAGE_TYPES)
     if kind == "structure":
-        from .structure_scenario import build
-        return build(r, top, path, default_name, materials, sections, meta)
+        return dataclasses.replace(build_structure(r, top, path, default_name, materials, sections, meta),
+                                   loader=from_dict)
     if "modules" in top and kind != "linkage":
         raise r.fail("modules", f"only a 'linkage' has [[modules]] (this one is a {kind})")
     if kind == "linkage":
-        from .linkage_scenario import build_mechanism
         mech, gauge_link = build_mechanism(r, top, materials, sections, viscos, tmm.segments)
     else:
         mech, gauge_link = _main_loop(r, top, kind, materials, sections, viscos, tmm.segments)
@@ -296,7 +257,7 @@ def from_dict(data: dict, path: str = "<dict>", default_name: str = "scenario") 
         _check_uncertainty(r, top["uncertainty"], path, top, tuple(gauges))
     return Scenario(sc_name, description, Path(path) if path != "<dict>" else None, sources, mech, drive,
                     tuple(gauges), gravity, tmm, exudyn, mujoco, output, tuple(r.assumptions), data, motor, coupling,
-                    rig)
+                    rig, loader=from_dict)
 
 
 def _check_steps(r: Reader, drive, tmm, exudyn, mujoco, coupling) -> None:
@@ -436,7 +397,6 @@ def _check_uncertainty(r: Reader, data, path: str, top: dict, gauges: tuple = ()
                      unknown[0])
     if "parameters" not in u:
         return
-    from .overrides import OverrideError, set_key
     for name, d in params.items():
         r.table(d, f"uncertainty.parameters.{name}", _UNKNOWN_KEYS, {"keys", "distribution"})
         for k in d["keys"] if isinstance(d["keys"], list) else []:
@@ -583,7 +543,6 @@ def resolved(scenario: Scenario) -> dict:
     """Everything the run used, TOML-ready: ``[resolved]`` holds every value in SI after units,
     defaults and derivations (field names carry the units), ``assumptions`` every declared
     assumption with its rationale, ``[input]`` the file as written (bases merged)."""
-    import dataclasses
 
     def clean(x):
         if dataclasses.is_dataclass(x) and not isinstance(x, type):

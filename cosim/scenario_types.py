@@ -3,7 +3,8 @@
 Owns: :class:`Scenario` (a moving linkage: four-bar, slider-crank or general linkage; a static
 structure is :class:`cosim.structure_scenario.StaticScenario`), the settings per engine, the
 drive, the output and coupling settings, :class:`Assumption` and :class:`ScenarioError`. The
-reader (:mod:`cosim.scenario_reader`) fills them; :mod:`cosim.scenario` loads files.
+reader (:mod:`cosim.scenario_reader`) fills them; :mod:`cosim.scenario` loads files. Boundaries:
+it imports no reader and no loader (``with_overrides`` calls the loader that built the scenario).
 """
 from __future__ import annotations
 
@@ -13,7 +14,7 @@ from pathlib import Path
 
 from tmm_core import Coupling, FourBarMechanism, InputError, SliderCrankMechanism
 
-from .overrides import Variants
+from .overrides import OverrideError, apply_overrides
 
 
 class ScenarioError(InputError):
@@ -27,6 +28,30 @@ class Assumption:
     key: str
     value: str
     rationale: str
+
+
+class Variants:
+    """``with_overrides`` for a loaded scenario of any kind (it has ``raw``, ``path``, ``name`` and
+    ``loader``).
+
+    ``loader`` is the function that built the scenario from its TOML tree
+    (:func:`cosim.scenario.from_dict`, which sets it): a variant is built by the same loader. It is
+    handed over rather than imported so that the types know no loader: the loader imports the
+    types, never the reverse."""
+
+    def with_overrides(self, overrides: dict):
+        """A variant of this scenario with key paths of its file set to new values, e.g.
+        ``{"drive.speed": "300 rpm", "links.coupler.damping.ratio": "3 %"}``, validated by the
+        loader (its errors name the key)."""
+        label = f"{self.path or self.name} (with {', '.join(f'{k} = {v!r}' for k, v in overrides.items())})"
+        if self.loader is None:
+            raise ScenarioError(f"scenario '{self.path or self.name}': built without a loader, so it has no variants "
+                                "(load it with cosim.scenario.load or from_dict)")
+        try:
+            data = apply_overrides(self.raw, overrides)
+        except OverrideError as exc:
+            raise ScenarioError(f"scenario '{self.path or self.name}': {exc}") from None
+        return self.loader(data, label, default_name=self.name)
 
 
 @dataclass(frozen=True)
@@ -124,6 +149,8 @@ class Scenario(Variants):
     motor: object = None                  # cosim.motor.MotorParameters, or None without a [motor] table
     coupling: CouplingSettings = CouplingSettings()
     rig: str | None = None                # the physical rig (records of it are matched by this name)
+    #: The loader that built it, which builds its variants (:class:`Variants`).
+    loader: object = field(default=None, repr=False, compare=False)
 
     def engine_step_s(self, engine: str) -> float:
         """Internal step of an engine [s]."""

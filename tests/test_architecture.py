@@ -19,15 +19,7 @@ PACKAGES = ("tmm_core", "cosim")
 MAX_LINES, MAX_PARAMETERS = 80, 20
 
 #: Import cycles allowed for now, each a set of modules, with the reason.
-CYCLES = {
-    frozenset({"cosim.linkage_scenario", "cosim.motor_design", "cosim.overrides", "cosim.scenario",
-               "cosim.scenario_reader", "cosim.scenario_types", "cosim.structure_scenario", "cosim.unknowns_table"}):
-        "Scenario inherits overrides.Variants, which calls the loader back; issue 35 item 1 (a loader package "
-        "with one-way imports)",
-    frozenset({"cosim.engines", "cosim.engines.base", "cosim.engines.exudyn", "cosim.engines.mujoco",
-               "cosim.engines.mujoco_tree", "cosim.engines.tmm", "cosim.master"}):
-        "engines.base.run_prescribed imports the master, which imports the engines; issue 35 item 1",
-}
+CYCLES: dict = {}
 
 #: Functions over the limits for now: "module.function" -> reason.
 LONG_FUNCTIONS = {

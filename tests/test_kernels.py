@@ -76,7 +76,8 @@ def test_compiled_march_equals_numpy_for_every_integrator_and_the_quasi_static_a
 
 
 def test_the_engine_uses_the_compiled_path_and_gets_the_same_answer():
-    from cosim.engines import make_engine, run_prescribed
+    from cosim.engines import make_engine
+    from cosim.master import run_prescribed
     sc = load("slider_crank_600rpm")
     runs = []
     for compiled in (False, True):

@@ -72,7 +72,7 @@ def timed_process(rig: str, engine: str, setting: dict, revolutions: float, cold
     Returns {"first_call_s", "setup_s", "march_s", "sim_s" (warm run, [s]), "cold_s" (cold run,
     engine creation included [s]), "maxrss_kB"}."""
     from cosim.engines import make_engine
-    from cosim.engines.base import run_prescribed
+    from cosim.master import run_prescribed
     from .bench_accuracy import scenario_for, timed
     sc = scenario_for(rig, engine, setting)
 
