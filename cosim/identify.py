@@ -42,9 +42,12 @@ from pathlib import Path
 
 import numpy as np
 
+from .identify_report import plot, record_rrd
+from .records import peaks_at, records_for
 from .run_guards import MAX_HOURS, MAX_HOURS_HELP, check_study
 from .runlog import out_folder, run_folder, write_json
-from .scenario import ScenarioError, check_unknowns, load
+from .scenario import ScenarioError, check_unknowns, from_dict, load
+from .uncertainty import evaluate, parallel_map
 from .unknowns import Settings, declared, read, solve, solve_cost, variant
 
 log = logging.getLogger(__name__)
@@ -63,7 +66,6 @@ def rpm_of(sc) -> float:
 def record_peaks(sc, records_dir=None) -> tuple:
     """``({gauge: {"+": ue, "-": ue}}, [record descriptions])`` of the scenario's peaks records
     (measurement or synthetic) at its speed; only gauges the scenario has."""
-    from .records import peaks_at, records_for
     gauges = {g.name for g in sc.gauges}
     peaks, used = {}, []
     for rec in records_for(sc, records_dir):
@@ -198,7 +200,6 @@ def fit_job(scenarios_raw, unknowns, continuous, choice, x0, targets, settings, 
     """One bounded least-squares fit (a worker job): one choice of the discrete unknowns, one start."""
     from scipy.optimize import least_squares
 
-    from .scenario import from_dict
     scs = [from_dict(raw, path) for raw, path in scenarios_raw]
     model = Model(scs, unknowns, continuous, settings)
     tic = time.perf_counter()
@@ -270,7 +271,6 @@ def identify(calibration, validation=(), parameters=None, records_dir=None, out=
              max_hours: float = MAX_HOURS) -> tuple:
     """Calibrate, then predict the held-out scenarios; returns ``(folder, result)``. ``max_hours``:
     refuse an identification estimated to take longer (before any fit starts)."""
-    from .uncertainty import parallel_map
     plan = check_inputs(calibration, validation, parameters, records_dir)
     cal, val, unknowns, names = plan["calibration"], plan["validation"], plan["unknowns"], plan["parameters"]
     continuous = [n for n in names if not unknowns[n].discrete]
@@ -351,7 +351,6 @@ def identify(calibration, validation=(), parameters=None, records_dir=None, out=
     result["wall_time_s"] = time.perf_counter() - tic
     result["sample"] = {k: (v if isinstance(v, (str, int)) else float(v)) for k, v in sample.items()}
     write_json(folder / "identification.json", result)
-    from .identify_report import plot, record_rrd
     try:
         result["figures"] = [p.name for p in plot(folder, result, preds)]
     except Exception as exc:                    # a figure never loses the identification
@@ -365,7 +364,6 @@ def identify(calibration, validation=(), parameters=None, records_dir=None, out=
 def predict(scenarios, unknowns, continuous, x, choice, cov, settings, workers=None, scheduler=None) -> dict:
     """Peaks and histories of each scenario at ``x`` (and the nominal scenario), with the 1-sigma
     of the peaks from ``cov`` (finite differences: one more solve per continuous unknown)."""
-    from .uncertainty import evaluate
     h = 1e-3
     out = {}
     for sc in scenarios:

@@ -18,6 +18,9 @@ import time
 from pathlib import Path
 
 import numpy as np
+from tmm_core.frequencies import fourbar_frequencies
+
+from .figures import gauge_label, new_figure, peak_markers, save
 
 log = logging.getLogger(__name__)
 
@@ -38,7 +41,6 @@ def frequency_map(scenario, n_angles: int = 36, n_modes: int = 4, f_max_Hz: floa
     says so (its bands are then coarser)."""
     from tqdm import tqdm
 
-    from tmm_core.frequencies import fourbar_frequencies
     start = scenario.drive.start_angle_rad
     angles = start + np.linspace(0, 2 * math.pi, n_angles, endpoint=False)
     with tqdm(total=n_angles, desc="natural frequencies", unit="angle", disable=None if progress else True) as bar:
@@ -90,7 +92,6 @@ def plot_sweep(folder, name: str, points: list, fmap: dict | None, marks_rpm=(),
     """Write ``sweep_peaks`` and ``campbell`` figures (PNG and SVG) to ``folder``; returns the paths.
     ``record_peaks`` (:func:`cosim.figures.peaks_by_speed`) are drawn as open markers at their speeds;
     ``not_steady_rpm``: marched points whose last revolutions still differ (shaded)."""
-    from .figures import gauge_label, new_figure, peak_markers, save
 
     folder = Path(folder)
     paths = []

@@ -42,20 +42,32 @@ from pathlib import Path
 
 import numpy as np
 
+from tmm_core import FourBarMechanism, TMMError
+
 from . import __version__
+from .compare import convention_warnings, score_history, score_peaks, sign_check
 from .engines import ENGINES, EngineUnavailable, make_engine
+from .figures import write_run_figures
 from .files import write_atomic
-from .master import CoSimulation, InputError
-from .metrics import last_revolution, revolutions_completed, steadiness
-from .runlog import run_folder, write_json
-from .scenario import Scenario, load, resolved
 from .interrupted import mark_interrupted
 from .interrupts import Interrupts
+from .master import CoSimulation, InputError
+from .metrics import last_revolution, revolutions_completed, steadiness
 from .physics_flags import attach_flags, questionable
+from .recording.animation import write_gif
+from .recording.batch import check_linkage_rate
+from .recording.process import RecorderProcess
+from .recording.recorder import check_exaggeration
+from .recording.sinks import ViewerOptions
+from .records import history_over_angle, peaks_at, records_for
+from .results import write_parquet
 from .run_guards import MAX_HOURS, check_cost, plausibility_notes
 from .run_outcome import attempt, fail_out_of_memory, final_status, missing, out_of_memory
 from .run_progress import RunProgress, compile_notice
+from .runlog import run_folder, write_json
 from .samples import SampleCollector
+from .scenario import Scenario, load, resolved
+from .synthesis import limit_positions
 from .traces import TraceWriter, TracesNotWritten
 
 SUMMARY_EVERY_S = 2.0
@@ -113,10 +125,8 @@ def last_revolution_stats(run, period: float | None = None, t0: float = 0.0) -> 
 def linkage_summary(sc: Scenario) -> dict | None:
     """Limit positions and transmission-angle range of a four-bar scenario [deg]
     (:func:`cosim.synthesis.limit_positions`); None for other linkages or a non-Grashof one."""
-    from tmm_core import FourBarMechanism, TMMError
     if not isinstance(sc.mechanism, FourBarMechanism):
         return None
-    from .synthesis import limit_positions
     try:
         lim = limit_positions(sc.mechanism.geometry)
     except TMMError as exc:
@@ -182,7 +192,6 @@ def run_scenario(scenario, options: RunOptions = RunOptions(), callback=None) ->
         raise InputError(f"max_hours (--max-hours) must be a positive number of hours, got {options.max_hours!r}")
     cost = check_cost(sc, list(engines), duration, cosim.macro_step_s, options.max_hours)
     if options.records is not None:       # a bad user records directory is refused before the run
-        from .records import records_for
         records_for(sc, Path(options.records))
 
     folder = run_folder(sc.name, options.out)
@@ -390,9 +399,6 @@ def _close_recorder(recorder, summary: dict, notes: list) -> None:
 def _viewer_options(options: RunOptions):
     """The recording's viewer (cosim.recording.sinks.ViewerOptions), None for no recording;
     a bad choice is refused naming the option."""
-    from .recording.batch import check_linkage_rate
-    from .recording.recorder import check_exaggeration
-    from .recording.sinks import ViewerOptions
     try:
         check_exaggeration(options.exaggeration)          # the recording's and the animation's
         if options.viewer == "none":
@@ -410,7 +416,6 @@ def _start_recorder(sc: Scenario, mode: str, engines: dict, folder: Path, option
     <folder>/run.rrd and is named in the summary's files."""
     if viewer is None:
         return None
-    from .recording.process import RecorderProcess
     path = Path(options.save_path) if options.save_path is not None else folder / "run.rrd"
     # The engines' stations come with the first macro step (set_stations): they know their meshes then.
     rec = RecorderProcess(sc, {name: {} for name in engines}, mode, save_path=path, viewer=viewer,
@@ -443,7 +448,6 @@ def _finish_exports(exports: dict, engines: dict, result, folder: Path, summary:
         return "model.xml"
 
     def gif():
-        from .recording.animation import write_gif
         runs = {n: ch.run for n, ch in result.channels.items()}
         stations = {n: e.node_stations() for n, e in engines.items() if _has_stations(e)}
         return write_gif(folder / "linkage.gif", runs, stations, options.exaggeration).name
@@ -470,11 +474,9 @@ def _write_results(folder: Path, sc: Scenario, summary: dict, notes: list, optio
     a note and a missing output, running out of memory fails the run and stops here
     (:func:`cosim.run_outcome.attempt`; traces.csv stays the run's crash-safe file)."""
     def parquet():
-        from .results import write_parquet
         return write_parquet(folder).name
 
     def figures():
-        from .figures import write_run_figures
         return [p.name for p in write_run_figures(folder, sc, options.records)]
 
     write_json(folder / "summary.json", summary)          # the figure reads the final verdicts
@@ -491,8 +493,6 @@ def score_records(sc: Scenario, result, summary: dict, recorder=None, directory=
     """Records of the scenario's rig at its speed: listed in the summary, scored against every
     engine's last revolution (peaks records: peak errors; histories over crank angle: peak, RMS,
     correlation, phase lag, scale, envelope), drawn in the recording under /records."""
-    from .compare import convention_warnings, score_history, score_peaks, sign_check
-    from .records import history_over_angle, peaks_at, records_for
 
     recs = records_for(sc, directory)
     if not recs:

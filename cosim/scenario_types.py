@@ -12,7 +12,7 @@ import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from tmm_core import Coupling, FourBarMechanism, InputError, SliderCrankMechanism
+from tmm_core import Coupling, FourBarMechanism, InputError, SliderCrankMechanism, TimeDomain
 
 from .overrides import OverrideError, apply_overrides
 
@@ -181,7 +181,6 @@ class Scenario(Variants):
         """The transfer-matrix time domain (:class:`tmm_core.TimeDomain`) of this scenario with its
         ``solver.tmm`` settings, gravity and gauges; ``mechanism`` replaces the scenario's (e.g.
         the same four-bar with applied joint moments)."""
-        from tmm_core import TimeDomain
         s = self.tmm
         return TimeDomain(self.mechanism if mechanism is None else mechanism, integrator=s.integrator,
                           coupling=s.coupling, beam_column=s.beam_column, gravity=self.gravity, gauges=self.gauges,

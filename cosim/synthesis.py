@@ -30,6 +30,8 @@ from tmm_core import ConvergenceError, FourBarGeometry, InputError, fourbar_moti
 from tmm_core.errors import require_positive
 
 from .files import write_atomic
+from .scenario import from_dict, load
+from .units import UREG, quantity
 
 RESIDUAL_TOLERANCE = 1e-10   # of the thesis equations in ratios to d and radians: round-off, not "close"
 CHECK_TOLERANCE = 1e-8       # rad: the synthesized linkage through the bench's kinematics
@@ -303,7 +305,6 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
 
 def _quantity(option: str, text: str, kind: str):
     """``text`` as a pint quantity of kind 'length' or 'angle'; a bare number is refused."""
-    from .units import UREG, quantity
     example = {"length": "in", "angle": "deg"}[kind]
     try:
         q = quantity(text)
@@ -341,7 +342,6 @@ def _case_inputs(args) -> dict:
 
 def _scaled(value, ratio: float):
     """A position along a link written with a unit (string or {value = ...}), times ``ratio``."""
-    from .units import quantity
     if isinstance(value, dict):
         return value | {"value": _scaled(value["value"], ratio)}
     q = quantity(value) * ratio if isinstance(value, str) else None
@@ -354,8 +354,6 @@ def write_scenario(result: FourBarSynthesis, path: Path, like: str, unit) -> Pat
     mid-span gauge stays mid-span); ``scenario.rig`` is dropped, its records are of another linkage."""
     import tomli_w
 
-    from .scenario import from_dict, load
-    from .units import UREG
     base = load(like)
     if base.raw.get("linkage", {}).get("type") != "four-bar":
         raise InputError(f"option --like = {like!r}: is not a four-bar scenario")
@@ -382,7 +380,6 @@ def write_scenario(result: FourBarSynthesis, path: Path, like: str, unit) -> Pat
 
 def run_command(args) -> int:
     """``cosim synthesize``: solve, print (table or one JSON object), optionally write a scenario."""
-    from .units import UREG
     ground = _quantity("--ground", args.ground, "length")
     oscillation = float(_quantity("--oscillation", args.oscillation, "angle").to("rad").magnitude)
     inputs = _case_inputs(args)
