@@ -60,7 +60,7 @@ class IdentificationError(ScenarioError):
 
 
 def rpm_of(sc) -> float:
-    return abs(sc.drive.speed_rad_s) * 30 / math.pi
+    return sc.drive.speed_rpm
 
 
 def record_peaks(sc, records_dir=None) -> tuple:

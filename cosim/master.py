@@ -429,7 +429,7 @@ class CoSimulation:
 
     def duration_for(self, revolutions: float) -> float:
         """Simulated time [s] of ``revolutions`` at the set-point (or prescribed) crank speed."""
-        return revolutions * 2 * math.pi / abs(self.scenario.drive.speed_rad_s)
+        return revolutions * self.scenario.revolution_period_s
 
     def run(self, duration_s: float | None = None, *, revolutions: float | None = None, callback=None,
             t0: float = 0.0, until_steady: bool | None = None, keep_revolutions: float | None = None) -> CoSimResult:

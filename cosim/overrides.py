@@ -10,6 +10,10 @@ does not exist is refused, naming the path, except a top-level table or one tabl
 (the loader refuses it if the table does not know it). The value ``None`` removes the key, so
 its default applies again (``{"motor": None}`` drops the motor table).
 
+A value may also be typed: a number with its unit (``UREG.Quantity(241.0, "rpm")``, see :func:`prescribed_speed`), which the loader converts
+without writing and parsing text (a sweep's speeds are floats: a float turned into "241.0 rpm"
+and read back is a round trip through pint's parser).
+
 Owns: key-path editing of scenario trees. Used by the scenario types' ``with_overrides``, sweeps,
 uncertainty bands, the rigs of the scripts and tests; nothing else edits ``Scenario.raw``.
 Boundaries: it knows no scenario type and no loader (it sits below both: imports run one way).
@@ -18,6 +22,8 @@ from __future__ import annotations
 
 import copy
 import re
+
+from .units import UREG
 
 _INDEX = re.compile(r"^(\w+)\[(\d+)\]$")
 
@@ -66,6 +72,12 @@ def set_key(raw: dict, key: str, value, *, write: bool = True) -> None:
             else:
                 raise OverrideError(f"key '{key}': there is no table '{'.'.join(parts[:i + 1])}'")
         node = node[part]
+
+
+def prescribed_speed(rpm: float) -> dict:
+    """The overrides of a prescribed-speed run at ``rpm`` [rev/min], typed (a number with its
+    unit, no text): what a sweep point and its cost estimate set."""
+    return {"drive.speed": UREG.Quantity(float(rpm), "rpm"), "drive.mode": "prescribed"}
 
 
 def apply_overrides(raw: dict, overrides: dict) -> dict:

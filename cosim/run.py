@@ -67,6 +67,7 @@ from .run_progress import RunProgress, compile_notice
 from .runlog import run_folder, write_json
 from .samples import SampleCollector
 from .scenario import Scenario, load, resolved
+from .scenario_types import to_rpm
 from .synthesis import limit_positions
 from .traces import TraceWriter, TracesNotWritten
 
@@ -148,7 +149,7 @@ def _engine_summary(ch, scenario: Scenario, sim_t0: float) -> dict:
     if ch.motor is not None and len(run.t):
         f = ch.speed_fluctuation()
         if len(f["mean"]):
-            d["speed"] = {"mean_rpm_last": float(f["mean"][-1] * 30 / math.pi),
+            d["speed"] = {"mean_rpm_last": float(to_rpm(f["mean"][-1])),
                           "fluctuation_last": float(f["fluctuation"][-1]),
                           "fluctuation_per_revolution": [float(x) for x in f["fluctuation"]]}
         try:
@@ -497,7 +498,7 @@ def score_records(sc: Scenario, result, summary: dict, recorder=None, directory=
     recs = records_for(sc, directory)
     if not recs:
         return
-    rpm = abs(sc.drive.speed_rad_s) * 30 / math.pi
+    rpm = sc.drive.speed_rpm
     gauges = {g.name: g for g in sc.gauges}
     summary["records"], scores, warnings = {}, [], []
     summary["records_used"] = [{"name": r.name, "kind": r.kind, "format": r.format,

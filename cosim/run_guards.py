@@ -7,7 +7,6 @@ Owns: the cost estimate and its limits, the plausibility notes. Boundaries: no r
 from __future__ import annotations
 
 import logging
-import math
 import os
 
 from .master import InputError
@@ -84,7 +83,7 @@ def tmm_setup_bytes(sc: Scenario, segments: int, n_links: int) -> float:
     the outputs' maps (``(1 + 2G) x (DOFs + 1)``). It grows as the gauges squared: 10,000 gauges
     at 0.5 deg asked for 6.29 TiB."""
     try:
-        per_revolution = 2 * math.pi / abs(sc.drive.speed_rad_s) / sc.engine_step_s("tmm")
+        per_revolution = sc.revolution_period_s / sc.engine_step_s("tmm")
     except Exception:                # no crank speed: no revolution is stored
         return 0.0
     gauges = len(sc.gauges)
@@ -101,7 +100,7 @@ def _tmm_step_s(sc: Scenario, segments: int, macro_per_step: float) -> float:
     try:
         from tmm_core import kernels, structure_compiled, transient
         budget = transient.MAX_STEP_DATA_BYTES
-        per_revolution = 2 * math.pi / abs(sc.drive.speed_rad_s) / sc.engine_step_s("tmm")
+        per_revolution = sc.revolution_period_s / sc.engine_step_s("tmm")
         structure = sc.mechanism.structure()
         compiled = (kernels.AVAILABLE and structure_compiled.supported(structure)
                     and per_revolution * structure_compiled.stored_bytes_per_configuration(

@@ -46,7 +46,7 @@ from .scenario_types import (Assumption, CouplingSettings, DriveSpec, ExudynSett
                              OutputSettings, Scenario, ScenarioError, TMMSettings, Variants)
 from .structure_scenario import StaticScenario, build as build_structure
 from .unknowns_table import declared, variant
-from .units import UREG  # noqa: F401
+from .units import UREG
 
 SCENARIO_DIR = Path(__file__).resolve().parent.parent / "scenarios"
 log = logging.getLogger(__name__)
@@ -263,7 +263,7 @@ def from_dict(data: dict, path: str = "<dict>", default_name: str = "scenario") 
 def _check_steps(r: Reader, drive, tmm, exudyn, mujoco, coupling) -> None:
     """Refuse a time step (an engine's or the macro step) longer than one crank revolution: no
     revolution would be resolved (a step written in seconds where degrees were meant)."""
-    period = 2 * math.pi / abs(drive.speed_rad_s)
+    period = drive.period_s
     steps = {"solver.tmm.step": tmm.step_s if tmm.step_s is not None else tmm.step_rad / abs(drive.speed_rad_s),
              "solver.exudyn.step": exudyn.step_s, "solver.mujoco.step": mujoco.step_s,
              "coupling.macro_step": coupling.macro_step_s}
@@ -553,6 +553,8 @@ def resolved(scenario: Scenario) -> dict:
             return [clean(v) for v in x if v is not None]
         if isinstance(x, Path):
             return str(x)
+        if isinstance(x, UREG.Quantity):           # a typed override, written as the file would write it
+            return f"{x.magnitude!r} {x.units:~}"
         if hasattr(x, "item") and getattr(x, "ndim", 1) == 0:
             x = x.item()
         if isinstance(x, np.ndarray):

@@ -17,6 +17,22 @@ from tmm_core import Coupling, FourBarMechanism, InputError, SliderCrankMechanis
 from .overrides import OverrideError, apply_overrides
 
 
+def to_rpm(speed_rad_s: float) -> float:
+    """A crank speed [rad/s] in revolutions per minute, sign kept: the one place the bench
+    converts between the two."""
+    return speed_rad_s * 30.0 / math.pi
+
+
+def from_rpm(rpm: float) -> float:
+    """A crank speed [rev/min] in rad/s, sign kept (the inverse of :func:`to_rpm`)."""
+    return rpm * math.pi / 30.0
+
+
+def revolution_period_s(speed_rad_s: float) -> float:
+    """The time [s] of one crank revolution at ``speed_rad_s`` [rad/s], either sign."""
+    return 2 * math.pi / abs(speed_rad_s)
+
+
 class ScenarioError(InputError):
     """A scenario file is malformed; the message names the file, the key and the value."""
 
@@ -66,7 +82,12 @@ class DriveSpec:
     def speed_rpm(self) -> float:
         """The drive speed in revolutions per minute, unsigned (the direction is the sign of
         ``speed_rad_s``): the one conversion the console, the summary and the sweeps print."""
-        return abs(self.speed_rad_s) * 30.0 / math.pi
+        return abs(to_rpm(self.speed_rad_s))
+
+    @property
+    def period_s(self) -> float:
+        """The time [s] of one crank revolution at the drive speed."""
+        return revolution_period_s(self.speed_rad_s)
 
 
 @dataclass(frozen=True)
@@ -175,7 +196,8 @@ class Scenario(Variants):
 
     @property
     def revolution_period_s(self) -> float:
-        return 2 * math.pi / abs(self.drive.speed_rad_s)
+        """The time [s] of one crank revolution at the drive speed."""
+        return self.drive.period_s
 
     def time_domain(self, mechanism=None):
         """The transfer-matrix time domain (:class:`tmm_core.TimeDomain`) of this scenario with its

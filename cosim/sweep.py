@@ -38,7 +38,7 @@ from .engines import ENGINES
 from .figures import peaks_by_speed
 from .master import CoSimulation, macro_step_for
 from .metrics import steadiness
-from .overrides import apply_overrides
+from .overrides import apply_overrides, prescribed_speed
 from .parallel import describe, executor
 from .physics_flags import buckling_flags
 from .resonance import campbell, frequency_map, plot_sweep
@@ -88,7 +88,7 @@ def sweep_point(raw: dict, path: str, rpm: float, engines: tuple, revolutions: f
     matrix engine uses the periodic steady-state solve (``method = "periodic"``, with its Floquet
     multipliers) or time marching like the others (``"march"``)."""
 
-    sc = from_dict(apply_overrides(raw, {"drive.speed": f"{rpm} rpm", "drive.mode": "prescribed"}), path)
+    sc = from_dict(apply_overrides(raw, prescribed_speed(rpm)), path)
     out = {"rpm": rpm, "engines": {}}
     tic = time.perf_counter()
     marched = tuple(e for e in engines if not (e == "tmm" and method == "periodic"))
@@ -199,7 +199,7 @@ def sweep_point_cost(sc, rpms, engines, revolutions, method: str) -> dict:
     """One point's :func:`cosim.run_guards.estimate_cost` at the sweep's lowest speed (the dearest
     point: steps in seconds grow with the period, steps in degrees do not), an upper bound for
     the others; ``revolutions`` None: the scenario's (until steady: its ``output.max_revolutions``)."""
-    slow = sc.with_overrides({"drive.speed": f"{float(np.min(rpms))!r} rpm", "drive.mode": "prescribed"})
+    slow = sc.with_overrides(prescribed_speed(float(np.min(rpms))))
     period = slow.revolution_period_s
     revs = revolutions or slow.output.revolutions or slow.output.max_revolutions
     marched = [e for e in engines if not (e == "tmm" and method == "periodic")]

@@ -40,7 +40,6 @@ the unknowns and the model run are cosim.unknowns.
 from __future__ import annotations
 
 import logging
-import math
 import textwrap
 import time
 from pathlib import Path
@@ -242,7 +241,7 @@ def band_summary(nominal: dict, runs: list, random_runs: list) -> dict:
 
 def record_check(sc, bands, records_dir=None) -> list:
     """Is each recorded +/- bending peak inside the band of the predicted peaks?"""
-    rpm = abs(sc.drive.speed_rad_s) * 30 / math.pi
+    rpm = sc.drive.speed_rpm
     out = []
     for rec in records_for(sc, records_dir):
         if rec.format != "peaks":

@@ -111,7 +111,7 @@ def solve_cost(sc, settings: Settings = Settings()) -> dict:
     measured on one core). Its march steps through one stored revolution at a time: a revolution
     is its macro step."""
     fast = fast_model(sc, settings)
-    period = 2 * math.pi / abs(fast.drive.speed_rad_s)
+    period = fast.revolution_period_s
     return estimate_cost(fast, ["tmm"], settings.max_revolutions * period, period)
 
 
