@@ -354,7 +354,7 @@ def _dispatch(parser, args) -> int:
         _positive(args, ("--samples", "--trajectories", "--workers"))
         _refuse_structure(args.scenario, args.command)
     if args.command == "sweep":
-        from .sweep import parse_rpm, run_sweep
+        from .sweeps import parse_rpm, run_sweep
         rpm = parse_rpm(args.rpm)
         _positive(args, ("--revolutions", "--workers"))
         from .report import sweep_table, unsolved_count
@@ -441,7 +441,7 @@ def run_main(scenario: str, args=None) -> int:
         args = build_parser().parse_args(["run", scenario] + sys.argv[1:])
         setup_logging(args.verbose, args.quiet)
     from .report import comparison_table
-    from .run import RunOptions, run_scenario
+    from .runs import RunOptions, run_scenario
     viewer, save = _viewer(args)
     from .scenario import load
     sc = load(scenario)

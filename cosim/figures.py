@@ -174,7 +174,7 @@ def plot_strains(run, histories: dict | None = None, folder=None) -> list:
 
 
 def write_run_figures(folder, scenario=None, records_dir=None) -> list:
-    """The figures of a finished ``cosim run`` folder (what :func:`cosim.run.run_scenario` calls).
+    """The figures of a finished ``cosim run`` folder (what :func:`cosim.runs.run_scenario` calls).
     History records are looked up for the scenario when it is given."""
     histories = record_histories(scenario, records_dir) if scenario is not None else None
     if scenario is not None:

@@ -44,7 +44,7 @@ KeyboardInterrupt during the run ends it with status ``interrupted`` and the res
 
 Owns: ``CoSimulation``: macro steps, coupling schemes, motors per engine, the steady-state stop;
 ``run_prescribed`` (one engine through it).
-Boundaries: no engine internals (protocol only) and no files (cosim.run).
+Boundaries: no engine internals (protocol only) and no files (cosim.runs).
 """
 from __future__ import annotations
 

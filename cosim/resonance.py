@@ -8,7 +8,7 @@ harmonic, the speed range over which that happens; :func:`plot_sweep` draws the 
 sweep, the Campbell diagram and the frequencies over the crank angle into PNG and SVG files.
 
 Owns: natural-frequency maps against crank angle and speed, the Campbell diagram. Boundaries: no
-sweep running (cosim.sweep).
+sweep running (cosim.sweeps).
 """
 from __future__ import annotations
 

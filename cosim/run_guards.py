@@ -2,7 +2,7 @@
 no rig would show flagged after it.
 
 Owns: the cost estimate and its limits, the plausibility notes. Boundaries: no run logic
-(cosim.run calls these); the measured per-step costs below are the only timing constants.
+(cosim.runs calls these); the measured per-step costs below are the only timing constants.
 """
 from __future__ import annotations
 

@@ -24,7 +24,7 @@ G0 = 9.80665           # standard gravity [m/s^2], for weights written in force 
 #: masses, inertias and stiffnesses (d**4, E*I, ...) overflows or underflows.
 MAX_MAGNITUDE, MIN_MAGNITUDE = 1e20, 1e-30
 #: A mesh finer than this is refused at load (its arrays alone would not fit; the run's cost is
-#: estimated and refused separately, cosim.run.estimate_cost).
+#: estimated and refused separately, cosim.runs.estimate_cost).
 MAX_SEGMENTS = 10_000
 #: An angle beyond this many radians (~1600 turns) is refused: no key of a scenario needs more
 #: than a few turns, and a double that large keeps fewer digits for the fraction of a turn (at

@@ -42,7 +42,7 @@ from .overrides import apply_overrides, prescribed_speed
 from .parallel import describe, executor
 from .physics_flags import buckling_flags
 from .resonance import campbell, frequency_map, plot_sweep
-from .run import last_revolution_stats
+from .runs import last_revolution_stats
 from .run_guards import MAX_HOURS, check_study, estimate_cost
 from .runlog import run_folder, write_csv, write_json
 from .scenario import ScenarioError, from_dict, load
