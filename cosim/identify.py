@@ -44,8 +44,8 @@ import numpy as np
 
 from .identify_report import plot, record_rrd
 from .records import peaks_at, records_for
-from .run_guards import MAX_HOURS, MAX_HOURS_HELP, check_study
-from .runlog import out_folder, run_folder, write_json
+from .run_guards import MAX_HOURS, check_study
+from .runlog import run_folder, write_json
 from .scenario import ScenarioError, check_unknowns, from_dict, load
 from .uncertainty import evaluate, parallel_map
 from .unknowns import Settings, declared, read, solve, solve_cost, variant
@@ -436,34 +436,6 @@ def table(result: dict) -> str:
                     cells.append(f"{side} record {c['record_ue']:.0f} model {model} ({err})")
                 lines.append(f"  {title:<11} {scn} {g}: " + "; ".join(cells))
     return "\n".join(lines)
-
-
-def add_parser(sub):
-    """The ``cosim identify`` subcommand (registered by :mod:`cosim.cli`)."""
-    p = sub.add_parser("identify", help="calibrate declared unknowns at some speeds, predict held-out ones",
-                       description="Calibrate chosen unknowns of the scenarios' [uncertainty] table against their "
-                                   "records by bounded least squares within the declared ranges, then predict the "
-                                   "held-out scenarios (--validate) without reading their records during the fit. "
-                                   "Writes identification.json, identification.png/.svg and identification.rrd.",
-                       epilog="Example: cosim identify crank_rocker_241rpm --validate "
-                              "crank_rocker_95rpm,crank_rocker_373rpm")
-    p.add_argument("scenarios", nargs="+", metavar="SCENARIO", help="calibration scenarios (names or paths)")
-    p.add_argument("--validate", default="", metavar="SCENARIO[,SCENARIO]",
-                   help="held-out scenarios to predict (comma-separated)")
-    p.add_argument("--parameters", metavar="NAME[,NAME]",
-                   help="declared unknowns to calibrate (default: the scenario's [uncertainty] identify list); the "
-                        "others keep the scenario's own values")
-    p.add_argument("--starts", type=int, default=3, help="least-squares starts per choice of the discrete unknowns "
-                                                         "(default 3: mid-range and random points)")
-    p.add_argument("--sigma", default="10%,5", metavar="REL%,ABS",
-                   help="record uncertainty: relative part and absolute part in microstrain (default 10%%,5)")
-    p.add_argument("--records", type=Path, metavar="DIR",
-                   help="read the records from DIR instead of the shipped scenarios/records")
-    p.add_argument("--out", type=out_folder, help="output folder (default: ./logs/<scenarios>-identify-<timestamp>)")
-    p.add_argument("--workers", type=int, help="local worker processes (default: the number of cores)")
-    p.add_argument("--scheduler", help="Dask scheduler address: run the fits there")
-    p.add_argument("--max-hours", type=float, metavar="H", help=MAX_HOURS_HELP)
-    return p
 
 
 def _parse_sigma(text: str) -> tuple:

@@ -9,17 +9,12 @@ from __future__ import annotations
 import logging
 import os
 
+from .defaults import MAX_HOURS
 from .master import InputError
 from .scenario import Scenario
 
 log = logging.getLogger(__name__)
 
-#: A run whose estimated wall time exceeds this is refused before anything is allocated
-#: (``RunOptions.max_hours``, ``cosim run --max-hours``).
-MAX_HOURS = 2.0
-#: The help of ``--max-hours`` (cosim run, sweep, uncertainty, identify).
-MAX_HOURS_HELP = (f"refuse work whose estimated wall time exceeds H hours (default {MAX_HOURS:g}; the estimate is "
-                  "steps x mesh size per engine and solve, made before anything runs)")
 #: A run whose traces would not fit in this much memory is refused (not raisable: the traces
 #: of every engine's step are held until the run ends).
 MAX_MEMORY_BYTES = 4e9

@@ -77,6 +77,7 @@ SUMMARY_EVERY_S = 2.0
 KEEP_REVOLUTIONS = 4
 log = logging.getLogger(__name__)
 
+
 @dataclass
 class RunOptions:
     engines: tuple = ENGINES
