@@ -530,7 +530,7 @@ def run_main(scenario: str, args=None) -> int:
     if args is None:      # a scenario script: its own command line with the same options
         args = build_parser().parse_args(["run", scenario] + sys.argv[1:])
         setup_logging(args.verbose, args.quiet)
-    from .report import comparison_table
+    from .report import comparison_table, status_notice
     from .runs import RunOptions, run_scenario
     viewer, save = _viewer(args)
     from .scenario import load
@@ -546,6 +546,14 @@ def run_main(scenario: str, args=None) -> int:
         print(summary_table(summary))
         print(f"\nwritten to {folder}")
         return 0
+    out = sys.stderr if viewer is not None and viewer.stdout else sys.stdout     # --stdout: the .rrd
+    shown = []       # the status the table was printed with
+
+    def answer(summary: dict) -> None:
+        """The table as soon as the engines' results are in, before the run's slower files."""
+        print(comparison_table(summary), file=out, flush=True)
+        shown.append(summary["status"])
+
     engines = _engines(args.engines) if args.engines is not None else sc.output.engines
     _positive(args, ("--revolutions", "--linkage-fps", "--viewer-timeout"))
     max_hours = _max_hours(args)
@@ -555,10 +563,12 @@ def run_main(scenario: str, args=None) -> int:
                          viewer_timeout_s=5.0 if viewer is None else viewer.timeout_s,
                          serve_address="127.0.0.1" if viewer is None else viewer.bind, exaggeration=args.exaggeration,
                          linkage_fps=args.linkage_fps, animation=args.animation, progress=not _quiet(args),
-                         records=args.records, max_hours=max_hours)
+                         records=args.records, max_hours=max_hours, on_results=answer)
     result = run_scenario(sc, options)
-    out = sys.stderr if viewer is not None and viewer.stdout else sys.stdout     # --stdout: the .rrd
-    print(comparison_table(result.summary), file=out)
+    if not shown:
+        answer(result.summary)
+    elif result.summary["status"] != shown[0]:     # an output written after the table failed
+        print(f"\n{status_notice(result.summary) or 'status ' + result.summary['status']}", file=out)
     print(f"\nwritten to {result.folder}", file=out)
     recording = result.summary["files"].get("recording")
     if viewer is not None and viewer.stdout and recording:

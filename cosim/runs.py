@@ -96,6 +96,10 @@ class RunOptions:
     records: Path | None = None          # records directory (default: the shipped scenarios/records)
     figures: bool = True                 # strains.png/.svg in the run folder
     max_hours: float = MAX_HOURS         # refuse a run estimated to take longer (estimate_cost)
+    #: Called with the summary as soon as the engines' results are summarised, before the
+    #: parquet copy and the figures are written (seconds more): the command line prints its
+    #: table there. The status it sees may still become 'completed with missing outputs'.
+    on_results: object = None
 
 
 @dataclass
@@ -318,6 +322,8 @@ def run_scenario(scenario, options: RunOptions = RunOptions(), callback=None) ->
         if not out_of_memory(exc):
             raise
         log.error("%s", fail_out_of_memory(summary, notes, "summarising the results", exc))
+    if options.on_results is not None:
+        options.on_results(dict(summary, status=final_status(status, summary)))
     if writer.columns is not None and status == "interrupted":
         # Stop promptly (a signal asks for it): traces.csv is the run's file, which cosim.load_run
         # reads; the parquet copy and the figure are not made.
