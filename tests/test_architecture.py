@@ -28,7 +28,6 @@ LONG_FUNCTIONS = {
     "cosim.identify.identify": "the identification pipeline, 16 parameters; issue 35 (typed options)",
     "cosim.linkage_scenario.build_mechanism": "the general linkage format's builder; issue 35 item 3",
     "cosim.motor_design.motor": "the [motor] table's reader; issue 35 item 3",
-    "cosim.runs.run_scenario": "one run end to end; issue 35 item 3 (a short pipeline)",
     "cosim.scenario.from_dict": "the scenario loader; issue 35 item 1 (a loader package)",
     "cosim.structure_scenario.build": "the structure format's builder; issue 35 item 3",
     "tmm_core.kernels.march": "the compiled march: numba kernels take arrays, not records; issue 33 item 5",
