@@ -23,7 +23,6 @@ CYCLES: dict = {}
 
 #: Functions over the limits for now: "module.function" -> reason.
 LONG_FUNCTIONS = {
-    "cosim.engines.exudyn._build": "the exudyn model builder; issue 35 item 3 (split by concept)",
     "cosim.engines.mujoco._mjcf": "the MJCF writer; issue 35 item 3",
     "cosim.identify.identify": "the identification pipeline, 16 parameters; issue 35 (typed options)",
     "cosim.linkage_scenario.build_mechanism": "the general linkage format's builder; issue 35 item 3",
