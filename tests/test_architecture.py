@@ -25,7 +25,6 @@ CYCLES: dict = {}
 LONG_FUNCTIONS = {
     "cosim.engines.mujoco._mjcf": "the MJCF writer; issue 35 item 3",
     "cosim.identify.identify": "the identification pipeline, 16 parameters; issue 35 (typed options)",
-    "cosim.linkage_scenario.build_mechanism": "the general linkage format's builder; issue 35 item 3",
     "cosim.motor_design.motor": "the [motor] table's reader; issue 35 item 3",
     "cosim.scenario.from_dict": "the scenario loader; issue 35 item 1 (a loader package)",
     "cosim.structure_scenario.build": "the structure format's builder; issue 35 item 3",
