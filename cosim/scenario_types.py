@@ -2,7 +2,9 @@
 
 Owns: :class:`Scenario` (a moving linkage: four-bar, slider-crank or general linkage; a static
 structure is :class:`cosim.structure_scenario.StaticScenario`), the settings per engine, the
-drive, the output and coupling settings, :class:`Assumption` and :class:`ScenarioError`. The
+drive, the output and coupling settings, :class:`Assumption` and :class:`ScenarioError`, and the
+quantities derived from a crank speed (rpm, the revolution period; the TMM step in seconds is
+:meth:`Scenario.engine_step_s`): no other module converts them. The
 reader (:mod:`cosim.scenario_reader`) fills them; :mod:`cosim.scenario` loads files. Boundaries:
 it imports no reader and no loader (``with_overrides`` calls the loader that built the scenario).
 """
