@@ -132,20 +132,46 @@ def from_dict(data: dict, path: str = "<dict>", default_name: str = "scenario") 
     except TMMError as exc:
         raise r.fail("linkage", f"the crank cannot turn a full revolution: {exc}") from None
 
+    gauges = _gauges(r, top, gauge_link)
+    gravity = _gravity(r, top)
+    exudyn, mujoco = _exudyn_settings(r, solver), _mujoco_settings(r, solver)
+    output = _output_settings(r, top)
+    motor = read_motor(r, top["motor"], drive, mech) if "motor" in top else None
+    if drive.mode == "motor" and motor is None:
+        raise r.fail("drive.mode", "needs a [motor] table", "motor")
+    coupling = rd.coupling(r, top.get("coupling", {}))
+    _check_steps(r, drive, tmm, exudyn, mujoco, coupling)
+    _check_stiffness(r, top, mech, drive)
+    if "uncertainty" in top:
+        _check_uncertainty(r, top["uncertainty"], path, top, gauges)
+    return Scenario(sc_name, description, Path(path) if path != "<dict>" else None, sources, mech, drive,
+                    gauges, gravity, tmm, exudyn, mujoco, output, tuple(r.assumptions), data, motor, coupling,
+                    rig, loader=from_dict)
+
+
+def _gauges(r: Reader, top: dict, gauge_link) -> tuple:
+    """The ``[gauges.*]``: each on its link (``gauge_link`` checks and places it), face top or bottom."""
     gauges = []
     for name, g in r.names(top.get("gauges", {}), "gauges").items():
         gk = f"gauges.{name}"
         gd = r.table(g, gk, {"link", "position", "face"}, {"link", "position"})
         link, pos = gauge_link(gk, gd)
         gauges.append(Gauge(name, link, pos, r.number(gd.get("face", "top"), f"{gk}.face", choices=("top", "bottom"))))
+    return tuple(gauges)
 
-    gravity = None
-    if "gravity" in top:
-        gv = r.table(top["gravity"], "gravity", {"vector"}, {"vector"})["vector"]
-        if not isinstance(gv, list) or len(gv) != 2:
-            raise r.fail("gravity.vector", "must be a list of two accelerations", gv)
-        gravity = tuple(r.quantity(x, f"gravity.vector[{i}]", "m/s**2") for i, x in enumerate(gv))
 
+def _gravity(r: Reader, top: dict) -> tuple | None:
+    """``[gravity] vector`` [m/s^2], or None without the table."""
+    if "gravity" not in top:
+        return None
+    gv = r.table(top["gravity"], "gravity", {"vector"}, {"vector"})["vector"]
+    if not isinstance(gv, list) or len(gv) != 2:
+        raise r.fail("gravity.vector", "must be a list of two accelerations", gv)
+    return tuple(r.quantity(x, f"gravity.vector[{i}]", "m/s**2") for i, x in enumerate(gv))
+
+
+def _exudyn_settings(r: Reader, solver: dict) -> ExudynSettings:
+    """``[solver.exudyn]``."""
     ex = r.table(solver.get("exudyn", {}), "solver.exudyn", {"elements", "step", "spectral_radius", "newton_tolerance"})
     exudyn = ExudynSettings(
         _at_most(r, r.number(ex.get("elements", 8), "solver.exudyn.elements", int, positive=True),
@@ -155,6 +181,11 @@ def from_dict(data: dict, path: str = "<dict>", default_name: str = "scenario") 
         r.number(ex.get("newton_tolerance", 1e-6), "solver.exudyn.newton_tolerance", positive=True))
     if not 0 <= exudyn.spectral_radius <= 1:
         raise r.fail("solver.exudyn.spectral_radius", "must lie in [0, 1]", exudyn.spectral_radius)
+    return exudyn
+
+
+def _mujoco_settings(r: Reader, solver: dict) -> MujocoSettings:
+    """``[solver.mujoco]``."""
     mj = r.table(solver.get("mujoco", {}), "solver.mujoco", {"step", "servo_frequency", "solref_factor", "solimp"})
     if "solimp" in mj and not 0 < r.number(mj["solimp"], "solver.mujoco.solimp") < 1:
         raise r.fail("solver.mujoco.solimp", "must lie between 0 and 1 (MuJoCo's constraint impedance)", mj["solimp"])
@@ -164,6 +195,11 @@ def from_dict(data: dict, path: str = "<dict>", default_name: str = "scenario") 
         if "servo_frequency" in mj else None,
         r.number(mj.get("solref_factor", 2.0), "solver.mujoco.solref_factor", positive=True),
         r.number(mj.get("solimp", 0.9999), "solver.mujoco.solimp"))
+    return mujoco
+
+
+def _output_settings(r: Reader, top: dict) -> OutputSettings:
+    """``[output]``: run length, default engines and the steady-state test."""
     out = r.table(top.get("output", {}), "output", {"revolutions", "engines", "max_revolutions", "steady_tolerance"})
     engines = r.unwrap(out.get("engines", ["tmm", "exudyn", "mujoco"]), "output.engines")
     if not isinstance(engines, list) or not engines or any(e not in ("tmm", "exudyn", "mujoco") for e in engines):
@@ -178,24 +214,14 @@ def from_dict(data: dict, path: str = "<dict>", default_name: str = "scenario") 
     if not output.steady_tolerance < 1:
         raise r.fail("output.steady_tolerance", "must be below 100 % (revolutions that differ by more are not "
                                                 "steady)", out["steady_tolerance"])
-    motor = read_motor(r, top["motor"], drive, mech) if "motor" in top else None
-    if drive.mode == "motor" and motor is None:
-        raise r.fail("drive.mode", "needs a [motor] table", "motor")
-    coupling = rd.coupling(r, top.get("coupling", {}))
-    _check_steps(r, drive, tmm, exudyn, mujoco, coupling)
-    _check_stiffness(r, top, mech, drive)
-    if "uncertainty" in top:
-        _check_uncertainty(r, top["uncertainty"], path, top, tuple(gauges))
-    return Scenario(sc_name, description, Path(path) if path != "<dict>" else None, sources, mech, drive,
-                    tuple(gauges), gravity, tmm, exudyn, mujoco, output, tuple(r.assumptions), data, motor, coupling,
-                    rig, loader=from_dict)
+    return output
 
 
 def _check_steps(r: Reader, drive, tmm, exudyn, mujoco, coupling) -> None:
     """Refuse a time step (an engine's or the macro step) longer than one crank revolution: no
     revolution would be resolved (a step written in seconds where degrees were meant)."""
     period = drive.period_s
-    steps = {"solver.tmm.step": tmm.step_s if tmm.step_s is not None else tmm.step_rad / abs(drive.speed_rad_s),
+    steps = {"solver.tmm.step": tmm.step_s_at(drive.speed_rad_s),
              "solver.exudyn.step": exudyn.step_s, "solver.mujoco.step": mujoco.step_s,
              "coupling.macro_step": coupling.macro_step_s}
     for key, value in steps.items():

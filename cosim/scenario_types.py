@@ -108,6 +108,10 @@ class TMMSettings:
     #: Mode shapes of the reduced model (tmm_core.reduced.DEFAULT_MODES: README "Reduced model").
     modes: int = 4
 
+    def step_s_at(self, speed_rad_s: float) -> float:
+        """The time step [s]: ``step_s``, or the crank-angle step ``step_rad`` at ``speed_rad_s``."""
+        return self.step_s if self.step_s is not None else self.step_rad / abs(speed_rad_s)
+
 
 @dataclass(frozen=True)
 class ExudynSettings:
@@ -183,7 +187,7 @@ class Scenario(Variants):
             if not self.drive.speed_rad_s:
                 raise ScenarioError(f"scenario '{self.path}': key 'solver.tmm.step': a crank-angle step needs a "
                                     "non-zero drive.speed")
-            return self.tmm.step_rad / abs(self.drive.speed_rad_s)
+            return self.tmm.step_s_at(self.drive.speed_rad_s)
         return {"exudyn": self.exudyn.step_s, "mujoco": self.mujoco.step_s}[engine]
 
     @property

@@ -26,7 +26,6 @@ LONG_FUNCTIONS = {
     "cosim.engines.mujoco._mjcf": "the MJCF writer; issue 35 item 3",
     "cosim.identify.identify": "the identification pipeline, 16 parameters; issue 35 (typed options)",
     "cosim.motor_design.motor": "the [motor] table's reader; issue 35 item 3",
-    "cosim.scenario.from_dict": "the scenario loader; issue 35 item 1 (a loader package)",
     "cosim.structure_scenario.build": "the structure format's builder; issue 35 item 3",
     "tmm_core.kernels.march": "the compiled march: numba kernels take arrays, not records; issue 33 item 5",
     "tmm_core.kernels_factor.factor_configuration": "compiled factorization, 61 parameters; issue 33 item 5",
