@@ -22,6 +22,8 @@ import math
 
 import numpy as np
 
+from .scenario_types import revolution_period_s
+
 
 def angle_at(t, t_hist, a_hist, speed: float, start_angle: float) -> np.ndarray:
     """Crank angle [rad] at times ``t`` [s] on the run's crank (``t_hist``, ``a_hist`` sorted by
@@ -73,4 +75,4 @@ def extent(histories, speed: float, start_angle: float) -> tuple:
         a_all = np.concatenate([a for _, a in histories])
         return float(t_all.min()), float(t_all.max()), float(a_all.min()), float(a_all.max())
     end = start_angle + math.copysign(2 * math.pi, speed)
-    return 0.0, 2 * math.pi / abs(speed), min(start_angle, end), max(start_angle, end)
+    return 0.0, revolution_period_s(speed), min(start_angle, end), max(start_angle, end)

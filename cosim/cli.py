@@ -28,8 +28,11 @@ and switches the bars off; bars are off anyway when stderr is not a terminal). T
 viewer's address is printed on stderr even with ``-q`` (:func:`cosim.recording.sinks.announce_serving`). Results are
 written under ``./logs/`` of the current directory unless ``--out`` says otherwise.
 
-Owns: the ``cosim`` command: arguments, dispatch, exit codes, logging set-up. Boundaries: no
-numerics and no file formats: it calls run, sweep, uncertainty, identify, report.
+Owns: the ``cosim`` command: arguments (every subcommand's, synthesize and identify too),
+dispatch, exit codes, logging set-up. Boundaries: no numerics and no file formats: it calls run,
+sweep, uncertainty, identify, report. Each subcommand imports the modules that run it when it
+runs (the one place cosim imports its own modules inside functions), so ``cosim --help`` and
+``cosim list`` load none of the numerics.
 """
 from __future__ import annotations
 
@@ -53,35 +56,41 @@ if _IMPORTING:
 
 import argparse  # noqa: E402  (after the handler, on purpose)
 import logging  # noqa: E402
+import math  # noqa: E402
 import os  # noqa: E402
 import sys  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 from . import __version__  # noqa: E402
+from .defaults import MAX_HOURS, SYNTHESIS_LIKE  # noqa: E402
 from .interrupts import exit_status, interrupt_on_sigterm  # noqa: E402
+from .recording.options import add_viewer_arguments, viewer_from_args  # noqa: E402
+from .recording.sinks import copy_to_stdout, show_file  # noqa: E402
 from .run_outcome import MISSING_OUTPUTS  # noqa: E402
 from .runlog import out_folder  # noqa: E402
+from .scenario_files import SCENARIO_DIR, ScenarioFileError, read_with_bases, scenario_names  # noqa: E402
 
 if _IMPORTING:
     signal.signal(signal.SIGINT, signal.default_int_handler)
 
-SCENARIO_DIR = Path(__file__).resolve().parent.parent / "scenarios"
 
 
 def list_scenarios() -> list[tuple[str, str]]:
-    """(name, one-line description) of every scenario file."""
-    from .scenario import load, scenario_names
+    """(name, one-line description) of every scenario file, read from the file and the bases it
+    extends without building it (``cosim list`` answers at once; ``cosim run`` checks the rest)."""
     out = []
     for name in scenario_names():
         try:
-            out.append((name, load(name).description))
-        except Exception as exc:           # a broken file is listed with its error, not hidden
+            meta = read_with_bases(SCENARIO_DIR / f"{name}.toml").get("scenario", {})
+            description = meta.get("description", "") if isinstance(meta, dict) else ""
+            out.append((name, description if isinstance(description, str) else str(description)))
+        except ScenarioFileError as exc:   # a broken file is listed with its error, not hidden
             out.append((name, f"(cannot be loaded: {exc})"))
     return out
 
 
 def _engines(text: str) -> tuple:
-    from .engines import ENGINES
+    from .engines import ENGINES          # the engine registry, loaded by the commands that run engines
     names = tuple(x.strip() for x in text.split(",") if x.strip())
     for n in names:
         if n not in ENGINES:
@@ -101,7 +110,6 @@ MAX_COUNT = {"--samples": 10_000, "--trajectories": 1_000, "--workers": 1_024}
 def _positive(args, flags) -> None:
     """Each numeric flag given must be a positive finite number (counts at most MAX_COUNT); the
     error names the flag. Checked before anything runs."""
-    import math
     for flag in flags:
         value = getattr(args, flag.lstrip("-").replace("-", "_"), None)
         if value is not None and not (math.isfinite(value) and value > 0):
@@ -150,14 +158,17 @@ def setup_logging(verbose: int = 0, quiet: bool = False) -> None:
     logger.propagate = False         # no second copy through a root handler
 
 
+#: The help of ``--max-hours`` (cosim run, sweep, uncertainty, identify).
+MAX_HOURS_HELP = (f"refuse work whose estimated wall time exceeds H hours (default {MAX_HOURS:g}; the estimate is "
+                  "steps x mesh size per engine and solve, made before anything runs)")
+
+
 def _max_hours_argument(parser) -> None:
-    from .run_guards import MAX_HOURS_HELP
     parser.add_argument("--max-hours", type=float, metavar="H", help=MAX_HOURS_HELP)
 
 
 def _max_hours(args) -> float:
-    """``--max-hours``, checked positive and finite (default :data:`cosim.run_guards.MAX_HOURS`)."""
-    from .run_guards import MAX_HOURS
+    """``--max-hours``, checked positive and finite (default :data:`cosim.defaults.MAX_HOURS`)."""
     _positive(args, ("--max-hours",))
     return MAX_HOURS if getattr(args, "max_hours", None) is None else args.max_hours
 
@@ -182,6 +193,8 @@ def _executor_arguments(parser, jobs: str) -> None:
 
 
 def build_parser() -> argparse.ArgumentParser:
+    """The ``cosim`` parser: every subcommand's options, built without importing the modules that
+    run them (``cosim --help`` answers at once)."""
     p = argparse.ArgumentParser(
         prog="cosim",
         description="Flexible-linkage co-simulation bench: a transfer-matrix model (after Shin 1986) with exudyn "
@@ -193,9 +206,20 @@ def build_parser() -> argparse.ArgumentParser:
     _verbosity_arguments(p, top=True)
     sub = p.add_subparsers(dest="command", metavar="{list,run,sweep,uncertainty,identify,compare,new,synthesize,export-fmu}")
 
+    for add in (_list_parser, _run_parser, _sweep_parser, _uncertainty_parser, _compare_parser, _new_parser,
+                _synthesize_parser, _identify_parser, _export_fmu_parser):
+        add(sub)
+    return p
+
+
+def _list_parser(sub) -> None:
+    """``cosim list``."""
     sub.add_parser("list", help="show the scenarios and their one-line descriptions",
                    description="Show the scenario files under scenarios/ with their one-line descriptions.")
 
+
+def _run_parser(sub) -> None:
+    """``cosim run``."""
     r = sub.add_parser("run", help="run a scenario through the engines and write logs/<scenario>-<timestamp>/",
                        description="Run a scenario through the engines. Writes traces.csv, scenario.resolved.toml, "
                                    "run.rrd (rerun recording) and summary.json to the run folder.")
@@ -213,10 +237,12 @@ def build_parser() -> argparse.ArgumentParser:
                    help="score against the records in DIR (<name>.csv + <name>.toml each, format in "
                         "cosim/records.py) instead of the shipped scenarios/records")
     _max_hours_argument(r)
-    from .recording.options import add_viewer_arguments
     add_viewer_arguments(r, "run.rrd", run=True)
     _verbosity_arguments(r)
 
+
+def _sweep_parser(sub) -> None:
+    """``cosim sweep``."""
     s = sub.add_parser("sweep", help="peak strain against crank speed; points run in parallel",
                        description="Run prescribed-speed points of a scenario and record the last revolution's peak "
                                    "strains per engine and gauge. Points run in parallel on the local cores, or on a "
@@ -243,6 +269,9 @@ def build_parser() -> argparse.ArgumentParser:
     add_viewer_arguments(s, "sweep.rrd")
     _verbosity_arguments(s)
 
+
+def _uncertainty_parser(sub) -> None:
+    """``cosim uncertainty``."""
     u = sub.add_parser("uncertainty", help="band of predicted strains over the scenario's uncertain parameters",
                        description="Band over the unknowns declared in the scenario's [uncertainty] table (Latin "
                                    "hypercube and Morris design; the TMM marched to its steady revolution), a Morris "
@@ -261,6 +290,9 @@ def build_parser() -> argparse.ArgumentParser:
     add_viewer_arguments(u, "uncertainty.rrd")
     _verbosity_arguments(u)
 
+
+def _compare_parser(sub) -> None:
+    """``cosim compare``."""
     c = sub.add_parser("compare", help="print the table of a run, sweep or uncertainty folder",
                        description="Print the table of a results folder: for a run the last-revolution strain "
                                    "extremes per engine and gauge, records and scores, times, and (motor runs) the "
@@ -270,6 +302,9 @@ def build_parser() -> argparse.ArgumentParser:
                                               "...-uncertainty-...)")
     _verbosity_arguments(c)
 
+
+def _new_parser(sub) -> None:
+    """``cosim new``."""
     n = sub.add_parser("new", help="write a commented scenario file to start a rig of your own",
                        description="Write NAME.toml: a complete, commented four-bar scenario (every value to replace "
                                    "marked as an assumption), or with --like a copy of an existing scenario (and the "
@@ -280,13 +315,68 @@ def build_parser() -> argparse.ArgumentParser:
     n.add_argument("--out", type=out_folder, metavar="DIR", help="folder to write to (default: the current directory)")
     _verbosity_arguments(n)
 
-    from .synthesis import add_parser as add_synthesize_parser
-    _verbosity_arguments(add_synthesize_parser(sub))
-    from .identify import add_parser as add_identify_parser
-    _verbosity_arguments(add_identify_parser(sub))
-    from .fmi.command import add_parser as add_export_fmu_parser
-    _verbosity_arguments(add_export_fmu_parser(sub))
-    return p
+
+def _synthesize_parser(sub) -> None:
+    """``cosim synthesize`` (run by :func:`cosim.synthesis.run_command`)."""
+    s = sub.add_parser(
+        "synthesize", help="link lengths of a rigid crank-rocker from its rocker swing and limit positions",
+        description="Rigid crank-rocker synthesis (FE thesis Ch. III). Case I: from the rocker swing, the folded "
+                    "rocker limit phi4 and the minimum transmission angle mu1; case II: from the rocker swing and the "
+                    "crank's limit positions. Values carry units ('11 in', '81.07 deg'); lengths are printed in the "
+                    "unit of --ground. Example: cosim synthesize --case I --ground '11 in' --oscillation '81.0748 deg' "
+                    "--rocker-limit '14.1411 deg' --min-transmission '18.1949 deg'")
+    s.add_argument("--case", required=True, choices=("I", "II"), help="I or II (see above)")
+    s.add_argument("--ground", required=True, metavar="LENGTH", help="ground link length d, e.g. '11 in'")
+    s.add_argument("--oscillation", required=True, metavar="ANGLE", help="rocker swing between its limits")
+    s.add_argument("--rocker-limit", metavar="ANGLE", help="case I: phi4, angle crank pivot - rocker pivot - "
+                                                           "rocker pin at the folded limit")
+    s.add_argument("--min-transmission", metavar="ANGLE", help="case I: mu1, transmission angle with the crank "
+                                                               "along the ground line (its minimum)")
+    s.add_argument("--crank-limits", nargs=2, metavar=("THETA1", "THETA3"),
+                   help="case II: crank angle at the extended limit, and crank angle at the folded limit minus "
+                        "180 deg (the thesis's theta3), e.g. '44.6649 deg' '102.2467 deg'")
+    s.add_argument("--json", action="store_true", help="print one JSON object instead of the table")
+    s.add_argument("--scenario-out", type=Path, metavar="PATH", help="write a scenario TOML of the linkage to PATH")
+    s.add_argument("--overwrite", action="store_true", help="with --scenario-out: replace an existing file at PATH "
+                                                            "(by default it is refused)")
+    s.add_argument("--like", metavar="SCENARIO", help="with --scenario-out: the scenario whose sections, materials, "
+                                                      f"gauges, drive and solvers to keep (default {SYNTHESIS_LIKE})")
+    _verbosity_arguments(s)
+
+
+def _export_fmu_parser(sub) -> None:
+    """``cosim export-fmu`` (its options beside its command, in :mod:`cosim.fmi.command`, a light
+    module: the export itself is imported when the command runs)."""
+    from .fmi.command import add_parser
+    _verbosity_arguments(add_parser(sub))
+
+
+def _identify_parser(sub) -> None:
+    """``cosim identify`` (run by :func:`cosim.identify.run_command`)."""
+    p = sub.add_parser("identify", help="calibrate declared unknowns at some speeds, predict held-out ones",
+                       description="Calibrate chosen unknowns of the scenarios' [uncertainty] table against their "
+                                   "records by bounded least squares within the declared ranges, then predict the "
+                                   "held-out scenarios (--validate) without reading their records during the fit. "
+                                   "Writes identification.json, identification.png/.svg and identification.rrd.",
+                       epilog="Example: cosim identify crank_rocker_241rpm --validate "
+                              "crank_rocker_95rpm,crank_rocker_373rpm")
+    p.add_argument("scenarios", nargs="+", metavar="SCENARIO", help="calibration scenarios (names or paths)")
+    p.add_argument("--validate", default="", metavar="SCENARIO[,SCENARIO]",
+                   help="held-out scenarios to predict (comma-separated)")
+    p.add_argument("--parameters", metavar="NAME[,NAME]",
+                   help="declared unknowns to calibrate (default: the scenario's [uncertainty] identify list); the "
+                        "others keep the scenario's own values")
+    p.add_argument("--starts", type=int, default=3, help="least-squares starts per choice of the discrete unknowns "
+                                                         "(default 3: mid-range and random points)")
+    p.add_argument("--sigma", default="10%,5", metavar="REL%,ABS",
+                   help="record uncertainty: relative part and absolute part in microstrain (default 10%%,5)")
+    p.add_argument("--records", type=Path, metavar="DIR",
+                   help="read the records from DIR instead of the shipped scenarios/records")
+    p.add_argument("--out", type=out_folder, help="output folder (default: ./logs/<scenarios>-identify-<timestamp>)")
+    p.add_argument("--workers", type=int, help="local worker processes (default: the number of cores)")
+    p.add_argument("--scheduler", help="Dask scheduler address: run the fits there")
+    _max_hours_argument(p)
+    _verbosity_arguments(p)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -313,13 +403,18 @@ def main(argv: list[str] | None = None) -> int:
         log.error(_one_line(exc))
         return 2
     except Exception as exc:
-        from tmm_core import TMMError
-
-        from .engines import EngineError
-        if isinstance(exc, (TMMError, EngineError)):
+        if _is_model_error(exc):
             log.error(_one_line(exc))
             return 2
         raise
+
+
+def _is_model_error(exc: Exception) -> bool:
+    """A transfer-matrix or engine error: bad input found by the model (exit 2, one line). Their
+    modules are looked up, not imported: if one of them raised, it is loaded."""
+    core, engines = sys.modules.get("tmm_core"), sys.modules.get("cosim.engines")
+    return ((core is not None and isinstance(exc, core.TMMError))
+            or (engines is not None and isinstance(exc, engines.EngineError)))
 
 
 #: Exit status of a run whose engines completed but some of whose outputs (recording, parquet,
@@ -357,7 +452,7 @@ def _dispatch(parser, args) -> int:
         _positive(args, ("--samples", "--trajectories", "--workers"))
         _refuse_structure(args.scenario, args.command)
     if args.command == "sweep":
-        from .sweep import parse_rpm, run_sweep
+        from .sweeps import parse_rpm, run_sweep
         rpm = parse_rpm(args.rpm)
         _positive(args, ("--revolutions", "--workers"))
         from .report import sweep_table, unsolved_count
@@ -446,8 +541,8 @@ def run_main(scenario: str, args=None) -> int:
     if args is None:      # a scenario script: its own command line with the same options
         args = build_parser().parse_args(["run", scenario] + sys.argv[1:])
         setup_logging(args.verbose, args.quiet)
-    from .report import comparison_table
-    from .run import RunOptions, run_scenario
+    from .report import comparison_table, status_notice
+    from .runs import RunOptions, run_scenario
     viewer, save = _viewer(args)
     from .scenario import load
     sc = load(scenario)
@@ -462,6 +557,14 @@ def run_main(scenario: str, args=None) -> int:
         print(summary_table(summary))
         print(f"\nwritten to {folder}")
         return 0
+    out = sys.stderr if viewer is not None and viewer.stdout else sys.stdout     # --stdout: the .rrd
+    shown = []       # the status the table was printed with
+
+    def answer(summary: dict) -> None:
+        """The table as soon as the engines' results are in, before the run's slower files."""
+        print(comparison_table(summary), file=out, flush=True)
+        shown.append(summary["status"])
+
     engines = _engines(args.engines) if args.engines is not None else sc.output.engines
     _positive(args, ("--revolutions", "--linkage-fps", "--viewer-timeout"))
     max_hours = _max_hours(args)
@@ -471,14 +574,15 @@ def run_main(scenario: str, args=None) -> int:
                          viewer_timeout_s=5.0 if viewer is None else viewer.timeout_s,
                          serve_address="127.0.0.1" if viewer is None else viewer.bind, exaggeration=args.exaggeration,
                          linkage_fps=args.linkage_fps, animation=args.animation, progress=not _quiet(args),
-                         records=args.records, max_hours=max_hours)
+                         records=args.records, max_hours=max_hours, on_results=answer)
     result = run_scenario(sc, options)
-    out = sys.stderr if viewer is not None and viewer.stdout else sys.stdout     # --stdout: the .rrd
-    print(comparison_table(result.summary), file=out)
+    if not shown:
+        answer(result.summary)
+    elif result.summary["status"] != shown[0]:     # an output written after the table failed
+        print(f"\n{status_notice(result.summary) or 'status ' + result.summary['status']}", file=out)
     print(f"\nwritten to {result.folder}", file=out)
     recording = result.summary["files"].get("recording")
     if viewer is not None and viewer.stdout and recording:
-        from .recording.sinks import copy_to_stdout
         copy_to_stdout(result.folder / recording)          # an absolute --save path stays absolute
     if result.recorder is not None and getattr(result.recorder, "serving", None):
         logging.getLogger("cosim.cli").info("serving the recording until Ctrl-C")
@@ -488,7 +592,6 @@ def run_main(scenario: str, args=None) -> int:
 
 def _viewer(args):
     """(ViewerOptions or None, --save path or None) of the recording flags (cosim.recording.options)."""
-    from .recording.options import viewer_from_args
     return viewer_from_args(args)
 
 
@@ -496,7 +599,6 @@ def _show(path: Path, viewer, save) -> None:
     """A finished sweep/uncertainty recording in the viewer the flags ask for (and --save, --stdout)."""
     if viewer is None or not path.exists():
         return
-    from .recording.sinks import show_file
     show_file(path, viewer, save)
 
 

@@ -31,6 +31,8 @@ from scipy.optimize import brentq
 
 from tmm_core import CrankMotion, InputError
 
+from .scenario_types import revolution_period_s
+
 N_FINE = 7200
 
 
@@ -47,7 +49,7 @@ def free_wheel(mech, speed_rad_s: float, drive_inertia_kg_m2: float, steps: int,
     if not speed_rad_s:
         raise InputError("a free-wheeling crank needs a non-zero mean speed")
     s = math.copysign(1.0, speed_rad_s)
-    period = 2 * math.pi / abs(speed_rad_s)
+    period = revolution_period_s(speed_rad_s)
     u = np.linspace(0.0, 2 * math.pi, N_FINE + 1)          # crank rotation from the start, in the drive's direction
     q = start_angle + s * u
     J, dJ, Qg = mech.crank_inertia(q, gravity)

@@ -19,6 +19,8 @@ from pathlib import Path
 import numpy as np
 
 from .files import clear_link
+from .records import RECORD_DIR, history_over_angle, peaks_at, records_for, shipped_records
+from .results import RunData, load_run
 
 log = logging.getLogger(__name__)
 
@@ -58,7 +60,6 @@ def save(fig, folder, stem: str, dpi: int = 130) -> list:
 def record_histories(scenario, directory=None) -> dict:
     """History records of the scenario's rig at its speed, over crank angle:
     ``{gauge: [(title, angle_deg (n,), bending_ue (n,))]}`` (for :func:`plot_strains`)."""
-    from .records import history_over_angle, records_for
     out = {}
     for rec in records_for(scenario, directory):
         if rec.format != "history" or rec.index[1] != "deg":
@@ -74,7 +75,6 @@ def peaks_by_speed(rig: str | None, rpm_min: float, rpm_max: float, directory=No
     """Recorded bending peaks of a rig at every speed in [rpm_min, rpm_max] (for sweep figures):
     ``[{"rpm", "gauge", "bending_max_ue", "bending_min_ue", "record", "title", "kind"}]`` from
     peaks records (each printed speed) and history records over crank angle (their extremes)."""
-    from .records import RECORD_DIR, history_over_angle, peaks_at, shipped_records
     if not rig:
         return []
     out = []
@@ -114,7 +114,6 @@ def plot_strains(run, histories: dict | None = None, folder=None) -> list:
     summary as horizontal lines (peaks) and ``histories`` as curves; an engine that is not steady
     is labelled so in the legend and in red on the axis. ``run``: a :class:`cosim.results.RunData`
     or a run folder. Returns the written paths."""
-    from .results import RunData, load_run
     run = run if isinstance(run, RunData) else load_run(run)
     folder = Path(folder or run.folder)
     summary, histories = run.summary, histories or {}
@@ -175,12 +174,11 @@ def plot_strains(run, histories: dict | None = None, folder=None) -> list:
 
 
 def write_run_figures(folder, scenario=None, records_dir=None) -> list:
-    """The figures of a finished ``cosim run`` folder (what :func:`cosim.run.run_scenario` calls).
+    """The figures of a finished ``cosim run`` folder (what :func:`cosim.runs.run_scenario` calls).
     History records are looked up for the scenario when it is given."""
     histories = record_histories(scenario, records_dir) if scenario is not None else None
     if scenario is not None:
         # Only the last revolutions are drawn: read only them (memory flat in the run's length).
-        from .results import load_run
         folder = load_run(folder, tail_s=4 * scenario.revolution_period_s)
     return plot_strains(folder, histories)
 

@@ -42,9 +42,12 @@ from pathlib import Path
 
 import numpy as np
 
-from .run_guards import MAX_HOURS, MAX_HOURS_HELP, check_study
-from .runlog import out_folder, run_folder, write_json
-from .scenario import ScenarioError, check_unknowns, load
+from .identify_report import plot, record_rrd
+from .records import peaks_at, records_for
+from .run_guards import MAX_HOURS, check_study
+from .runlog import run_folder, write_json
+from .scenario import ScenarioError, check_unknowns, from_dict, load
+from .uncertainty import evaluate, parallel_map
 from .unknowns import Settings, declared, read, solve, solve_cost, variant
 
 log = logging.getLogger(__name__)
@@ -57,13 +60,12 @@ class IdentificationError(ScenarioError):
 
 
 def rpm_of(sc) -> float:
-    return abs(sc.drive.speed_rad_s) * 30 / math.pi
+    return sc.drive.speed_rpm
 
 
 def record_peaks(sc, records_dir=None) -> tuple:
     """``({gauge: {"+": ue, "-": ue}}, [record descriptions])`` of the scenario's peaks records
     (measurement or synthetic) at its speed; only gauges the scenario has."""
-    from .records import peaks_at, records_for
     gauges = {g.name for g in sc.gauges}
     peaks, used = {}, []
     for rec in records_for(sc, records_dir):
@@ -198,7 +200,6 @@ def fit_job(scenarios_raw, unknowns, continuous, choice, x0, targets, settings, 
     """One bounded least-squares fit (a worker job): one choice of the discrete unknowns, one start."""
     from scipy.optimize import least_squares
 
-    from .scenario import from_dict
     scs = [from_dict(raw, path) for raw, path in scenarios_raw]
     model = Model(scs, unknowns, continuous, settings)
     tic = time.perf_counter()
@@ -270,7 +271,6 @@ def identify(calibration, validation=(), parameters=None, records_dir=None, out=
              max_hours: float = MAX_HOURS) -> tuple:
     """Calibrate, then predict the held-out scenarios; returns ``(folder, result)``. ``max_hours``:
     refuse an identification estimated to take longer (before any fit starts)."""
-    from .uncertainty import parallel_map
     plan = check_inputs(calibration, validation, parameters, records_dir)
     cal, val, unknowns, names = plan["calibration"], plan["validation"], plan["unknowns"], plan["parameters"]
     continuous = [n for n in names if not unknowns[n].discrete]
@@ -351,7 +351,6 @@ def identify(calibration, validation=(), parameters=None, records_dir=None, out=
     result["wall_time_s"] = time.perf_counter() - tic
     result["sample"] = {k: (v if isinstance(v, (str, int)) else float(v)) for k, v in sample.items()}
     write_json(folder / "identification.json", result)
-    from .identify_report import plot, record_rrd
     try:
         result["figures"] = [p.name for p in plot(folder, result, preds)]
     except Exception as exc:                    # a figure never loses the identification
@@ -365,7 +364,6 @@ def identify(calibration, validation=(), parameters=None, records_dir=None, out=
 def predict(scenarios, unknowns, continuous, x, choice, cov, settings, workers=None, scheduler=None) -> dict:
     """Peaks and histories of each scenario at ``x`` (and the nominal scenario), with the 1-sigma
     of the peaks from ``cov`` (finite differences: one more solve per continuous unknown)."""
-    from .uncertainty import evaluate
     h = 1e-3
     out = {}
     for sc in scenarios:
@@ -438,34 +436,6 @@ def table(result: dict) -> str:
                     cells.append(f"{side} record {c['record_ue']:.0f} model {model} ({err})")
                 lines.append(f"  {title:<11} {scn} {g}: " + "; ".join(cells))
     return "\n".join(lines)
-
-
-def add_parser(sub):
-    """The ``cosim identify`` subcommand (registered by :mod:`cosim.cli`)."""
-    p = sub.add_parser("identify", help="calibrate declared unknowns at some speeds, predict held-out ones",
-                       description="Calibrate chosen unknowns of the scenarios' [uncertainty] table against their "
-                                   "records by bounded least squares within the declared ranges, then predict the "
-                                   "held-out scenarios (--validate) without reading their records during the fit. "
-                                   "Writes identification.json, identification.png/.svg and identification.rrd.",
-                       epilog="Example: cosim identify crank_rocker_241rpm --validate "
-                              "crank_rocker_95rpm,crank_rocker_373rpm")
-    p.add_argument("scenarios", nargs="+", metavar="SCENARIO", help="calibration scenarios (names or paths)")
-    p.add_argument("--validate", default="", metavar="SCENARIO[,SCENARIO]",
-                   help="held-out scenarios to predict (comma-separated)")
-    p.add_argument("--parameters", metavar="NAME[,NAME]",
-                   help="declared unknowns to calibrate (default: the scenario's [uncertainty] identify list); the "
-                        "others keep the scenario's own values")
-    p.add_argument("--starts", type=int, default=3, help="least-squares starts per choice of the discrete unknowns "
-                                                         "(default 3: mid-range and random points)")
-    p.add_argument("--sigma", default="10%,5", metavar="REL%,ABS",
-                   help="record uncertainty: relative part and absolute part in microstrain (default 10%%,5)")
-    p.add_argument("--records", type=Path, metavar="DIR",
-                   help="read the records from DIR instead of the shipped scenarios/records")
-    p.add_argument("--out", type=out_folder, help="output folder (default: ./logs/<scenarios>-identify-<timestamp>)")
-    p.add_argument("--workers", type=int, help="local worker processes (default: the number of cores)")
-    p.add_argument("--scheduler", help="Dask scheduler address: run the fits there")
-    p.add_argument("--max-hours", type=float, metavar="H", help=MAX_HOURS_HELP)
-    return p
 
 
 def _parse_sigma(text: str) -> tuple:

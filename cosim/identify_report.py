@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .figures import gauge_label, new_figure, save
 from .files import clear_link
 from .recording.layout import recording_id
 
@@ -22,7 +23,6 @@ def _records(result, name):
 
 
 def plot(folder, result: dict, preds: dict) -> list:
-    from .figures import gauge_label, new_figure, save
     rows = _rows(result)
     gauges = sorted({g for n in rows for g in (preds[n].get("gauges") or {})})
     fig = new_figure(figsize=(5.2 * len(gauges), 3.0 * len(rows) + 0.8), layout="constrained")

@@ -98,6 +98,7 @@ shared springs and loads are cosim.joint_tables.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -106,7 +107,7 @@ from tmm_core.linkage import (MODULE_KINDS, GuidedSlider, LinkageKinematics, Lin
                               carrier_link, polygon_properties)
 
 from .joint_tables import joint_checker, joint_position, read_loads, read_springs
-from .scenario_reader import G0, MAX_SEGMENTS
+from .scenario_reader import G0, MAX_SEGMENTS, damping as damping_reader
 
 SUPPORTS = ("free", "pinned", "slider")
 REVOLUTION_CHECK = 1440
@@ -118,20 +119,53 @@ LOCK_ANGLE_DEG = 0.5
 def build_mechanism(r, top: dict, materials: dict, sections: dict, viscos: dict, segments: int):
     """Build the :class:`LinkageMechanism` of a ``type = "linkage"`` scenario. Returns the
     mechanism and ``gauge_link(key, table) -> (member, position_m)``, which places a gauge given
-    along a link's path on the part that holds it."""
-    from .scenario_reader import damping as damping_reader
+    along a link's path on the part that holds it.
 
-    def mass_reader(d, key):
-        if ("mass" in d) == ("weight" in d):
-            raise r.fail(key, "give exactly one of mass and weight")
-        return (r.quantity(d["mass"], f"{key}.mass", "kg", nonnegative=True) if "mass" in d
-                else r.quantity(d["weight"], f"{key}.weight", "N", nonnegative=True) / G0)
-
+    In order: the joints, the links' paths, the slider blocks on moving guides, the kinematic
+    bodies (links welded together move as one), the plates, the slides, the modules and the
+    kinematics (checked over a revolution), the members (link parts), springs and loads."""
     lk = r.table(top["linkage"], "linkage", {"type", "crank", "crank_zero"}, {"type", "crank"})
     crank_name = r.text(lk["crank"], "linkage.crank")
     crank_zero = r.quantity(lk.get("crank_zero", "0 deg"), "linkage.crank_zero", "rad")
+    jt = _joints(r, top)
+    paths, welded, link_data = _paths(r, top, crank_name, jt)
+    guided_specs = _guided_specs(r, top, paths, jt)
+    body_name, bodies, weld_at = _bodies(paths, welded, guided_specs)
+    plate_specs = _plates(r, top, materials, jt, paths, bodies)
+    guided = _slides(r, guided_specs, paths, jt, body_name, weld_at)
+    modules = _modules(r, top, crank_name, paths[crank_name], jt, body_name, bodies, plate_specs, guided)
+    kin = _kinematics(r, jt, bodies, body_name, crank_name, paths[crank_name], modules, crank_zero, guided)
+    members, frames, part_of = _members(r, paths, link_data, materials, sections, viscos, segments, crank_name,
+                                        jt, welded, guided_specs, body_name)
+    plates, sliders = _carried(jt, members, frames, part_of, paths, plate_specs, guided_specs)
+    mech = _mechanism(r, top, jt, kin, members, frames, plates, sliders)
+    return mech, _gauge_placer(r, members, part_of)
 
-    # -- joints ---------------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class _JointTable:
+    """The ``[joints]`` of a linkage: drawn positions [m] (a plate's centre of mass is added as a
+    joint of its own), supports, slide directions [rad], block masses [kg] (taken by the first
+    link end at the block), ``ref(name, key)`` (a joint's name, checked) and the ground joints."""
+
+    positions: dict
+    support: dict
+    slide_dir: dict
+    block_mass: dict
+    ref: object
+    ground: frozenset
+
+
+def _mass(r, d: dict, key: str) -> float:
+    """A ``mass`` or ``weight`` (exactly one) [kg]."""
+    if ("mass" in d) == ("weight" in d):
+        raise r.fail(key, "give exactly one of mass and weight")
+    return (r.quantity(d["mass"], f"{key}.mass", "kg", nonnegative=True) if "mass" in d
+            else r.quantity(d["weight"], f"{key}.weight", "N", nonnegative=True) / G0)
+
+
+def _joints(r, top: dict) -> _JointTable:
+    """The ``[joints.*]`` tables."""
     joints_raw = r.names(top.get("joints", {}), "joints")
     if not joints_raw:
         raise r.fail("joints", "a linkage needs [joints.<name>] tables (positions in the drawn configuration)")
@@ -148,12 +182,15 @@ def build_mechanism(r, top: dict, materials: dict, sections: dict, viscos: dict,
         if "mass" in d or "weight" in d:
             if support[name] != "slider":
                 raise r.fail(f"{key}.mass", "only a slider joint carries a block mass (put other masses on links)")
-            block_mass[name] = mass_reader(d, key)
-    joint_ref = joint_checker(r, positions)
+            block_mass[name] = _mass(r, d, key)
+    ground = frozenset(j for j, s in support.items() if s == "pinned")
+    return _JointTable(positions, support, slide_dir, block_mass, joint_checker(r, positions), ground)
 
-    ground = {j for j, s in support.items() if s == "pinned"}
 
-    # -- links ----------------------------------------------------------------------------------
+def _paths(r, top: dict, crank_name: str, jt: _JointTable) -> tuple:
+    """``(paths, welded, tables)`` of the ``[links.*]``: each link's joints in order, the joints
+    it is welded at, its table."""
+    joint_ref, ground, support = jt.ref, jt.ground, jt.support
     links_raw = r.names(top["links"], "links")
     if crank_name not in links_raw:
         raise r.fail("linkage.crank", f"unknown link (links: {', '.join(sorted(links_raw))})", crank_name)
@@ -186,8 +223,12 @@ def build_mechanism(r, top: dict, materials: dict, sections: dict, viscos: dict,
         raise r.fail(f"links.{crank_name}.path", "the crank's path must start at its ground pivot (a joint with "
                                                  f"support 'pinned'); '{crank_path[0]}' is {support[crank_path[0]]}",
                      crank_path)
+    return paths, welded, link_data
 
-    # -- slider blocks on moving guides ------------------------------------------------------------
+
+def _guided_specs(r, top: dict, paths: dict, jt: _JointTable) -> list:
+    """The ``[sliders.*]``: (name, block joint, guide joint, guide link, block mass [kg])."""
+    joint_ref, support, positions = jt.ref, jt.support, jt.positions
     sliders_raw = r.names(top.get("sliders", {}), "sliders")
     guided_specs = []
     for name, d in sliders_raw.items():
@@ -204,11 +245,15 @@ def build_mechanism(r, top: dict, materials: dict, sections: dict, viscos: dict,
             raise r.fail(f"{key}.block", "the block must be a free joint of its own (not on the guide link)", block)
         if np.hypot(*(positions[block] - positions[guide])) > 1e-9 * max(1.0, float(np.hypot(*positions[guide]))):
             raise r.fail(f"{key}.block", f"the block must be drawn at its guide joint '{guide}'", block)
-        mass = mass_reader(d, key) if ("mass" in d or "weight" in d) else 0.0
+        mass = _mass(r, d, key) if ("mass" in d or "weight" in d) else 0.0
         guided_specs.append((name, block, guide, along, mass))
-    blocks = {b: name for name, b, *_ in guided_specs}
+    return guided_specs
 
-    # -- kinematic bodies: links welded together (or to a block) move as one --------------------
+
+def _bodies(paths: dict, welded: dict, guided_specs: list) -> tuple:
+    """Kinematic bodies: links welded together (or to a block) move as one. Returns ``(body of
+    each link and block, joints of each body, links welded at each joint)``."""
+    blocks = {b: name for name, b, *_ in guided_specs}
     parent = {n: n for n in list(paths) + [f"slider:{s[0]}" for s in guided_specs]}
 
     def find(x):
@@ -240,8 +285,13 @@ def build_mechanism(r, top: dict, materials: dict, sections: dict, viscos: dict,
                     js.append(j)
             body_name[m] = bname
         bodies[bname] = tuple(js)
+    return body_name, bodies, weld_at
 
-    # -- plates ---------------------------------------------------------------------------------
+
+def _plates(r, top: dict, materials: dict, jt: _JointTable, paths: dict, bodies: dict) -> list:
+    """The ``[plates.*]``: (name, vertices, centre-of-mass joint, mass [kg], inertia [kg m^2],
+    material). Each plate becomes a body; a centre of mass not drawn as a joint is added as one."""
+    joint_ref, positions = jt.ref, jt.positions
     plates_raw = r.names(top.get("plates", {}), "plates")
     plate_specs = []
     for name, d in plates_raw.items():
@@ -278,8 +328,13 @@ def build_mechanism(r, top: dict, materials: dict, sections: dict, viscos: dict,
             positions[master] = centre
         plate_specs.append((name, verts, master, mass, inertia, mat))
         bodies[name] = tuple(verts) + (master,)
+    return plate_specs
 
-    # -- slides: blocks along moving guides, and ground slider blocks carrying welded links --------
+
+def _slides(r, guided_specs: list, paths: dict, jt: _JointTable, body_name: dict, weld_at: dict) -> dict:
+    """Blocks along moving guides, and ground slider blocks carrying welded links: ``{body:
+    (guide body or None for the ground, slide angle [rad])}``."""
+    positions, support, slide_dir = jt.positions, jt.support, jt.slide_dir
     guided = {}
     for name, block, guide, along, mass in guided_specs:
         a, b = _part_ends(paths[along], guide)
@@ -297,8 +352,13 @@ def build_mechanism(r, top: dict, materials: dict, sections: dict, viscos: dict,
             raise r.fail(f"links.{names[0]}.welded_at", f"the links welded at the slider joint '{j}' are welded to "
                                                        f"{other} too: a body slides along one guide", j)
         guided[b] = (None, slide_dir[j])
+    return guided
 
-    # -- modules --------------------------------------------------------------------------------
+
+def _modules(r, top: dict, crank_name: str, crank_path: list, jt: _JointTable, body_name: dict, bodies: dict,
+             plate_specs: list, guided: dict) -> list:
+    """The ``[[modules]]``: the ordered closed-form steps that place the joints."""
+    joint_ref = jt.ref
     mods_raw = r.unwrap(top.get("modules", []), "modules")
     if not isinstance(mods_raw, list) or not mods_raw:
         raise r.fail("modules", "a linkage needs [[modules]]: the ordered closed-form steps that place its joints")
@@ -350,11 +410,16 @@ def build_mechanism(r, top: dict, materials: dict, sections: dict, viscos: dict,
             raise r.fail(key, str(exc)) from None
     if modules[0].kind != "crank":
         raise r.fail("modules[0].type", "the first module is the crank", mods_raw[0].get("type"))
+    return modules
 
+
+def _kinematics(r, jt: _JointTable, bodies: dict, body_name: dict, crank_name: str, crank_path: list,
+                modules: list, crank_zero: float, guided: dict) -> LinkageKinematics:
+    """The linkage's kinematics, refused unless the crank turns a full revolution."""
     try:
-        kin = LinkageKinematics({k: tuple(v) for k, v in positions.items()}, bodies, tuple(sorted(ground)),
+        kin = LinkageKinematics({k: tuple(v) for k, v in jt.positions.items()}, bodies, tuple(sorted(jt.ground)),
                                 body_name[crank_name], crank_path[0], crank_path[1], tuple(modules), crank_zero,
-                                slide_dir, guided, name=f"linkage '{r.path}'")
+                                jt.slide_dir, guided, name=f"linkage '{r.path}'")
     except TMMError as exc:
         raise r.fail("modules", str(exc)) from None
     try:
@@ -363,8 +428,14 @@ def build_mechanism(r, top: dict, materials: dict, sections: dict, viscos: dict,
                   lock_tolerance=math.sin(math.radians(LOCK_ANGLE_DEG)))
     except TMMError as exc:
         raise r.fail("modules", f"the crank cannot turn a full revolution: {exc}") from None
+    return kin
 
-    # -- members (link parts) -------------------------------------------------------------------
+
+def _members(r, paths: dict, link_data: dict, materials: dict, sections: dict, viscos: dict, segments: int,
+             crank_name: str, jt: _JointTable, welded: dict, guided_specs: list, body_name: dict) -> tuple:
+    """The members (link parts between the joints of a path): ``(members, frame body of each
+    member, {link: (member names, start of each part along the link [m])})``."""
+    positions, block_mass = jt.positions, jt.block_mass
     members, frames, part_of = [], {}, {}
     for name, route in paths.items():
         d, key = link_data[name], f"links.{name}"
@@ -404,7 +475,7 @@ def build_mechanism(r, top: dict, materials: dict, sections: dict, viscos: dict,
             if k is None:
                 raise r.fail(f"{pk}.position", f"lies beyond the end of link '{name}' ({starts[-1]:.6g} m)",
                              p["position"])
-            masses[k].append(PointMass(float(np.clip(x - starts[k], 0.0, lengths[k])), mass_reader(p, pk), 0.0,
+            masses[k].append(PointMass(float(np.clip(x - starts[k], 0.0, lengths[k])), _mass(r, p, pk), 0.0,
                                        str(p.get("label", f"{name} mass {i}"))))
         names = []
         for k, (a, b) in enumerate(zip(route[:-1], route[1:])):
@@ -429,7 +500,14 @@ def build_mechanism(r, top: dict, materials: dict, sections: dict, viscos: dict,
         part_of[name] = (names, starts)
     for j in block_mass:
         raise r.fail(f"joints.{j}.mass", "no link ends at this slider joint")
+    return members, frames, part_of
 
+
+def _carried(jt: _JointTable, members: list, frames: dict, part_of: dict, paths: dict, plate_specs: list,
+             guided_specs: list) -> tuple:
+    """The plates (each carried by a stiff link from its centre of mass to its first vertex,
+    added to ``members``) and the guided sliders (on the part of the guide link at the guide)."""
+    positions = jt.positions
     stiffest = max((m[0] for m in members), key=lambda l: l.material.E_Pa * l.section.inertia_m4)
     plates = []
     for name, verts, master, mass, inertia, mat in plate_specs:
@@ -444,8 +522,13 @@ def build_mechanism(r, top: dict, materials: dict, sections: dict, viscos: dict,
         a, b = _part_ends(paths[along], guide)
         part = names[0] if len(names) == 1 else f"{along}[{a}-{b}]"
         sliders.append(GuidedSlider(name, block, guide, part))
+    return plates, sliders
 
-    # -- springs and loads ------------------------------------------------------------------------
+
+def _mechanism(r, top: dict, jt: _JointTable, kin, members: list, frames: dict, plates: list,
+               sliders: list) -> LinkageMechanism:
+    """The mechanism with its springs and loads, checked to make a structure."""
+    joint_ref, support = jt.ref, jt.support
     springs = read_springs(r, top, joint_ref)
     loads, plate_names = {}, {p.name for p in plates}
     for key, d, vec in read_loads(r, top, {"joint", "force", "moment"}, {"joint"}):
@@ -464,7 +547,12 @@ def build_mechanism(r, top: dict, materials: dict, sections: dict, viscos: dict,
         mech.structure()
     except TMMError as exc:
         raise r.fail("linkage", str(exc)) from None
+    return mech
 
+
+def _gauge_placer(r, members: list, part_of: dict):
+    """``gauge_link(key, table) -> (member, position_m)``: a gauge given along a link's path, on
+    the part that holds it."""
     def gauge_link(key, gd):
         link = r.text(gd["link"], f"{key}.link")
         if link not in part_of:
@@ -478,7 +566,7 @@ def build_mechanism(r, top: dict, materials: dict, sections: dict, viscos: dict,
         if k is None:
             raise r.fail(f"{key}.position", f"lies beyond the end of the {link} ({starts[-1]:.6g} m)", gd["position"])
         return names[k], float(np.clip(x - starts[k], 0.0, starts[k + 1] - starts[k]))
-    return mech, gauge_link
+    return gauge_link
 
 
 def _part_index(starts, x):

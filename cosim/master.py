@@ -43,8 +43,9 @@ After every macro step ``callback(MacroStep)`` is called; returning True stops t
 engine that fails stops only its own channel; every result up to the failure is kept. A
 KeyboardInterrupt during the run ends it with status ``interrupted`` and the results so far.
 
-Owns: ``CoSimulation``: macro steps, coupling schemes, motors per engine, the steady-state stop.
-Boundaries: no engine internals (protocol only) and no files (cosim.run).
+Owns: ``CoSimulation``: macro steps, coupling schemes, motors per engine, the steady-state stop;
+``run_prescribed`` (one engine through it).
+Boundaries: no engine internals (protocol only) and no files (cosim.runs).
 """
 from __future__ import annotations
 
@@ -432,7 +433,7 @@ class CoSimulation:
 
     def duration_for(self, revolutions: float) -> float:
         """Simulated time [s] of ``revolutions`` at the set-point (or prescribed) crank speed."""
-        return revolutions * 2 * math.pi / abs(self.scenario.drive.speed_rad_s)
+        return revolutions * self.scenario.revolution_period_s
 
     def run(self, duration_s: float | None = None, *, revolutions: float | None = None, callback=None,
             t0: float = 0.0, until_steady: bool | None = None, keep_revolutions: float | None = None) -> CoSimResult:
@@ -513,3 +514,17 @@ class CoSimulation:
         overall = next((s for s in ("failed", "interrupted", "stopped") if s in sts), "completed")
         sim_time = max(r.sim_time_s for r in results.values())
         return CoSimResult(sc, self.mode, self.coupling, H, t0 + sim_time, results, overall, reason, sim_time)
+
+
+def run_prescribed(engine, scenario: Scenario, revolutions: float | None = None) -> EngineRun:
+    """Drive one engine at the scenario's constant crank speed for ``revolutions`` (default: the
+    scenario's output setting; without one, until the engine is steady or the scenario's
+    ``output.max_revolutions``). It is the co-simulation master's prescribed mode with a single
+    engine (one run loop, the scenario's macro step); an engine failure raises its error."""
+    result = CoSimulation(scenario, {engine.name: engine}, mode="prescribed").run(revolutions=revolutions)
+    channel = result[engine.name]
+    if channel.status == "failed":
+        raise EngineError(channel.error)
+    if channel.status == "interrupted":
+        raise KeyboardInterrupt
+    return channel.run

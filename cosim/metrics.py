@@ -112,7 +112,7 @@ def revolution_trend(angle, signals, tolerance: float = STEADY_TOLERANCE,
     in every revolution read: ``revolutions_to_steady`` more would reach ``tolerance`` at that
     rate) or 'bounded, not periodic' (neither: the response stays within its peak-to-peak range
     but does not repeat). An irregular response can look like either over a few revolutions: the
-    verdict names how many it read (a ``cosim run`` holds the last four, cosim.run.KEEP_REVOLUTIONS).
+    verdict names how many it read (a ``cosim run`` holds the last four, cosim.runs.KEEP_REVOLUTIONS).
     None with fewer than three complete revolutions. ``text``: one sentence."""
     a = np.asarray(angle, dtype=float)
     n = min(int(math.floor(revolutions_completed(a) + 1e-9)), int(revolutions))

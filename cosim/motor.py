@@ -41,6 +41,8 @@ import numpy as np
 
 from tmm_core import ConvergenceError, InputError
 
+from .scenario_types import to_rpm
+
 
 @dataclass(frozen=True)
 class SetPoint:
@@ -127,8 +129,8 @@ class MotorParameters:
         scenario run at a prescribed speed keeps its [motor] table for later without it)."""
         top = self.no_load_crank_speed()
         if self.setpoint.peak > top:
-            raise InputError(f"motor setpoint {self.setpoint.peak:.6g} rad/s ({self.setpoint.peak * 30 / math.pi:.5g} "
-                             f"rpm at the crank) is above the {top:.6g} rad/s ({top * 30 / math.pi:.5g} rpm) the "
+            raise InputError(f"motor setpoint {self.setpoint.peak:.6g} rad/s ({to_rpm(self.setpoint.peak):.5g} "
+                             f"rpm at the crank) is above the {top:.6g} rad/s ({to_rpm(top):.5g} rpm) the "
                              f"{self.supply_voltage_V:.4g} V supply allows (no load, Ke = {self.back_emf_V_s_rad:.4g} V s/rad, "
                              f"gear ratio {self.gear_ratio:.4g})")
 

@@ -12,8 +12,9 @@ import numpy as np
 
 from tmm_core import InputError
 
+from .motor import MotorParameters, SetPoint
 from .scenario_reader import MAX_MAGNITUDE, Reader
-from .scenario_types import Assumption, DriveSpec
+from .scenario_types import Assumption, DriveSpec, to_rpm
 
 
 MOTOR_CONSTANTS = {"resistance": ("resistance_ohm", "ohm"), "inductance": ("inductance_H", "H"),
@@ -66,7 +67,7 @@ def derive_pm_dc_motor(rated_power_W: float, rated_speed_rad_s: float, rated_vol
               "back_emf_V_s_rad": K, "rotor_inertia_kg_m2": rotor_inertia_per_W * P,
               "coulomb_friction_Nm": coulomb_share * friction,
               "viscous_friction_Nm_s_rad": (1 - coulomb_share) * friction / w}
-    why = (f"derived from the rating ({P:.4g} W at {w * 30 / math.pi:.5g} rpm, {V:.4g} V): efficiency {efficiency:.0%}, "
+    why = (f"derived from the rating ({P:.4g} W at {to_rpm(w):.5g} rpm, {V:.4g} V): efficiency {efficiency:.0%}, "
            f"{copper_loss_share:.0%} of the losses in the armature resistance, friction {coulomb_share:.0%} Coulomb; "
            f"Ke = Kt = (V - R i)/omega; L/R = {electrical_time_constant_s * 1e3:.3g} ms; rotor inertia "
            f"{rotor_inertia_per_W:.2g} kg m^2 per W (catalogue fractional-hp PM DC motors)")
@@ -74,7 +75,6 @@ def derive_pm_dc_motor(rated_power_W: float, rated_speed_rad_s: float, rated_vol
 
 
 def motor(r: Reader, data, drive: DriveSpec, mech):
-    from .motor import MotorParameters, SetPoint
 
     knobs = {"efficiency": ("efficiency", ""), "copper_loss_share": ("copper_loss_share", ""),
              "coulomb_share": ("coulomb_share", ""), "electrical_time_constant": ("electrical_time_constant_s", "s"),

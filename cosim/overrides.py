@@ -10,13 +10,20 @@ does not exist is refused, naming the path, except a top-level table or one tabl
 (the loader refuses it if the table does not know it). The value ``None`` removes the key, so
 its default applies again (``{"motor": None}`` drops the motor table).
 
-Owns: key-path editing of scenario trees. Used by sweeps, uncertainty bands, the rigs of the
-scripts and tests; nothing else edits ``Scenario.raw``.
+A value may also be typed: a number with its unit (``UREG.Quantity(241.0, "rpm")``, see :func:`prescribed_speed`), which the loader converts
+without writing and parsing text (a sweep's speeds are floats: a float turned into "241.0 rpm"
+and read back is a round trip through pint's parser).
+
+Owns: key-path editing of scenario trees. Used by the scenario types' ``with_overrides``, sweeps,
+uncertainty bands, the rigs of the scripts and tests; nothing else edits ``Scenario.raw``.
+Boundaries: it knows no scenario type and no loader (it sits below both: imports run one way).
 """
 from __future__ import annotations
 
 import copy
 import re
+
+from .units import UREG
 
 _INDEX = re.compile(r"^(\w+)\[(\d+)\]$")
 
@@ -67,25 +74,15 @@ def set_key(raw: dict, key: str, value, *, write: bool = True) -> None:
         node = node[part]
 
 
+def prescribed_speed(rpm: float) -> dict:
+    """The overrides of a prescribed-speed run at ``rpm`` [rev/min], typed (a number with its
+    unit, no text): what a sweep point and its cost estimate set."""
+    return {"drive.speed": UREG.Quantity(float(rpm), "rpm"), "drive.mode": "prescribed"}
+
+
 def apply_overrides(raw: dict, overrides: dict) -> dict:
     """A copy of ``raw`` with every ``{key path: value}`` of ``overrides`` set."""
     data = copy.deepcopy(raw)
     for key, value in overrides.items():
         set_key(data, str(key), value)
     return data
-
-
-class Variants:
-    """``with_overrides`` for a loaded scenario of any kind (it has ``raw``, ``path`` and ``name``)."""
-
-    def with_overrides(self, overrides: dict):
-        """A variant of this scenario with key paths of its file set to new values, e.g.
-        ``{"drive.speed": "300 rpm", "links.coupler.damping.ratio": "3 %"}``, validated by the
-        loader (its errors name the key)."""
-        from .scenario import ScenarioError, from_dict
-        label = f"{self.path or self.name} (with {', '.join(f'{k} = {v!r}' for k, v in overrides.items())})"
-        try:
-            data = apply_overrides(self.raw, overrides)
-        except OverrideError as exc:
-            raise ScenarioError(f"scenario '{self.path or self.name}': {exc}") from None
-        return from_dict(data, label, default_name=self.name)

@@ -344,7 +344,7 @@ def records_for(scenario, directory: Path | None = RECORD_DIR) -> list:
     rig = getattr(scenario, "rig", None)
     if not rig:
         return []
-    rpm = abs(scenario.drive.speed_rad_s) * 30 / math.pi
+    rpm = scenario.drive.speed_rpm
     out = []
     for rec in shipped_records(directory):
         if rec.rig != rig:

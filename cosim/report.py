@@ -12,8 +12,9 @@ import json
 from pathlib import Path
 
 from .engines import MODELS, is_rigid
-from .files import SUMMARY_BYTES, FileRefused, read_text_bounded
+from .files import FileRefused, SUMMARY_BYTES, read_text_bounded
 from .run_outcome import MISSING_OUTPUTS
+from .structure_scenario import summary_table
 
 #: Where a user reads why the models and the measurement differ (pointed to when they differ much).
 MEASUREMENT_GAP_DOC = "docs/validation.md, section 'How far the bench is from the measurement'"
@@ -94,7 +95,6 @@ def report(summary: dict) -> str:
         notice = status_notice(summary)
         if notice:
             return f"scenario {summary.get('scenario')}  static structure analysis\n{notice}"
-        from .structure_scenario import summary_table
         return summary_table(summary)
     return (sweep_table if kind == "sweep" else uncertainty_table)(summary)
 

@@ -8,7 +8,7 @@ harmonic, the speed range over which that happens; :func:`plot_sweep` draws the 
 sweep, the Campbell diagram and the frequencies over the crank angle into PNG and SVG files.
 
 Owns: natural-frequency maps against crank angle and speed, the Campbell diagram. Boundaries: no
-sweep running (cosim.sweep).
+sweep running (cosim.sweeps).
 """
 from __future__ import annotations
 
@@ -18,6 +18,11 @@ import time
 from pathlib import Path
 
 import numpy as np
+
+# Called through its module, so a test can put a stand-in there (tests/test_run_loop.py).
+from tmm_core import frequencies
+
+from .figures import gauge_label, new_figure, peak_markers, save
 
 log = logging.getLogger(__name__)
 
@@ -38,12 +43,11 @@ def frequency_map(scenario, n_angles: int = 36, n_modes: int = 4, f_max_Hz: floa
     says so (its bands are then coarser)."""
     from tqdm import tqdm
 
-    from tmm_core.frequencies import fourbar_frequencies
     start = scenario.drive.start_angle_rad
     angles = start + np.linspace(0, 2 * math.pi, n_angles, endpoint=False)
     with tqdm(total=n_angles, desc="natural frequencies", unit="angle", disable=None if progress else True) as bar:
         tic = time.perf_counter()
-        first = fourbar_frequencies(scenario.mechanism, [start], n_modes, f_max_Hz, rtol)[0]
+        first = frequencies.fourbar_frequencies(scenario.mechanism, [start], n_modes, f_max_Hz, rtol)[0]
         bar.update(1)
         each = time.perf_counter() - tic
         fits = _angles_within(n_angles, each, max_seconds)
@@ -54,7 +58,7 @@ def frequency_map(scenario, n_angles: int = 36, n_modes: int = 4, f_max_Hz: floa
             bar.refresh()
         rows = [first]
         for a in angles[1:]:
-            rows.append(fourbar_frequencies(scenario.mechanism, [a], n_modes, f_max_Hz, rtol)[0])
+            rows.append(frequencies.fourbar_frequencies(scenario.mechanism, [a], n_modes, f_max_Hz, rtol)[0])
             bar.update(1)
     return {"angle_rad": angles, "f_Hz": np.array(rows).reshape(len(angles), n_modes), "capped": fits < n_angles}
 
@@ -90,7 +94,6 @@ def plot_sweep(folder, name: str, points: list, fmap: dict | None, marks_rpm=(),
     """Write ``sweep_peaks`` and ``campbell`` figures (PNG and SVG) to ``folder``; returns the paths.
     ``record_peaks`` (:func:`cosim.figures.peaks_by_speed`) are drawn as open markers at their speeds;
     ``not_steady_rpm``: marched points whose last revolutions still differ (shaded)."""
-    from .figures import gauge_label, new_figure, peak_markers, save
 
     folder = Path(folder)
     paths = []

@@ -40,6 +40,8 @@ from pathlib import Path
 import numpy as np
 
 from .files import clear_link
+from .metrics import last_revolution
+from .report import load_summary
 
 log = logging.getLogger(__name__)
 
@@ -251,7 +253,6 @@ class RunData:
         """Rows of each engine's last crank revolution (by its own crank angle, as the summary's
         extremes), with ``crank_angle_deg`` wrapped to [0, 360)."""
         import pandas as pd
-        from .metrics import last_revolution
         parts = []
         for e in ([engine] if engine else self.engines):
             rows = self.traces[self.traces["engine"] == e]
@@ -284,7 +285,6 @@ def load_run(folder, tail_s: float | None = None) -> RunData:
     of simulated time (what a figure of the last revolution needs; memory independent of the
     run's length). Raises FileNotFoundError / ValueError naming the file."""
     import pandas as pd
-    from .report import load_summary
 
     folder = Path(folder)
     summary = load_summary(folder)

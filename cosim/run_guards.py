@@ -2,25 +2,19 @@
 no rig would show flagged after it.
 
 Owns: the cost estimate and its limits, the plausibility notes. Boundaries: no run logic
-(cosim.run calls these); the measured per-step costs below are the only timing constants.
+(cosim.runs calls these); the measured per-step costs below are the only timing constants.
 """
 from __future__ import annotations
 
 import logging
-import math
 import os
 
+from .defaults import MAX_HOURS
 from .master import InputError
 from .scenario import Scenario
 
 log = logging.getLogger(__name__)
 
-#: A run whose estimated wall time exceeds this is refused before anything is allocated
-#: (``RunOptions.max_hours``, ``cosim run --max-hours``).
-MAX_HOURS = 2.0
-#: The help of ``--max-hours`` (cosim run, sweep, uncertainty, identify).
-MAX_HOURS_HELP = (f"refuse work whose estimated wall time exceeds H hours (default {MAX_HOURS:g}; the estimate is "
-                  "steps x mesh size per engine and solve, made before anything runs)")
 #: A run whose traces would not fit in this much memory is refused (not raisable: the traces
 #: of every engine's step are held until the run ends).
 MAX_MEMORY_BYTES = 4e9
@@ -84,7 +78,7 @@ def tmm_setup_bytes(sc: Scenario, segments: int, n_links: int) -> float:
     the outputs' maps (``(1 + 2G) x (DOFs + 1)``). It grows as the gauges squared: 10,000 gauges
     at 0.5 deg asked for 6.29 TiB."""
     try:
-        per_revolution = 2 * math.pi / abs(sc.drive.speed_rad_s) / sc.engine_step_s("tmm")
+        per_revolution = sc.revolution_period_s / sc.engine_step_s("tmm")
     except Exception:                # no crank speed: no revolution is stored
         return 0.0
     gauges = len(sc.gauges)
@@ -102,7 +96,7 @@ def _tmm_step_s(sc: Scenario, segments: int, macro_per_step: float) -> float:
         from tmm_core import transient
         from tmm_core.compiled import march as compiled_march, statics as compiled_statics
         budget = transient.MAX_STEP_DATA_BYTES
-        per_revolution = 2 * math.pi / abs(sc.drive.speed_rad_s) / sc.engine_step_s("tmm")
+        per_revolution = sc.revolution_period_s / sc.engine_step_s("tmm")
         structure = sc.mechanism.structure()
         compiled = (compiled_march.AVAILABLE and compiled_statics.supported(structure)
                     and per_revolution * compiled_statics.stored_bytes_per_configuration(

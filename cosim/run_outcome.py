@@ -10,14 +10,14 @@
   ``traces.csv`` and its summary's numbers are whole, but "completed" promised the rest too.
 
 Owns: the statuses "failed: out of memory" and :data:`MISSING_OUTPUTS`. Boundaries: no files;
-the run (cosim.run) calls it.
+the run (cosim.runs) calls it.
 """
 from __future__ import annotations
 
 import errno
 import logging
 
-log = logging.getLogger("cosim.run")
+log = logging.getLogger("cosim.runs")
 #: The status of a run whose engines completed but some of whose outputs are missing.
 MISSING_OUTPUTS = "completed with missing outputs"
 #: The dynamic loader's words when it cannot map a library (mmap failed: no address space left).

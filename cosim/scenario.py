@@ -11,45 +11,8 @@ such as ``damping`` or a point mass may carry ``assumption`` / ``source`` keys t
 assumption is collected in :attr:`Scenario.assumptions` with its rationale and written into the
 run's resolved scenario. Errors name the file, the key and the value.
 
-File layout (all tables except ``[scenario]``, ``[linkage]``, ``[links.*]`` are optional)::
-
-    [scenario]      name, description, sources, rig (records of that rig are compared)
-    [linkage]       type = "four-bar", ground, pivot, ground_angle, branch = "open" | "crossed"
-                    type = "slider-crank", pivot, slide_angle, offset, slider_mass | slider_weight, branch
-                    type = "linkage" (any planar linkage in motion, with [joints.*], [plates.*],
-                    [sliders.*], [springs.*], [loads.*] and [[modules]]): see :mod:`cosim.linkage_scenario`
-                    type = "structure": see :mod:`cosim.structure_scenario`
-    [materials.X]   E, density, yield_strength, endurance_limit, poisson,
-                    viscoelastic = {instantaneous_modulus, relaxed_modulus, relaxation_time}
-    [sections.X]    width, depth  (or area, inertia, depth)
-    [links.crank|coupler|rocker]
-                    length, section, material, segments, point_masses = [{position, mass | weight,
-                    inertia, label}], damping = {ratio, frequency} | {stiffness, mass},
-                    start_block / end_block = {length, section, material},
-                    rigid = true | false (only the crank; its section and material give its mass)
-    [drive]         mode = "prescribed" | "motor", speed, rotation = "ccw" | "cw", start_angle,
-                    type = "motor" | "fmu" (an FMU drive, [drive.fmu]: cosim.fmi.drive_spec)
-    [gravity]       vector = [gx, gy]
-    [gauges.X]      link, position, face = "top" | "bottom"
-    [solver.tmm]    segments, integrator, step, beam_column, start,
-                    coupling = {coriolis, centrifugal, angular_acceleration} (all true by default),
-                    axial_force = "dynamic" (default) | "quasi_static" | "none"
-    [solver.exudyn] elements, step, spectral_radius, newton_tolerance
-    [solver.mujoco] step, servo_frequency, solref_factor, solimp
-    [motor]         rated_power, rated_speed, rated_voltage (derive the constants below that are not
-                    given: :func:`cosim.motor_design.derive_pm_dc_motor`, its knobs efficiency,
-                    copper_loss_share, coulomb_share, electrical_time_constant, rotor_inertia_per_power),
-                    resistance, inductance, torque_constant, back_emf, rotor_inertia, viscous_friction,
-                    coulomb_friction, supply_voltage, gear_ratio, flywheel_inertia | flywheels =
-                    [{diameter, thickness, density, count}], shaft_stiffness, shaft_damping,
-                    controller = {bandwidth, current_bandwidth, current_limit} | {kp, ki}, setpoint = {profile, start, t0, duration},
-                    reversible
-    [coupling]      macro_step, scheme = "jacobi" | "gauss_seidel" | "iterated", extrapolation =
-                    "constant" | "linear", interface_jacobian, tolerance, max_iterations,
-                    start = "steady" | "rest"
-    [output]        revolutions (a fixed run length; default: until steady), max_revolutions (30),
-                    steady_tolerance ("0.5 %"), engines (the default engines of `cosim run`)
-    [uncertainty]   samples, seed, parameters.<name> = {keys, distribution, ...}: see cosim.uncertainty
+The file format (every table and key, with units and defaults) is documented in one place:
+docs/scenario-format.md.
 
 A file may start with ``extends = "base/<rig>"``: it is merged over that base file.
 
@@ -59,12 +22,10 @@ of every engine's step.
 """
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
+import dataclasses
 import logging
 import math
 import re
-import tomllib
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -74,20 +35,19 @@ from tmm_core import FourBarMechanism, Gauge, SliderCrankMechanism, TMMError
 from tmm_core.closed_forms import first_bending_frequency_Hz
 
 from . import scenario_reader as rd
-from .files import SCENARIO_BYTES, FileRefused, read_text_bounded
+from .linkage_scenario import build_mechanism
 from .motor_design import motor as read_motor
+from .overrides import OverrideError, apply_overrides, set_key
+# SCENARIO_DIR and scenario_names stay importable from here (scripts and tests use them).
+from .scenario_files import SCENARIO_DIR, ScenarioFileError, read_with_bases, scenario_names
 from .scenario_reader import G0, Reader
 # The data types live in scenario_types; they stay importable from here, with the unit registry.
 from .scenario_types import (Assumption, CouplingSettings, DriveSpec, ExudynSettings, MujocoSettings,  # noqa: F401
-                             OutputSettings, Scenario, ScenarioError, TMMSettings)
-from .overrides import Variants, apply_overrides
+                             OutputSettings, Scenario, ScenarioError, TMMSettings, Variants)
+from .structure_scenario import StaticScenario, build as build_structure
 from .unknowns_table import declared, variant
-from .units import UREG  # noqa: F401
+from .units import UREG
 
-if TYPE_CHECKING:
-    from .structure_scenario import StaticScenario
-
-SCENARIO_DIR = Path(__file__).resolve().parent.parent / "scenarios"
 log = logging.getLogger(__name__)
 
 
@@ -97,7 +57,7 @@ log = logging.getLogger(__name__)
 LINKAGE_TYPES = ("four-bar", "slider-crank", "linkage", "structure")
 
 
-def load(path_or_name) -> "Scenario | StaticScenario":
+def load(path_or_name) -> Scenario | StaticScenario:
     """Load a scenario from a path or from the name of a file in ``scenarios/``; a loaded
     scenario of any kind (a variant made with ``with_overrides``) is returned as it is."""
     if isinstance(path_or_name, Variants):
@@ -110,82 +70,14 @@ def load(path_or_name) -> "Scenario | StaticScenario":
         raise ScenarioError(f"scenario '{path_or_name}' not found (file {path}); available: {available}")
     if path.is_dir():
         raise ScenarioError(f"scenario '{path_or_name}': is a folder, not a scenario file")
-    data = _read_with_bases(path, [])
+    try:
+        data = read_with_bases(path)
+    except ScenarioFileError as exc:
+        raise ScenarioError(str(exc)) from None
     return from_dict(data, str(path), default_name=path.stem)
 
 
-#: The largest scenario file read (a scenario is a few kB; a wrong path must not be read whole).
-MAX_FILE_BYTES = SCENARIO_BYTES
-#: The longest chain of ``extends`` followed (a rig uses one or two bases).
-MAX_EXTENDS_DEPTH = 16
-
-
-def _read_with_bases(path: Path, chain: list, root: Path | None = None) -> dict:
-    """Parse a scenario file; ``extends = "base/name"`` (relative to the file, ``.toml`` optional)
-    merges the file over its base (tables merge key by key, other values replace), so a rig is
-    written once and each test speed only states what differs.
-
-    Where a base may be: a ``.toml`` file named by a relative path, inside the folder of the
-    scenario that was loaded or its parent (``extends = "../base/rig"`` from a folder of speed
-    files), or a shipped base or scenario (under ``scenarios/``, also by its absolute path). Any
-    other absolute path, or one that climbs higher, is refused; a file that is not a scenario is
-    never echoed in a message."""
-    if path.resolve() in chain:
-        raise ScenarioError(f"scenario '{path}': key 'extends' loops back ({' -> '.join(str(p) for p in chain)})")
-    if len(chain) >= MAX_EXTENDS_DEPTH:
-        raise ScenarioError(f"scenario '{chain[0]}': key 'extends' chains more than {MAX_EXTENDS_DEPTH} files "
-                            f"(at {path}); a rig needs a base or two")
-    if root is None:
-        root = path.resolve().parent.parent
-    try:
-        data = tomllib.loads(read_text_bounded(path, MAX_FILE_BYTES))
-    except FileRefused as exc:
-        raise ScenarioError(f"scenario '{path}': {exc}; not a scenario file") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise ScenarioError(f"scenario '{path}': not valid TOML: {exc}") from None
-    except RecursionError:
-        raise ScenarioError(f"scenario '{path}': tables or arrays nested too deeply to be a scenario") from None
-    except UnicodeDecodeError:
-        raise ScenarioError(f"scenario '{path}': not a UTF-8 text file (save it as UTF-8; UTF-16 and other "
-                            "encodings are not read)") from None
-    except OSError as exc:
-        raise ScenarioError(f"scenario '{path}': cannot be read ({exc.strerror})") from None
-    base = data.pop("extends", None)
-    if base is None:
-        return data
-    if not isinstance(base, str) or not base.strip():
-        raise ScenarioError(f"scenario '{path}': key 'extends' = {base!r}: must be the name of a base file")
-    rel = Path(base)
-    shipped_file = rel.is_absolute() and rel.resolve().is_relative_to(SCENARIO_DIR)    # a shipped scenario's path
-    if (rel.is_absolute() and not shipped_file) or rel.suffix not in ("", ".toml"):
-        raise ScenarioError(f"scenario '{path}': key 'extends' = {base!r}: must name a .toml scenario by a path "
-                            "relative to this file (e.g. 'base/rig' or '../base/rig'), or a shipped base")
-    base_path = (path.parent / rel).with_suffix(".toml")
-    shipped = (SCENARIO_DIR / rel).with_suffix(".toml")
-    if not base_path.exists() and shipped.exists() and ".." not in rel.parts:
-        base_path = shipped
-    resolved_base = base_path.resolve()
-    if not (resolved_base.is_relative_to(root) or resolved_base.is_relative_to(SCENARIO_DIR)):
-        raise ScenarioError(f"scenario '{path}': key 'extends' = {base!r}: leads outside {root} (a base must lie "
-                            "in the scenario's folder or the one above it, or be a shipped base)")
-    if not base_path.is_file():
-        raise ScenarioError(f"scenario '{path}': key 'extends' = {base!r}: no file {base_path}")
-    return _merge(_read_with_bases(base_path, chain + [path.resolve()], root), data)
-
-
-def _merge(base: dict, over: dict) -> dict:
-    out = dict(base)
-    for k, v in over.items():
-        out[k] = _merge(out[k], v) if isinstance(v, dict) and isinstance(out.get(k), dict) else v
-    return out
-
-
-def scenario_names() -> list:
-    """Names of the runnable scenario files in ``scenarios/`` (bases under ``scenarios/base`` excluded)."""
-    return sorted(p.stem for p in SCENARIO_DIR.glob("*.toml"))
-
-
-def from_dict(data: dict, path: str = "<dict>", default_name: str = "scenario") -> "Scenario | StaticScenario":
+def from_dict(data: dict, path: str = "<dict>", default_name: str = "scenario") -> Scenario | StaticScenario:
     """Build a scenario from parsed TOML data (``path`` is only used in messages): a
     :class:`Scenario` for a mechanism in motion (``kind`` 'four-bar', 'slider-crank' or 'linkage',
     its ``mechanism`` of the matching type), a :class:`cosim.structure_scenario.StaticScenario`
@@ -218,12 +110,11 @@ def from_dict(data: dict, path: str = "<dict>", default_name: str = "scenario") 
         raise r.fail("linkage.type", f"is required (one of {', '.join(LINKAGE_TYPES)})")
     kind = r.number(top["linkage"]["type"], "linkage.type", choices=LINKAGE_TYPES)
     if kind == "structure":
-        from .structure_scenario import build
-        return build(r, top, path, default_name, materials, sections, meta)
+        return dataclasses.replace(build_structure(r, top, path, default_name, materials, sections, meta),
+                                   loader=from_dict)
     if "modules" in top and kind != "linkage":
         raise r.fail("modules", f"only a 'linkage' has [[modules]] (this one is a {kind})")
     if kind == "linkage":
-        from .linkage_scenario import build_mechanism
         mech, gauge_link = build_mechanism(r, top, materials, sections, viscos, tmm.segments)
     else:
         mech, gauge_link = _main_loop(r, top, kind, materials, sections, viscos, tmm.segments)
@@ -241,20 +132,46 @@ def from_dict(data: dict, path: str = "<dict>", default_name: str = "scenario") 
     except TMMError as exc:
         raise r.fail("linkage", f"the crank cannot turn a full revolution: {exc}") from None
 
+    gauges = _gauges(r, top, gauge_link)
+    gravity = _gravity(r, top)
+    exudyn, mujoco = _exudyn_settings(r, solver), _mujoco_settings(r, solver)
+    output = _output_settings(r, top)
+    motor = read_motor(r, top["motor"], drive, mech) if "motor" in top else None
+    if drive.mode == "motor" and motor is None and drive.type != "fmu":
+        raise r.fail("drive.mode", "needs a [motor] table", "motor")
+    coupling = rd.coupling(r, top.get("coupling", {}))
+    _check_steps(r, drive, tmm, exudyn, mujoco, coupling)
+    _check_stiffness(r, top, mech, drive)
+    if "uncertainty" in top:
+        _check_uncertainty(r, top["uncertainty"], path, top, gauges)
+    return Scenario(sc_name, description, Path(path) if path != "<dict>" else None, sources, mech, drive,
+                    gauges, gravity, tmm, exudyn, mujoco, output, tuple(r.assumptions), data, motor, coupling,
+                    rig, loader=from_dict)
+
+
+def _gauges(r: Reader, top: dict, gauge_link) -> tuple:
+    """The ``[gauges.*]``: each on its link (``gauge_link`` checks and places it), face top or bottom."""
     gauges = []
     for name, g in r.names(top.get("gauges", {}), "gauges").items():
         gk = f"gauges.{name}"
         gd = r.table(g, gk, {"link", "position", "face"}, {"link", "position"})
         link, pos = gauge_link(gk, gd)
         gauges.append(Gauge(name, link, pos, r.number(gd.get("face", "top"), f"{gk}.face", choices=("top", "bottom"))))
+    return tuple(gauges)
 
-    gravity = None
-    if "gravity" in top:
-        gv = r.table(top["gravity"], "gravity", {"vector"}, {"vector"})["vector"]
-        if not isinstance(gv, list) or len(gv) != 2:
-            raise r.fail("gravity.vector", "must be a list of two accelerations", gv)
-        gravity = tuple(r.quantity(x, f"gravity.vector[{i}]", "m/s**2") for i, x in enumerate(gv))
 
+def _gravity(r: Reader, top: dict) -> tuple | None:
+    """``[gravity] vector`` [m/s^2], or None without the table."""
+    if "gravity" not in top:
+        return None
+    gv = r.table(top["gravity"], "gravity", {"vector"}, {"vector"})["vector"]
+    if not isinstance(gv, list) or len(gv) != 2:
+        raise r.fail("gravity.vector", "must be a list of two accelerations", gv)
+    return tuple(r.quantity(x, f"gravity.vector[{i}]", "m/s**2") for i, x in enumerate(gv))
+
+
+def _exudyn_settings(r: Reader, solver: dict) -> ExudynSettings:
+    """``[solver.exudyn]``."""
     ex = r.table(solver.get("exudyn", {}), "solver.exudyn", {"elements", "step", "spectral_radius", "newton_tolerance"})
     exudyn = ExudynSettings(
         _at_most(r, r.number(ex.get("elements", 8), "solver.exudyn.elements", int, positive=True),
@@ -264,6 +181,11 @@ def from_dict(data: dict, path: str = "<dict>", default_name: str = "scenario") 
         r.number(ex.get("newton_tolerance", 1e-6), "solver.exudyn.newton_tolerance", positive=True))
     if not 0 <= exudyn.spectral_radius <= 1:
         raise r.fail("solver.exudyn.spectral_radius", "must lie in [0, 1]", exudyn.spectral_radius)
+    return exudyn
+
+
+def _mujoco_settings(r: Reader, solver: dict) -> MujocoSettings:
+    """``[solver.mujoco]``."""
     mj = r.table(solver.get("mujoco", {}), "solver.mujoco", {"step", "servo_frequency", "solref_factor", "solimp"})
     if "solimp" in mj and not 0 < r.number(mj["solimp"], "solver.mujoco.solimp") < 1:
         raise r.fail("solver.mujoco.solimp", "must lie between 0 and 1 (MuJoCo's constraint impedance)", mj["solimp"])
@@ -273,6 +195,11 @@ def from_dict(data: dict, path: str = "<dict>", default_name: str = "scenario") 
         if "servo_frequency" in mj else None,
         r.number(mj.get("solref_factor", 2.0), "solver.mujoco.solref_factor", positive=True),
         r.number(mj.get("solimp", 0.9999), "solver.mujoco.solimp"))
+    return mujoco
+
+
+def _output_settings(r: Reader, top: dict) -> OutputSettings:
+    """``[output]``: run length, default engines and the steady-state test."""
     out = r.table(top.get("output", {}), "output", {"revolutions", "engines", "max_revolutions", "steady_tolerance"})
     engines = r.unwrap(out.get("engines", ["tmm", "exudyn", "mujoco"]), "output.engines")
     if not isinstance(engines, list) or not engines or any(e not in ("tmm", "exudyn", "mujoco") for e in engines):
@@ -287,24 +214,14 @@ def from_dict(data: dict, path: str = "<dict>", default_name: str = "scenario") 
     if not output.steady_tolerance < 1:
         raise r.fail("output.steady_tolerance", "must be below 100 % (revolutions that differ by more are not "
                                                 "steady)", out["steady_tolerance"])
-    motor = read_motor(r, top["motor"], drive, mech) if "motor" in top else None
-    if drive.mode == "motor" and motor is None and drive.type != "fmu":
-        raise r.fail("drive.mode", "needs a [motor] table", "motor")
-    coupling = rd.coupling(r, top.get("coupling", {}))
-    _check_steps(r, drive, tmm, exudyn, mujoco, coupling)
-    _check_stiffness(r, top, mech, drive)
-    if "uncertainty" in top:
-        _check_uncertainty(r, top["uncertainty"], path, top, tuple(gauges))
-    return Scenario(sc_name, description, Path(path) if path != "<dict>" else None, sources, mech, drive,
-                    tuple(gauges), gravity, tmm, exudyn, mujoco, output, tuple(r.assumptions), data, motor, coupling,
-                    rig)
+    return output
 
 
 def _check_steps(r: Reader, drive, tmm, exudyn, mujoco, coupling) -> None:
     """Refuse a time step (an engine's or the macro step) longer than one crank revolution: no
     revolution would be resolved (a step written in seconds where degrees were meant)."""
-    period = 2 * math.pi / abs(drive.speed_rad_s)
-    steps = {"solver.tmm.step": tmm.step_s if tmm.step_s is not None else tmm.step_rad / abs(drive.speed_rad_s),
+    period = drive.period_s
+    steps = {"solver.tmm.step": tmm.step_s_at(drive.speed_rad_s),
              "solver.exudyn.step": exudyn.step_s, "solver.mujoco.step": mujoco.step_s,
              "coupling.macro_step": coupling.macro_step_s}
     for key, value in steps.items():
@@ -437,7 +354,6 @@ def _check_uncertainty(r: Reader, data, path: str, top: dict, gauges: tuple = ()
                      unknown[0])
     if "parameters" not in u:
         return
-    from .overrides import OverrideError, set_key
     for name, d in params.items():
         r.table(d, f"uncertainty.parameters.{name}", _UNKNOWN_KEYS, {"keys", "distribution"})
         for k in d["keys"] if isinstance(d["keys"], list) else []:
@@ -584,7 +500,6 @@ def resolved(scenario: Scenario) -> dict:
     """Everything the run used, TOML-ready: ``[resolved]`` holds every value in SI after units,
     defaults and derivations (field names carry the units), ``assumptions`` every declared
     assumption with its rationale, ``[input]`` the file as written (bases merged)."""
-    import dataclasses
 
     def clean(x):
         if dataclasses.is_dataclass(x) and not isinstance(x, type):
@@ -595,6 +510,8 @@ def resolved(scenario: Scenario) -> dict:
             return [clean(v) for v in x if v is not None]
         if isinstance(x, Path):
             return str(x)
+        if isinstance(x, UREG.Quantity):           # a typed override, written as the file would write it
+            return f"{x.magnitude!r} {x.units:~}"
         if hasattr(x, "item") and getattr(x, "ndim", 1) == 0:
             x = x.item()
         if isinstance(x, np.ndarray):

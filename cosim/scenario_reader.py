@@ -24,7 +24,7 @@ G0 = 9.80665           # standard gravity [m/s^2], for weights written in force 
 #: masses, inertias and stiffnesses (d**4, E*I, ...) overflows or underflows.
 MAX_MAGNITUDE, MIN_MAGNITUDE = 1e20, 1e-30
 #: A mesh finer than this is refused at load (its arrays alone would not fit; the run's cost is
-#: estimated and refused separately, cosim.run.estimate_cost).
+#: estimated and refused separately, cosim.runs.estimate_cost).
 MAX_SEGMENTS = 10_000
 #: An angle beyond this many radians (~1600 turns) is refused: no key of a scenario needs more
 #: than a few turns, and a double that large keeps fewer digits for the fraction of a turn (at
@@ -50,6 +50,12 @@ def _converted(raw: str, unit: str) -> tuple:
         parsed = parse_quantity(raw)
     except ValueError as exc:
         return "not_quantity", str(exc)
+    return _convert(parsed, unit)
+
+
+def _convert(parsed, unit: str) -> tuple:
+    """``("ok", value in unit)`` or ``(reason, detail)`` for a pint quantity: one parsed from
+    text, or a typed override (a number with its unit, :mod:`cosim.overrides`)."""
     target = UREG.Quantity(1, unit)
     if (parsed.dimensionless and not target.dimensionless) or (_needs_unit(unit) and parsed.unitless):
         return "no_unit", None
@@ -119,14 +125,18 @@ class Reader:
                 q = float(raw)
             else:
                 raise self.fail(key, f"has no unit; write it with one, e.g. '{raw} {example_unit(unit)}'", raw)
-        elif isinstance(raw, str):
-            if "," in raw:
-                # "3,73 rpm" is read as 373 rpm by pint: a decimal comma is refused, not guessed.
-                raise self.fail(key, "has a comma: write decimals with '.' and no thousands separators", raw)
-            if not has_number(raw):
-                # pint reads a bare unit ("rpm", "psi") as one of it: a number is required.
-                raise self.fail(key, f"has no number; write a number and a unit, e.g. '1 {example_unit(unit)}'", raw)
-            code, q = _converted(raw, unit)
+        elif isinstance(raw, str) or isinstance(raw, UREG.Quantity):
+            if isinstance(raw, str):
+                if "," in raw:
+                    # "3,73 rpm" is read as 373 rpm by pint: a decimal comma is refused, not guessed.
+                    raise self.fail(key, "has a comma: write decimals with '.' and no thousands separators", raw)
+                if not has_number(raw):
+                    # pint reads a bare unit ("rpm", "psi") as one of it: a number is required.
+                    raise self.fail(key, f"has no number; write a number and a unit, e.g. '1 {example_unit(unit)}'",
+                                    raw)
+                code, q = _converted(raw, unit)
+            else:                 # a typed override (a number with its unit): nothing to parse
+                code, q = _convert(raw, unit)
             if code == "not_quantity":
                 raise self.fail(key, f"is not a quantity with a unit ({q})", raw)
             if code == "no_unit":

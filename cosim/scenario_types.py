@@ -2,8 +2,11 @@
 
 Owns: :class:`Scenario` (a moving linkage: four-bar, slider-crank or general linkage; a static
 structure is :class:`cosim.structure_scenario.StaticScenario`), the settings per engine, the
-drive, the output and coupling settings, :class:`Assumption` and :class:`ScenarioError`. The
-reader (:mod:`cosim.scenario_reader`) fills them; :mod:`cosim.scenario` loads files.
+drive, the output and coupling settings, :class:`Assumption` and :class:`ScenarioError`, and the
+quantities derived from a crank speed (rpm, the revolution period; the TMM step in seconds is
+:meth:`Scenario.engine_step_s`): no other module converts them. The
+reader (:mod:`cosim.scenario_reader`) fills them; :mod:`cosim.scenario` loads files. Boundaries:
+it imports no reader and no loader (``with_overrides`` calls the loader that built the scenario).
 """
 from __future__ import annotations
 
@@ -11,9 +14,25 @@ import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from tmm_core import Coupling, FourBarMechanism, InputError, SliderCrankMechanism
+from tmm_core import Coupling, FourBarMechanism, InputError, SliderCrankMechanism, TimeDomain
 
-from .overrides import Variants
+from .overrides import OverrideError, apply_overrides
+
+
+def to_rpm(speed_rad_s: float) -> float:
+    """A crank speed [rad/s] in revolutions per minute, sign kept: the one place the bench
+    converts between the two."""
+    return speed_rad_s * 30.0 / math.pi
+
+
+def from_rpm(rpm: float) -> float:
+    """A crank speed [rev/min] in rad/s, sign kept (the inverse of :func:`to_rpm`)."""
+    return rpm * math.pi / 30.0
+
+
+def revolution_period_s(speed_rad_s: float) -> float:
+    """The time [s] of one crank revolution at ``speed_rad_s`` [rad/s], either sign."""
+    return 2 * math.pi / abs(speed_rad_s)
 
 
 class ScenarioError(InputError):
@@ -27,6 +46,30 @@ class Assumption:
     key: str
     value: str
     rationale: str
+
+
+class Variants:
+    """``with_overrides`` for a loaded scenario of any kind (it has ``raw``, ``path``, ``name`` and
+    ``loader``).
+
+    ``loader`` is the function that built the scenario from its TOML tree
+    (:func:`cosim.scenario.from_dict`, which sets it): a variant is built by the same loader. It is
+    handed over rather than imported so that the types know no loader: the loader imports the
+    types, never the reverse."""
+
+    def with_overrides(self, overrides: dict):
+        """A variant of this scenario with key paths of its file set to new values, e.g.
+        ``{"drive.speed": "300 rpm", "links.coupler.damping.ratio": "3 %"}``, validated by the
+        loader (its errors name the key)."""
+        label = f"{self.path or self.name} (with {', '.join(f'{k} = {v!r}' for k, v in overrides.items())})"
+        if self.loader is None:
+            raise ScenarioError(f"scenario '{self.path or self.name}': built without a loader, so it has no variants "
+                                "(load it with cosim.scenario.load or from_dict)")
+        try:
+            data = apply_overrides(self.raw, overrides)
+        except OverrideError as exc:
+            raise ScenarioError(f"scenario '{self.path or self.name}': {exc}") from None
+        return self.loader(data, label, default_name=self.name)
 
 
 @dataclass(frozen=True)
@@ -45,7 +88,12 @@ class DriveSpec:
     def speed_rpm(self) -> float:
         """The drive speed in revolutions per minute, unsigned (the direction is the sign of
         ``speed_rad_s``): the one conversion the console, the summary and the sweeps print."""
-        return abs(self.speed_rad_s) * 30.0 / math.pi
+        return abs(to_rpm(self.speed_rad_s))
+
+    @property
+    def period_s(self) -> float:
+        """The time [s] of one crank revolution at the drive speed."""
+        return revolution_period_s(self.speed_rad_s)
 
 
 @dataclass(frozen=True)
@@ -63,6 +111,10 @@ class TMMSettings:
     model: str = "full"
     #: Mode shapes of the reduced model (tmm_core.reduced.DEFAULT_MODES: docs/theory.md "Reduced model").
     modes: int = 4
+
+    def step_s_at(self, speed_rad_s: float) -> float:
+        """The time step [s]: ``step_s``, or the crank-angle step ``step_rad`` at ``speed_rad_s``."""
+        return self.step_s if self.step_s is not None else self.step_rad / abs(speed_rad_s)
 
 
 @dataclass(frozen=True)
@@ -128,6 +180,8 @@ class Scenario(Variants):
     motor: object = None                  # cosim.motor.MotorParameters, or None without a [motor] table
     coupling: CouplingSettings = CouplingSettings()
     rig: str | None = None                # the physical rig (records of it are matched by this name)
+    #: The loader that built it, which builds its variants (:class:`Variants`).
+    loader: object = field(default=None, repr=False, compare=False)
 
     def engine_step_s(self, engine: str) -> float:
         """Internal step of an engine [s]."""
@@ -137,7 +191,7 @@ class Scenario(Variants):
             if not self.drive.speed_rad_s:
                 raise ScenarioError(f"scenario '{self.path}': key 'solver.tmm.step': a crank-angle step needs a "
                                     "non-zero drive.speed")
-            return self.tmm.step_rad / abs(self.drive.speed_rad_s)
+            return self.tmm.step_s_at(self.drive.speed_rad_s)
         return {"exudyn": self.exudyn.step_s, "mujoco": self.mujoco.step_s}[engine]
 
     @property
@@ -152,13 +206,13 @@ class Scenario(Variants):
 
     @property
     def revolution_period_s(self) -> float:
-        return 2 * math.pi / abs(self.drive.speed_rad_s)
+        """The time [s] of one crank revolution at the drive speed."""
+        return self.drive.period_s
 
     def time_domain(self, mechanism=None):
         """The transfer-matrix time domain (:class:`tmm_core.TimeDomain`) of this scenario with its
         ``solver.tmm`` settings, gravity and gauges; ``mechanism`` replaces the scenario's (e.g.
         the same four-bar with applied joint moments)."""
-        from tmm_core import TimeDomain
         s = self.tmm
         return TimeDomain(self.mechanism if mechanism is None else mechanism, integrator=s.integrator,
                           coupling=s.coupling, beam_column=s.beam_column, gravity=self.gravity, gauges=self.gauges,

@@ -36,10 +36,11 @@ import numpy as np
 from tmm_core import Joint, LoadCase, Member, Structure, TMMError, external_resultant, solve_static, surface_stresses
 from tmm_core.structure import RigidBody, SliderJoint
 
-from .joint_tables import joint_checker, joint_position, read_loads, read_springs
 from .files import write_atomic
+from .joint_tables import joint_checker, joint_position, read_loads, read_springs
+from .runlog import run_folder, write_csv, write_json
 from .scenario_reader import MAX_SEGMENTS
-from .overrides import Variants
+from .scenario_types import Variants
 
 ANALYSES = ("linear", "beam_column", "large_deflection")
 
@@ -61,6 +62,8 @@ class StaticScenario(Variants):
     raw: dict = field(repr=False, default_factory=dict)
     rig: str | None = None
     kind: str = "structure"
+    #: The loader that built it, which builds its variants (:class:`cosim.scenario_types.Variants`).
+    loader: object = field(default=None, repr=False, compare=False)
 
 
 def build(r, top: dict, path: str, default_name: str, materials: dict, sections: dict, meta: dict):
@@ -272,7 +275,6 @@ def run_static(sc: StaticScenario, out=None) -> tuple:
     """Solve and write ``nodes.csv``, ``summary.json`` and ``scenario.resolved.toml`` to the run folder."""
     import tomli_w
 
-    from .runlog import run_folder, write_csv, write_json
     folder = run_folder(sc.name, out)
     write_atomic(folder / "scenario.resolved.toml", tomli_w.dumps(
         {"scenario": {"name": sc.name, "description": sc.description, "analysis": sc.analysis},

@@ -18,7 +18,6 @@ Owns: rigid four-bar synthesis and ``cosim synthesize``. Boundaries: no flexible
 """
 from __future__ import annotations
 
-import argparse
 import copy
 import json
 import math
@@ -29,11 +28,13 @@ import numpy as np
 from tmm_core import ConvergenceError, FourBarGeometry, InputError, fourbar_motion
 from tmm_core.errors import require_positive
 
+from .defaults import SYNTHESIS_LIKE
 from .files import write_atomic
+from .scenario import from_dict, load
+from .units import UREG, quantity
 
 RESIDUAL_TOLERANCE = 1e-10   # of the thesis equations in ratios to d and radians: round-off, not "close"
 CHECK_TOLERANCE = 1e-8       # rad: the synthesized linkage through the bench's kinematics
-DEFAULT_LIKE = "crank_rocker_373rpm"
 SOURCE = "cosim synthesize, case {case} (FE thesis Ch. III)"
 
 
@@ -273,37 +274,8 @@ def synthesize_case_two(ground: float, oscillation: float, theta1: float, theta3
 
 # --- command line: `cosim synthesize` (pint is imported only when the command runs) ---------------
 
-def add_parser(subparsers) -> argparse.ArgumentParser:
-    """Register ``synthesize`` on the ``cosim`` sub-command parsers; returns its parser."""
-    s = subparsers.add_parser(
-        "synthesize", help="link lengths of a rigid crank-rocker from its rocker swing and limit positions",
-        description="Rigid crank-rocker synthesis (FE thesis Ch. III). Case I: from the rocker swing, the folded "
-                    "rocker limit phi4 and the minimum transmission angle mu1; case II: from the rocker swing and the "
-                    "crank's limit positions. Values carry units ('11 in', '81.07 deg'); lengths are printed in the "
-                    "unit of --ground. Example: cosim synthesize --case I --ground '11 in' --oscillation '81.0748 deg' "
-                    "--rocker-limit '14.1411 deg' --min-transmission '18.1949 deg'")
-    s.add_argument("--case", required=True, choices=("I", "II"), help="I or II (see above)")
-    s.add_argument("--ground", required=True, metavar="LENGTH", help="ground link length d, e.g. '11 in'")
-    s.add_argument("--oscillation", required=True, metavar="ANGLE", help="rocker swing between its limits")
-    s.add_argument("--rocker-limit", metavar="ANGLE", help="case I: phi4, angle crank pivot - rocker pivot - "
-                                                           "rocker pin at the folded limit")
-    s.add_argument("--min-transmission", metavar="ANGLE", help="case I: mu1, transmission angle with the crank "
-                                                               "along the ground line (its minimum)")
-    s.add_argument("--crank-limits", nargs=2, metavar=("THETA1", "THETA3"),
-                   help="case II: crank angle at the extended limit, and crank angle at the folded limit minus "
-                        "180 deg (the thesis's theta3), e.g. '44.6649 deg' '102.2467 deg'")
-    s.add_argument("--json", action="store_true", help="print one JSON object instead of the table")
-    s.add_argument("--scenario-out", type=Path, metavar="PATH", help="write a scenario TOML of the linkage to PATH")
-    s.add_argument("--overwrite", action="store_true", help="with --scenario-out: replace an existing file at PATH "
-                                                            "(by default it is refused)")
-    s.add_argument("--like", metavar="SCENARIO", help="with --scenario-out: the scenario whose sections, materials, "
-                                                      f"gauges, drive and solvers to keep (default {DEFAULT_LIKE})")
-    return s
-
-
 def _quantity(option: str, text: str, kind: str):
     """``text`` as a pint quantity of kind 'length' or 'angle'; a bare number is refused."""
-    from .units import UREG, quantity
     example = {"length": "in", "angle": "deg"}[kind]
     try:
         q = quantity(text)
@@ -341,7 +313,6 @@ def _case_inputs(args) -> dict:
 
 def _scaled(value, ratio: float):
     """A position along a link written with a unit (string or {value = ...}), times ``ratio``."""
-    from .units import quantity
     if isinstance(value, dict):
         return value | {"value": _scaled(value["value"], ratio)}
     q = quantity(value) * ratio if isinstance(value, str) else None
@@ -354,8 +325,6 @@ def write_scenario(result: FourBarSynthesis, path: Path, like: str, unit) -> Pat
     mid-span gauge stays mid-span); ``scenario.rig`` is dropped, its records are of another linkage."""
     import tomli_w
 
-    from .scenario import from_dict, load
-    from .units import UREG
     base = load(like)
     if base.raw.get("linkage", {}).get("type") != "four-bar":
         raise InputError(f"option --like = {like!r}: is not a four-bar scenario")
@@ -382,13 +351,12 @@ def write_scenario(result: FourBarSynthesis, path: Path, like: str, unit) -> Pat
 
 def run_command(args) -> int:
     """``cosim synthesize``: solve, print (table or one JSON object), optionally write a scenario."""
-    from .units import UREG
     ground = _quantity("--ground", args.ground, "length")
     oscillation = float(_quantity("--oscillation", args.oscillation, "angle").to("rad").magnitude)
     inputs = _case_inputs(args)
     result = (synthesize_case_one if args.case == "I" else synthesize_case_two)(
         float(ground.to("m").magnitude), oscillation, **inputs)
-    written = (write_scenario(result, args.scenario_out, args.like or DEFAULT_LIKE, ground.units)
+    written = (write_scenario(result, args.scenario_out, args.like or SYNTHESIS_LIKE, ground.units)
                if args.scenario_out is not None else None)
     r = ({"case": result.case, "unit": f"{ground.units:~}", "grashof": result.limits["grashof"]}
          | {k: float((getattr(result, k) * UREG.m).to(ground.units).magnitude)

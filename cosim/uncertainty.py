@@ -40,17 +40,18 @@ the unknowns and the model run are cosim.unknowns.
 from __future__ import annotations
 
 import logging
-import math
 import textwrap
 import time
 from pathlib import Path
 
 import numpy as np
 
+from .figures import gauge_label, new_figure, save
 from .parallel import executor
+from .records import peaks_at, records_for
+from .run_guards import MAX_HOURS, check_study
 from .runlog import run_folder, write_csv, write_json
 from .scenario import ScenarioError, check_unknowns, load
-from .run_guards import MAX_HOURS, check_study
 from .unknowns import Settings, declared, read, solve_cost, solve_job, variant
 
 log = logging.getLogger(__name__)
@@ -240,8 +241,7 @@ def band_summary(nominal: dict, runs: list, random_runs: list) -> dict:
 
 def record_check(sc, bands, records_dir=None) -> list:
     """Is each recorded +/- bending peak inside the band of the predicted peaks?"""
-    from .records import peaks_at, records_for
-    rpm = abs(sc.drive.speed_rad_s) * 30 / math.pi
+    rpm = sc.drive.speed_rpm
     out = []
     for rec in records_for(sc, records_dir):
         if rec.format != "peaks":
@@ -281,7 +281,6 @@ def plot_band(folder, name, rows, records, note: str = ""):
     """``band.png`` and ``band.svg``: per gauge the envelope and 5-95 % band of the samples' bending
     strain [µε] over the crank angle [deg], the nominal curve, the recorded peaks; ``note`` (see
     :func:`nominal_note`) under the panels."""
-    from .figures import gauge_label, new_figure, save
     gauges = sorted({r["gauge"] for r in rows})
     fig = new_figure(figsize=(6.5 * len(gauges), 4.6), layout="constrained")
     axes = fig.subplots(1, len(gauges), squeeze=False)

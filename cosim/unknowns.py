@@ -41,8 +41,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from tmm_core import CrankMotion, TMMError
+from tmm_core.reduced import ReducedOptions
+from tmm_core.reduced_periodic import periodic_steady_state_reduced
+
+from .drive_profile import free_wheel
+from .joint_loads import JointLoadedFourBar, JointMoment
 from .run_guards import estimate_cost
-from .scenario import ScenarioError
+from .scenario import ScenarioError, from_dict
 from .unknowns_table import (DISTRIBUTIONS, MODEL_KEYS, Unknown, Variant, declared,  # noqa: F401
                              variant)
 
@@ -64,7 +70,6 @@ class Settings:
 
 
 def _joint_laws(model: dict):
-    from .joint_loads import JointMoment
     f = model.get("model.joint_friction", 0.0)
     laws = [JointMoment("B", friction=f)]
     for j in ("C", "D"):
@@ -106,7 +111,7 @@ def solve_cost(sc, settings: Settings = Settings()) -> dict:
     measured on one core). Its march steps through one stored revolution at a time: a revolution
     is its macro step."""
     fast = fast_model(sc, settings)
-    period = 2 * math.pi / abs(fast.drive.speed_rad_s)
+    period = fast.revolution_period_s
     return estimate_cost(fast, ["tmm"], settings.max_revolutions * period, period)
 
 
@@ -115,10 +120,7 @@ def solve(sc, model: dict | None = None, settings: Settings = Settings()) -> dic
     ``{"status", "error", "angle_deg" (uniform grid), "gauges": {g: {"bending_ue", "axial_ue"}},
     "peaks": {g: {bending/axial max/min [ue]}}, "revolutions", "change", "speed_fluctuation",
     "wall_time_s"}`` (lists: picklable)."""
-    from tmm_core import CrankMotion, TMMError
 
-    from .drive_profile import free_wheel
-    from .joint_loads import JointLoadedFourBar
     tic = time.perf_counter()
     model = dict(model or {})
     unknown = set(model) - set(MODEL_KEYS)
@@ -136,7 +138,6 @@ def solve(sc, model: dict | None = None, settings: Settings = Settings()) -> dic
         if kind not in ("full", "reduced"):
             raise ScenarioError(f"fast model: model must be 'full' or 'reduced', got {kind!r}")
         if kind == "reduced":
-            from tmm_core.reduced import ReducedOptions
             options = ReducedOptions(modes=s.modes)
             n = options.steps
         else:
@@ -151,7 +152,6 @@ def solve(sc, model: dict | None = None, settings: Settings = Settings()) -> dic
             crank = CrankMotion.constant_speed(w, step_deg=360.0 / n, revolutions=1.0,
                                                start_angle=sc.drive.start_angle_rad)
         if kind == "reduced":
-            from tmm_core.reduced_periodic import periodic_steady_state_reduced
             p = periodic_steady_state_reduced(td, crank=crank, options=options)
             angles = p.angle
             outs = np.column_stack([p.drive_torque] + [np.column_stack(p.gauges[g.name]) for g in sc.gauges])
@@ -196,7 +196,6 @@ def read(result: dict, signs: dict) -> dict:
 
 def solve_job(raw: dict, path: str, overrides: dict, model: dict, settings: Settings = Settings()) -> dict:
     """One solve in a worker process: the scenario from its tree, the variant, :func:`solve`."""
-    from .scenario import from_dict
     try:
         sc = from_dict(raw, path)
         if overrides:

@@ -17,6 +17,8 @@ from pathlib import Path
 
 import numpy as np
 
+from .scenario_types import from_rpm
+
 PULSE_WIDTH_DEG = 5.0
 
 
@@ -28,7 +30,7 @@ def synthesize(folder, name: str, truth_angle, top_ue, bottom_ue, *, rpm: float,
 
     ``truth_angle`` [rad] over one revolution with ``top_ue``/``bottom_ue`` [microstrain]."""
     rng = np.random.default_rng(seed)
-    omega = rpm * math.pi / 30
+    omega = from_rpm(rpm)
     period = 2 * math.pi / omega
     t = np.arange(int(revolutions * period * sample_rate_Hz)) / sample_rate_Hz
     angle = math.radians(trigger_angle_deg) + omega * t            # the crank passes the trigger at t = k period

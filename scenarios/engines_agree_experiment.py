@@ -26,7 +26,8 @@ from pathlib import Path
 
 import numpy as np
 
-from cosim.engines import make_engine, run_prescribed
+from cosim.engines import make_engine
+from cosim.master import run_prescribed
 from cosim.metrics import last_revolution
 from cosim.runlog import run_folder, write_csv, write_json
 from cosim.scenario import load

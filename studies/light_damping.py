@@ -105,7 +105,8 @@ def save_json(path, data):
 # -- exudyn reference -----------------------------------------------------------------------------
 def run_exudyn(rpm, zeta, elements=16, step_deg=0.2, revolutions=40, start_angle=0.0):
     """exudyn from rest at crank ``start_angle`` [deg] for ``revolutions``."""
-    from cosim.engines import make_engine, run_prescribed
+    from cosim.engines import make_engine
+    from cosim.master import run_prescribed
     sc = scenario(rpm, zeta, {"solver.exudyn.elements": elements, "solver.exudyn.step": f"{step_deg:g} deg",
                               "drive.start_angle": f"{start_angle:g} deg"})
     t0 = time.time()

@@ -19,26 +19,13 @@ PACKAGES = ("tmm_core", "cosim")
 MAX_LINES, MAX_PARAMETERS = 80, 20
 
 #: Import cycles allowed for now, each a set of modules, with the reason.
-CYCLES = {
-    frozenset({"cosim.linkage_scenario", "cosim.motor_design", "cosim.overrides", "cosim.scenario",
-               "cosim.scenario_reader", "cosim.scenario_types", "cosim.structure_scenario", "cosim.unknowns_table"}):
-        "Scenario inherits overrides.Variants, which calls the loader back; issue 35 item 1 (a loader package "
-        "with one-way imports)",
-    frozenset({"cosim.engines", "cosim.engines.base", "cosim.engines.exudyn", "cosim.engines.mujoco",
-               "cosim.engines.mujoco_tree", "cosim.engines.tmm", "cosim.master"}):
-        "engines.base.run_prescribed imports the master, which imports the engines; issue 35 item 1",
-}
+CYCLES: dict = {}
 
 #: Functions over the limits for now: "module.function" -> reason.
 LONG_FUNCTIONS = {
-    "cosim.cli.build_parser": "every subcommand's options in one place; issue 35 (a parser per subcommand)",
-    "cosim.engines.exudyn._build": "the exudyn model builder; issue 35 item 3 (split by concept)",
     "cosim.engines.mujoco._mjcf": "the MJCF writer; issue 35 item 3",
     "cosim.identify.identify": "the identification pipeline, 16 parameters; issue 35 (typed options)",
-    "cosim.linkage_scenario.build_mechanism": "the general linkage format's builder; issue 35 item 3",
     "cosim.motor_design.motor": "the [motor] table's reader; issue 35 item 3",
-    "cosim.run.run_scenario": "one run end to end; issue 35 item 3 (a short pipeline)",
-    "cosim.scenario.from_dict": "the scenario loader; issue 35 item 1 (a loader package)",
     "cosim.structure_scenario.build": "the structure format's builder; issue 35 item 3",
     "tmm_core.compiled.march.march": "the compiled march of the time step (8 records): the step loop with its axial iteration; issue 33 item 4 (one step)",
     "tmm_core.compiled.riccati.factor_configuration": "compiled factorization of one configuration (7 records), one loop over the chain; issue 33",

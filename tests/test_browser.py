@@ -99,7 +99,7 @@ def work(tmp_path_factory):
 
 
 def test_run_recording_shows_its_plots_and_the_linkage(work):
-    from cosim.run import RunOptions, run_scenario
+    from cosim.runs import RunOptions, run_scenario
     res = run_scenario("crank_rocker_95rpm", RunOptions(engines=("tmm", "mujoco"), revolutions=0.5, progress=False,
                                                         out=work / "run", figures=False))
     image = screenshot(work / "run" / "run.rrd", work / "run.png", work)
@@ -116,7 +116,7 @@ def test_sweep_recording_shows_every_chart(work):
     from cosim.recording.summaries import sweep_recording
     from cosim.resonance import frequency_map
     from cosim.scenario import load
-    from cosim.sweep import run_sweep
+    from cosim.sweeps import run_sweep
     folder, summary = run_sweep("crank_rocker_95rpm", "90,100", ("tmm",), revolutions=0.5, workers=1,
                                 out=work / "sweep", progress=False, record=False, resonance=False)
     fmap = frequency_map(load("crank_rocker_95rpm"), n_angles=6)

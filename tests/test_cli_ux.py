@@ -155,7 +155,7 @@ def test_compare_says_when_a_folder_did_not_finish(tmp_path, capsys, status, wor
 
 
 def test_compare_shows_the_motor_current_and_energy_balance(tmp_path, capsys):
-    from cosim.run import RunOptions, run_scenario
+    from cosim.runs import RunOptions, run_scenario
     res = run_scenario("crank_rocker_95rpm", RunOptions(engines=("mujoco",), mode="motor", revolutions=1.2,
                                                         out=tmp_path / "m", viewer="none", progress=False))
     assert res.summary["status"] == "completed"
@@ -211,7 +211,7 @@ def test_cosim_new_writes_a_commented_four_bar_that_loads_and_runs(tmp_path, cap
     sc = load(path)
     assert sc.name == "my_rig" and len(sc.assumptions) >= 8 and {g.name for g in sc.gauges} == {"coupler_mid",
                                                                                               "rocker_mid"}
-    from cosim.run import RunOptions, run_scenario
+    from cosim.runs import RunOptions, run_scenario
     res = run_scenario(path, RunOptions(engines=("tmm", "mujoco"), revolutions=0.25, out=tmp_path / "r",
                                         viewer="none", progress=False))
     assert res.summary["status"] == "completed"

@@ -176,7 +176,8 @@ def test_stiff_speed_loop_converges_to_the_prescribed_strains():
 def test_prescribed_mode_through_the_master_is_the_engine_alone():
     """In prescribed mode the master only steps the engine: same strains as the engine driven
     directly (TMM fast path)."""
-    from cosim.engines import make_engine, run_prescribed
+    from cosim.engines import make_engine
+    from cosim.master import run_prescribed
     s = sc.load("crank_rocker_373rpm")
     res = CoSimulation(s, ("tmm",), mode="prescribed").run(revolutions=1)
     assert res.status == "completed" and res["tmm"].motor is None

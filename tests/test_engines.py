@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from cosim import scenario as scenario_mod
-from cosim.engines import EngineUnavailable, available_engines, make_engine, run_prescribed
+from cosim.engines import EngineUnavailable, available_engines, make_engine
+from cosim.master import run_prescribed
 from cosim.scenario import SCENARIO_DIR, ScenarioError, load
 from tmm_core import Coupling
 from tmm_core.frequencies import fourbar_frequencies

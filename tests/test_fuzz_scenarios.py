@@ -148,7 +148,7 @@ def _get(tree, path):
 
 def march_or_refuse(tree):
     from cosim.engines import EngineError, make_engine
-    from cosim.engines.base import run_prescribed
+    from cosim.master import run_prescribed
     from cosim.run_guards import check_cost
     try:
         sc = from_dict(tree, "fuzz.toml")

@@ -11,7 +11,7 @@ import pytest
 
 from cosim.scenario import load
 from tmm_core import CrankMotion, TimeDomain
-from tmm_core.compiled import march as compiled_march
+from tmm_core.compiled import march as compiled_march, statics as compiled_statics
 
 pytestmark = pytest.mark.skipif(not compiled_march.AVAILABLE, reason="numba is not installed")
 
@@ -77,7 +77,8 @@ def test_compiled_march_equals_numpy_for_every_integrator_and_the_quasi_static_a
 
 
 def test_the_engine_uses_the_compiled_path_and_gets_the_same_answer():
-    from cosim.engines import make_engine, run_prescribed
+    from cosim.engines import make_engine
+    from cosim.master import run_prescribed
     sc = load("slider_crank_600rpm")
     runs = []
     for compiled in (False, True):
@@ -360,3 +361,32 @@ def test_quasi_static_stop_is_within_its_tolerance_of_the_converged_answer(scena
         err = max(np.max(np.abs((loose.members[k].state - ref.state)[..., part] * w[part]))
                   for k, ref in tight.members.items())
         assert err <= 1e-8 * scale, part
+
+
+def _quasi_static_in_two_threads():
+    from tmm_core import quasi_static
+    sc, mech, _ = _fe_quasi_static_case()
+    th = np.radians(np.arange(0.0, 360.0, 5.0))        # 72 positions: two parts of the batch
+    return quasi_static(mech, th, sc.drive.speed_rad_s, beam_column=True, coupling=sc.tmm.coupling,
+                        gravity=sc.gravity, backend="compiled").drive_torque
+
+
+def _child(queue):
+    queue.put(float(np.max(_quasi_static_in_two_threads())))
+
+
+def test_a_forked_child_runs_the_threaded_batch_solve(monkeypatch):
+    """The batch solve's thread pool does not survive a fork (its threads stay in the parent): a
+    forked worker that solves a batch in two parts makes its own pool instead of waiting forever
+    on the copied one; same answer as the parent's."""
+    import multiprocessing
+    monkeypatch.setattr(compiled_statics, "THREADS", 2)
+    expected = float(np.max(_quasi_static_in_two_threads()))      # the parent's pool now exists
+    queue = multiprocessing.get_context("fork").Queue()
+    child = multiprocessing.get_context("fork").Process(target=_child, args=(queue,))
+    child.start()
+    child.join(timeout=120)
+    if child.is_alive():
+        child.kill()
+        pytest.fail("the forked child's batch solve did not finish in 120 s")
+    assert child.exitcode == 0 and queue.get(timeout=5) == expected

@@ -4,7 +4,7 @@ Measured 2026-11-26 (`/usr/bin/time -v cosim run crank_rocker_373rpm --engines t
 recording on), before: 412 MB at N = 10, 524 MB at N = 100, about 1.2 MB per revolution (the master
 kept every macro step's EngineOutput and copied them into the EngineRun; traces.parquet was built
 from the whole CSV at once; the figure read every trace). After (the master holds the last four
-revolutions, cosim.run.KEEP_REVOLUTIONS; the parquet file is written in row groups of 2000 CSV
+revolutions, cosim.runs.KEEP_REVOLUTIONS; the parquet file is written in row groups of 2000 CSV
 rows; the figure reads the last revolutions only): 387-391 MB at N = 10, 393-405 MB at N = 100,
 396-397 MB at N = 200, i.e. flat within the +/- 8 MB run-to-run noise of peak RSS."""
 import re

@@ -13,7 +13,7 @@ import pytest
 
 import cosim.figures
 from cosim.cli import EXIT_MISSING_OUTPUTS, _exit_code
-from cosim.run import RunOptions, run_scenario
+from cosim.runs import RunOptions, run_scenario
 from cosim.traces import read_traces
 
 ROOT = Path(__file__).resolve().parent.parent

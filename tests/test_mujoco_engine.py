@@ -13,7 +13,8 @@ import pytest
 pytest.importorskip("mujoco")
 
 import cosim.scenario as cs  # noqa: E402
-from cosim.engines import DriveInput, EngineError, make_engine, run_prescribed  # noqa: E402
+from cosim.engines import DriveInput, EngineError, make_engine  # noqa: E402
+from cosim.master import run_prescribed  # noqa: E402
 from cosim.engines.base import concatenate, constant_speed_profile  # noqa: E402
 from cosim.engines.mujoco_tree import link_inertia  # noqa: E402
 from tmm_core import Link, Material, PointMass, Section, gauge_strains, rigid_body_loads, solve_static  # noqa: E402

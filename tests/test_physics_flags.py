@@ -151,7 +151,7 @@ def test_flexible_crank_linkage_mode_takes_in_a_harmonic():
 
 @pytest.mark.slow
 def test_flexible_crank_run_gets_a_resonance_flag(tmp_path):
-    from cosim.run import RunOptions, run_scenario
+    from cosim.runs import RunOptions, run_scenario
     options = RunOptions(engines=("tmm",), revolutions=0.25, out=tmp_path / "run", viewer="none", progress=False,
                          figures=False)
     summary = run_scenario("crank_rocker_373rpm_flexible_crank", options).summary

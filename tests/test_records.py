@@ -72,7 +72,8 @@ def test_records_are_matched_to_the_scenario_speed():
 @pytest.fixture(scope="module")
 def truth():
     """One steady revolution of the coupler gauge from the TMM engine at 241 rpm (2 % damping)."""
-    from cosim.engines import make_engine, run_prescribed
+    from cosim.engines import make_engine
+    from cosim.master import run_prescribed
     sc = load("crank_rocker_241rpm")
     run = run_prescribed(make_engine("tmm"), sc, revolutions=4)
     last = run.last_revolution(sc.revolution_period_s)

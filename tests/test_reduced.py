@@ -279,7 +279,7 @@ def test_reduced_model_of_an_elastic_crank_agrees_with_the_full_one(beam_column)
     at the scenario's 1 deg the full model's coupler - peak is 1.3 % off). The drive torque is
     compared in linear theory only (the reduced torque leaves out the second-order terms' share of
     the reactions: +1.3 % here)."""
-    from cosim.sweep import periodic_solution
+    from cosim.sweeps import periodic_solution
     sc = load("alexander_lawrence_400rpm").with_overrides({"solver.tmm.beam_column": beam_column})
     full = periodic_solution(sc.with_overrides({"solver.tmm.step": "0.25 deg"}))
     reduced = periodic_solution(sc.with_overrides({"solver.tmm.model": "reduced"}))

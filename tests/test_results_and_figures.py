@@ -12,7 +12,7 @@ import pytest
 import cosim
 from cosim.figures import gauge_label
 from cosim.results import COLUMNS, parse_column
-from cosim.run import RunOptions, run_scenario
+from cosim.runs import RunOptions, run_scenario
 from cosim.traces import read_traces
 
 ROOT = Path(__file__).resolve().parent.parent

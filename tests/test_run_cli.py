@@ -173,7 +173,7 @@ def test_scenario_runs_as_a_plain_script(tmp_path):
 
 @pytest.mark.parametrize("name", [n for n in ALL_SCENARIOS if n != "crank_rocker_373rpm"])
 def test_every_scenario_runs_a_short_prescribed_tmm_run(name, tmp_path):
-    from cosim.run import RunOptions, run_scenario
+    from cosim.runs import RunOptions, run_scenario
     res = run_scenario(name, RunOptions(engines=("tmm",), revolutions=0.2, out=tmp_path / name, viewer="none",
                                         progress=False))
     assert res.summary["status"] == "completed", res.summary
@@ -192,13 +192,13 @@ def test_sweep_runs_points_in_parallel_and_records_peaks(tmp_path):
 def test_sweep_on_a_local_dask_cluster(tmp_path):
     from distributed import LocalCluster
 
-    from cosim.sweep import run_sweep
+    from cosim.sweeps import run_sweep
     with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster:
         folder, summary = run_sweep("crank_rocker_95rpm", "90,100", ("tmm",), revolutions=0.5,
                                     scheduler=cluster.scheduler_address, out=tmp_path / "dask", progress=False)
     assert summary["status"] == "completed" and summary["executor"].startswith("dask")
     local = [p for p in summary["points"] if p["rpm"] == 90.0][0]["engines"]["tmm"]["gauges"]["coupler_mid"]
-    from cosim.sweep import sweep_point
+    from cosim.sweeps import sweep_point
     direct = sweep_point(load("crank_rocker_95rpm").raw, "crank_rocker_95rpm", 90.0, ("tmm",), 0.5)
     assert local["bending_max_ue"] == pytest.approx(direct["engines"]["tmm"]["gauges"]["coupler_mid"]["bending_max_ue"],
                                                     rel=1e-12)

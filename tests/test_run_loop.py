@@ -6,11 +6,11 @@ from types import SimpleNamespace
 
 import pytest
 
-import cosim.run as run_module
+import cosim.runs as run_module
 from cosim.master import CoSimulation
 from cosim.metrics import run_change
 from cosim.report import comparison_table
-from cosim.run import RunOptions, run_scenario
+from cosim.runs import RunOptions, run_scenario
 from cosim.run_progress import RunProgress, toward_steady
 from cosim.scenario import load
 from tmm_core.compiled.cache import cache_is_cold

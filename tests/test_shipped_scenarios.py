@@ -20,7 +20,8 @@ import math
 import numpy as np
 import pytest
 
-from cosim.engines import make_engine, run_prescribed
+from cosim.engines import make_engine
+from cosim.master import run_prescribed
 from cosim.master import CoSimulation
 from cosim.metrics import last_revolution, run_change
 from cosim.scenario import load, scenario_names

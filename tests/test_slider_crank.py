@@ -6,7 +6,8 @@ import json
 import numpy as np
 import pytest
 
-from cosim.engines import make_engine, run_prescribed
+from cosim.engines import make_engine
+from cosim.master import run_prescribed
 from cosim.scenario import load
 from tmm_core import Gauge, quasi_static
 

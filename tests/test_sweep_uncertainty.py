@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from cosim.scenario import SCENARIO_DIR, load
-from cosim.sweep import run_sweep
+from cosim.sweeps import run_sweep
 from cosim.uncertainty import run_uncertainty
 from tmm_core import CrankMotion, TimeDomain
 
@@ -157,9 +157,9 @@ def test_a_sweep_can_use_the_reduced_model_and_agrees_with_the_converged_full_on
 
 def test_sweep_points_share_one_reduced_basis_and_get_the_same_answer():
     """The reduced basis depends on the geometry, not the speed: a sweep worker builds it once
-    (cosim.sweep keeps it by scenario without its speed). The point solved on the shared basis
+    (cosim.sweeps keeps it by scenario without its speed). The point solved on the shared basis
     equals the one that builds its own, bit for bit; a changed mesh builds a new basis."""
-    from cosim import sweep as sweep_module
+    from cosim import sweeps as sweep_module
     from tmm_core.reduced import ReducedOptions
     from tmm_core.reduced_periodic import periodic_steady_state_reduced
     sweep_module._REDUCED.clear()
@@ -188,7 +188,7 @@ def test_an_interrupted_sweep_writes_the_points_it_finished(tmp_path, monkeypatc
     interval is longer than the sweep, so only the final save can write them)."""
     import contextlib
     from concurrent.futures import Future
-    from cosim import sweep as sweep_module
+    from cosim import sweeps as sweep_module
 
     def fake_point(raw, path, rpm, *args):
         return {"rpm": rpm, "engines": {"tmm": {"status": "completed", "error": None,
@@ -238,7 +238,7 @@ def _fake_sweep(monkeypatch, unsolved_from: float, did_not_run=()):
     exception."""
     import contextlib
     from concurrent.futures import Future
-    from cosim import sweep as sweep_module
+    from cosim import sweeps as sweep_module
 
     def fake_point(raw, path, rpm, *args):
         if rpm in did_not_run:

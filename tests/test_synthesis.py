@@ -135,9 +135,9 @@ def test_cli_scenario_out_loads_with_the_synthesized_lengths(tmp_path, capsys):
 
 
 def test_every_four_bar_run_reports_its_limit_positions_and_transmission_range():
-    """The run summary's `linkage` entry (cosim.run.linkage_summary) for the FE rig, against the
+    """The run summary's `linkage` entry (cosim.runs.linkage_summary) for the FE rig, against the
     thesis's values (docs/validation.md, synthesis example: theta1 = 44.665 deg, oscillation 81.0748 deg, mu1 = 18.1949 deg)."""
-    from cosim.run import linkage_summary
+    from cosim.runs import linkage_summary
     from cosim.scenario import load
     lk = linkage_summary(load("crank_rocker_373rpm"))
     assert lk["crank_angle_extended_deg"] == pytest.approx(44.665, abs=1e-3)

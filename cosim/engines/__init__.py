@@ -9,7 +9,7 @@ engine code.
 from __future__ import annotations
 
 from ..interrupts import caused_by_interrupt
-from .base import DriveInput, Engine, EngineError, EngineOutput, EngineRun, EngineUnavailable, run_prescribed
+from .base import DriveInput, Engine, EngineError, EngineOutput, EngineRun, EngineUnavailable
 
 ENGINES = ("tmm", "exudyn", "mujoco")
 

@@ -19,8 +19,9 @@ crank; a motor coupled to them puts its rotor and flywheel inertia on their cran
 ``reset(..., drive_inertia_kg_m2=...)``). ``save()``/``restore()`` let a master repeat a macro
 step (iterated coupling).
 
-Owns: the engine protocol, ``EngineOutput``/``DriveInput``/``EngineRun`` and ``run_prescribed``.
-Boundaries: no engine-specific code; the run loop itself is cosim.master.
+Owns: the engine protocol, ``EngineOutput``/``DriveInput``/``EngineRun``. Boundaries: no
+engine-specific code; the run loop itself (and ``run_prescribed``, one engine through it) is
+cosim.master, which engines never import.
 """
 from __future__ import annotations
 
@@ -157,18 +158,3 @@ def concatenate(engine: str, outputs: list, wall_time_s: float) -> EngineRun:
     return EngineRun(engine, cat([o.t for o in outputs]), cat([o.crank_angle for o in outputs]),
                      cat([o.crank_speed for o in outputs]), cat([o.drive_torque for o in outputs]),
                      gauges, nodes, extras, wall_time_s)
-
-
-def run_prescribed(engine: Engine, scenario: Scenario, revolutions: float | None = None) -> EngineRun:
-    """Drive one engine at the scenario's constant crank speed for ``revolutions`` (default: the
-    scenario's output setting; without one, until the engine is steady or the scenario's
-    ``output.max_revolutions``). It is the co-simulation master's prescribed mode with a single
-    engine (one run loop, the scenario's macro step); an engine failure raises its error."""
-    from ..master import CoSimulation
-    result = CoSimulation(scenario, {engine.name: engine}, mode="prescribed").run(revolutions=revolutions)
-    channel = result[engine.name]
-    if channel.status == "failed":
-        raise EngineError(channel.error)
-    if channel.status == "interrupted":
-        raise KeyboardInterrupt
-    return channel.run

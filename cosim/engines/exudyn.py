@@ -131,12 +131,26 @@ class ExudynEngine:
     def _build(self, lk, angle, speed, gravity):
         """The model of a linkage (:func:`tmm_core.linkage.as_linkage`): one cable chain per link
         part, rigid bodies for a rigid crank, plates and slider blocks, joined joint by joint."""
+        mo = lk.motion(np.array([float(angle)]), speed, 0.0)
+        joints = _Joints(lk.kinematics)
+        self._hub(lk, mo, angle, speed, joints)
+        station_sensors, node_markers = self._links(lk, mo, gravity, joints)
+        self._plates(lk, mo, gravity, joints, station_sensors)
+        self._slides(lk, mo, joints)
+        joints.join(self.mbs, self._ground)
+        self._springs_and_loads(lk, joints, node_markers)
+        self._gauge_sensors = {g.name: self._gauge(g) for g in self.gauges}
+        self._output_sensors(station_sensors)
+        self.mbs.Assemble()
+
+    def _hub(self, lk, mo, angle, speed, joints):
+        """The system, the ground and the crank hub: pinned at the crank pivot, its rotation
+        prescribed through a coordinate constraint (or driven by a torque)."""
+        kin = lk.kinematics
         SC = exu.SystemContainer()
         mbs = SC.AddSystem()
         self._sc, self.mbs = SC, mbs
-        kin = lk.kinematics
-        mo = lk.motion(np.array([float(angle)]), speed, 0.0)
-        ground = mbs.AddObject(ObjectGround())
+        self._ground = mbs.AddObject(ObjectGround())
         gnode = mbs.AddNode(NodePointGround())
         mg = mbs.AddMarker(MarkerNodeCoordinate(nodeNumber=gnode, coordinate=0))
         A = kin.reference_position(kin.pivot)
@@ -154,18 +168,14 @@ class ExudynEngine:
         self._drive_constraint = mbs.AddObject(CoordinateConstraint(
             markerNumbers=[mg, hc[2]], offsetUserFunction=self._offset, offsetUserFunction_t=self._offset_t))
         self._torque_load = mbs.AddLoad(LoadCoordinate(markerNumber=hc[2], loadUserFunction=self._torque))
+        joints.attach(kin.pivot, mbs.AddMarker(MarkerBodyPosition(bodyNumber=hub, localPosition=[0, 0, 0])),
+                      (hub, [0.0, 0.0, 0.0]), crank_global, "owner")
 
-        # What meets at every joint: (position marker, (body, local position) of a rigid marker,
-        # its frame angle, kind) with kind 'owner' (a body the welded link ends lock to: the hub,
-        # a slider block), 'weld' (a link end welded to the joint) or 'pin' (a revolute: link
-        # ends, plate vertices, ground).
-        at = {}
-
-        def attach(j, pos, rigid=None, frame=0.0, kind="pin"):
-            at.setdefault(j, []).append((pos, rigid, frame, kind))
-        attach(kin.pivot, mbs.AddMarker(MarkerBodyPosition(bodyNumber=hub, localPosition=[0, 0, 0])),
-               (hub, [0.0, 0.0, 0.0]), crank_global, "owner")
-
+    def _links(self, lk, mo, gravity, joints):
+        """Each link part as a chain of ANCF cables (a rigid one as a rigid body), with its point
+        masses and gravity; returns the station sensors and node markers by link."""
+        mbs = self.mbs
+        attach = joints.attach
         self.nodes, self.elements, station_sensors, node_markers = {}, {}, {}, {}
         for link0, a, b, ca, cb in lk.members:
             if link0.name in self._carriers:
@@ -208,8 +218,11 @@ class ExudynEngine:
             attach(b, node_markers[link.name][-1], rig[1], phi, "weld" if cb == "rigid" else "pin")
             station_sensors[link.name] = [mbs.AddSensor(SensorNode(nodeNumber=n, storeInternal=True, writeToFile=False,
                                                                    outputVariableType=OVT.Position)) for n in nodes]
+        return station_sensors, node_markers
 
-        # Plates: one rigid body at the centre of mass (reference angle 0), pinned at its vertices.
+    def _plates(self, lk, mo, gravity, joints, station_sensors):
+        """Plates: one rigid body at the centre of mass (reference angle 0), pinned at its vertices."""
+        mbs, attach = self.mbs, joints.attach
         for p in lk.plates:
             pc, vc, _ = mo.joint(p.master)
             om = float(mo.state.bodies[lk.frames[p.carrier]].omega[0])
@@ -229,6 +242,9 @@ class ExudynEngine:
                                                                    storeInternal=True, writeToFile=False,
                                                                    outputVariableType=OVT.Position)) for x, y in rel]
 
+    def _slides(self, lk, mo, joints):
+        """Slider blocks on the ground and on moving guides."""
+        mbs, attach, ground, kin = self.mbs, joints.attach, self._ground, lk.kinematics
         # Ground slides: a light block on a planar prismatic joint along the guide; the block's mass
         # is a point mass on the link end (as in the other engines).
         for j, gam in kin.ground_slides.items():
@@ -259,35 +275,11 @@ class ExudynEngine:
             attach(sl.block, mbs.AddMarker(MarkerBodyPosition(bodyNumber=body, localPosition=[0, 0, 0])),
                    (body, [0.0, 0.0, 0.0]), phi, "owner")
 
-        ground_marker = {}
-
-        def on_ground(j):
-            if j not in ground_marker:
-                P = kin.reference_position(j)
-                ground_marker[j] = mbs.AddMarker(MarkerBodyPosition(bodyNumber=ground, localPosition=[P[0], P[1], 0.0]))
-            return ground_marker[j]
-        for j in kin.ground:
-            if j != kin.pivot and j in at:            # the hub is pinned at the crank pivot already
-                attach(j, on_ground(j))
-        for j, items in at.items():
-            welds = [x for x in items if x[3] == "owner"] + [x for x in items if x[3] == "weld"]
-            pins = [x for x in items if x[3] == "pin"]
-            base = welds[0] if welds else pins.pop(0)
-            for x in welds[1:]:
-                # The second marker's frame is turned onto the first's: the weld keeps the angle
-                # the two ends make in the drawn linkage (a kink, an arm square to its block).
-                turn = _wrap(base[2] - x[2])
-                m1 = (MarkerBodyRigid(bodyNumber=x[1][0], localPosition=x[1][1]) if abs(turn) < 1e-15 else
-                      MarkerBodyRigid(bodyNumber=x[1][0], localHT=exu.HT(rotation=rz(turn), translation=x[1][1])))
-                mbs.AddObject(GenericJoint(markerNumbers=[mbs.AddMarker(MarkerBodyRigid(bodyNumber=base[1][0],
-                                                                                        localPosition=base[1][1])),
-                                                          mbs.AddMarker(m1)], constrainedAxes=[1, 1, 0, 0, 0, 1]))
-            for x in pins:
-                mbs.AddObject(RevoluteJoint2D(markerNumbers=[base[0], x[0]]))
-
-        # Springs between joints, and the constant loads at the link nodes.
+    def _springs_and_loads(self, lk, joints, node_markers):
+        """Springs between joints, and the constant loads at the link nodes."""
+        mbs = self.mbs
         for sp in lk.springs:
-            ends = [at[j][0][0] if j in at else on_ground(j) for j in (sp.a, sp.b)]
+            ends = [joints.marker(j, mbs, self._ground) for j in (sp.a, sp.b)]
             mbs.AddObject(ObjectConnectorSpringDamper(markerNumbers=ends, referenceLength=sp.free_length,
                                                       stiffness=sp.k))
         for name, F in lk.loads.items():
@@ -305,27 +297,32 @@ class ExudynEngine:
                     mbs.AddLoad(LoadTorqueVector(markerNumber=mbs.AddMarker(MarkerBodyRigid(
                         bodyNumber=self.elements[name][e], localPosition=[x, 0, 0])), loadVector=[0.0, 0.0, F[k][2]]))
 
-        # Gauge sensors: the element(s) around the gauge position.
-        self._gauge_sensors = {}
-        for g in self.gauges:
-            link = self.links[g.link]
-            st = link.stations
-            j = int(np.argmin(np.abs(st - g.position_m)))
-            sensors = []
-            if abs(st[j] - g.position_m) < 1e-9 * link.length_m:
-                spots = [(j - 1, st[j] - st[j - 1])] if j > 0 else []
-                spots += [(j, 0.0)] if j < len(st) - 1 else []
-            else:
-                e = int(np.clip(np.searchsorted(st, g.position_m) - 1, 0, len(st) - 2))
-                spots = [(e, g.position_m - st[e])]
-            for e, x in spots:
-                body = self.elements[g.link][e]
-                sensors.append((mbs.AddSensor(SensorBody(bodyNumber=body, localPosition=[x, 0, 0], storeInternal=True,
-                                                         writeToFile=False, outputVariableType=OVT.CurvatureLocal)),
-                                mbs.AddSensor(SensorBody(bodyNumber=body, localPosition=[x, 0, 0], storeInternal=True,
-                                                         writeToFile=False, outputVariableType=OVT.StrainLocal))))
-            sec = link.member("a", "b").sections[min(j, link.total_segments - 1)]
-            self._gauge_sensors[g.name] = (sensors, sec.depth_m, g.face)
+    def _gauge(self, g) -> tuple:
+        """A gauge's sensors: the element(s) around its position (curvature and strain), its
+        section depth [m] and face."""
+        mbs = self.mbs
+        link = self.links[g.link]
+        st = link.stations
+        j = int(np.argmin(np.abs(st - g.position_m)))
+        sensors = []
+        if abs(st[j] - g.position_m) < 1e-9 * link.length_m:
+            spots = [(j - 1, st[j] - st[j - 1])] if j > 0 else []
+            spots += [(j, 0.0)] if j < len(st) - 1 else []
+        else:
+            e = int(np.clip(np.searchsorted(st, g.position_m) - 1, 0, len(st) - 2))
+            spots = [(e, g.position_m - st[e])]
+        for e, x in spots:
+            body = self.elements[g.link][e]
+            sensors.append((mbs.AddSensor(SensorBody(bodyNumber=body, localPosition=[x, 0, 0], storeInternal=True,
+                                                     writeToFile=False, outputVariableType=OVT.CurvatureLocal)),
+                            mbs.AddSensor(SensorBody(bodyNumber=body, localPosition=[x, 0, 0], storeInternal=True,
+                                                     writeToFile=False, outputVariableType=OVT.StrainLocal))))
+        sec = link.member("a", "b").sections[min(j, link.total_segments - 1)]
+        return sensors, sec.depth_m, g.face
+
+    def _output_sensors(self, station_sensors):
+        """The hub's, the drive's and the stations' sensors."""
+        mbs = self.mbs
         # Every output is sampled at every internal step (stored in memory by exudyn for one
         # SolveDynamic): sampling only at macro-step ends under-resolves the strain peaks (at 72
         # macro steps per revolution a 13th-harmonic vibration loses up to 15 % of its peak, and a
@@ -338,7 +335,6 @@ class ExudynEngine:
         self._drive_sensor = mbs.AddSensor(SensorObject(objectNumber=self._drive_constraint, storeInternal=True,
                                                         writeToFile=False, outputVariableType=OVT.Force))
         self._node_sensors = station_sensors
-        mbs.Assemble()
 
     def _init_solver(self, settings):
         sims = exu.SimulationSettings()
@@ -490,3 +486,53 @@ def natural_frequencies(scenario: Scenario, angle: float, n_modes: int = 4) -> n
     values = np.sort(np.asarray(values, dtype=float))
     values = values[values > 1e-3]   # the constraint projection leaves numerically zero modes [Hz]
     return values[:n_modes]
+
+
+class _Joints:
+    """What meets at every joint while a model is built: (position marker, (body, local position)
+    of a rigid marker or None, its frame angle, kind) with kind 'owner' (a body the welded link
+    ends lock to: the hub, a slider block), 'weld' (a link end welded to the joint) or 'pin' (a
+    revolute: link ends, plate vertices, ground); then joined joint by joint."""
+
+    def __init__(self, kinematics):
+        self.kin = kinematics
+        self.at = {}
+        self._ground_markers = {}
+
+    def attach(self, j, pos, rigid=None, frame=0.0, kind="pin"):
+        self.at.setdefault(j, []).append((pos, rigid, frame, kind))
+
+    def on_ground(self, j, mbs, ground):
+        """A position marker on the ground at joint ``j`` (one per joint)."""
+        if j not in self._ground_markers:
+            P = self.kin.reference_position(j)
+            self._ground_markers[j] = mbs.AddMarker(MarkerBodyPosition(bodyNumber=ground,
+                                                                       localPosition=[P[0], P[1], 0.0]))
+        return self._ground_markers[j]
+
+    def marker(self, j, mbs, ground):
+        """A position marker at joint ``j``: the first attached there, else one on the ground."""
+        return self.at[j][0][0] if j in self.at else self.on_ground(j, mbs, ground)
+
+    def join(self, mbs, ground):
+        """Ground joints pinned to the ground; at every joint the owner (or first weld, else the
+        first pin) carries the other welds (rigidly, at their drawn angle) and the pins."""
+        kin = self.kin
+        for j in kin.ground:
+            if j != kin.pivot and j in self.at:       # the hub is pinned at the crank pivot already
+                self.attach(j, self.on_ground(j, mbs, ground))
+        for j, items in self.at.items():
+            welds = [x for x in items if x[3] == "owner"] + [x for x in items if x[3] == "weld"]
+            pins = [x for x in items if x[3] == "pin"]
+            base = welds[0] if welds else pins.pop(0)
+            for x in welds[1:]:
+                # The second marker's frame is turned onto the first's: the weld keeps the angle
+                # the two ends make in the drawn linkage (a kink, an arm square to its block).
+                turn = _wrap(base[2] - x[2])
+                m1 = (MarkerBodyRigid(bodyNumber=x[1][0], localPosition=x[1][1]) if abs(turn) < 1e-15 else
+                      MarkerBodyRigid(bodyNumber=x[1][0], localHT=exu.HT(rotation=rz(turn), translation=x[1][1])))
+                mbs.AddObject(GenericJoint(markerNumbers=[mbs.AddMarker(MarkerBodyRigid(bodyNumber=base[1][0],
+                                                                                        localPosition=base[1][1])),
+                                                          mbs.AddMarker(m1)], constrainedAxes=[1, 1, 0, 0, 0, 1]))
+            for x in pins:
+                mbs.AddObject(RevoluteJoint2D(markerNumbers=[base[0], x[0]]))

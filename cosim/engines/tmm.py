@@ -90,24 +90,23 @@ class TMMEngine:
                               "identify); a time-marching run needs model = \"full\" (or drop the key)")
         self.scenario = scenario
         self.td = scenario.time_domain()
-        ref_speed = scenario.drive.speed_rad_s or speed
-        if s.step_s is not None:
-            self._dt = s.step_s
-        elif ref_speed:
-            self._dt = s.step_rad / abs(ref_speed)
-        else:
+        # The step and the cached revolution are the scenario's (its set-point speed); ``speed`` is
+        # only the crank's state at t0 (a motor run may start from rest).
+        set_speed = scenario.drive.speed_rad_s
+        if s.step_s is None and not set_speed:
             raise EngineError("tmm: a crank-angle step needs a non-zero drive speed; give solver.tmm.step in s")
+        self._dt = scenario.engine_step_s("tmm")
         self.t0, self.k = t0, 0
         self._angle0, self._speed0 = angle, speed
         self.march = self.td.begin(self._dt, angle, speed, 0.0, start=s.start)
         self.cache = None        # a Revolution at the scenario's speed
-        N = 2 * math.pi / (abs(ref_speed) * self._dt) if ref_speed else 0.0
-        if ref_speed and abs(N - round(N)) < 1e-6 and round(N) >= 4:
+        N = scenario.revolution_period_s / self._dt if set_speed else 0.0
+        if set_speed and abs(N - round(N)) < 1e-6 and round(N) >= 4:
             N = int(round(N))
             j = np.arange(N)
-            angles = angle + ref_speed * self._dt * j
-            self.cache = Revolution(N, ref_speed, angles,
-                                    self.td.configurations(angles, np.full(N, ref_speed), np.zeros(N), self._dt))
+            angles = angle + set_speed * self._dt * j
+            self.cache = Revolution(N, set_speed, angles,
+                                    self.td.configurations(angles, np.full(N, set_speed), np.zeros(N), self._dt))
         self.links = self.td.links                          # elastic links (their DOFs)
         self.drawn = scenario.mechanism.links()             # every link, rigid ones too
         self._frames = {}     # id(configuration batch) -> per link (rigid node positions, cos, sin)

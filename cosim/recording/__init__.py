@@ -70,13 +70,13 @@ and its unit, so legends are self-explanatory; the strain plots hold one series 
 record, so their legends stay small.
 
 Owns: the recording package's public names and the entity list. Boundaries: no rerun import at
-package import.
+package import (no numpy either).
 """
 from __future__ import annotations
 
-from .layout import CRANK_ANGLE, CRANK_ANGLE_WRAPPED, MODES, REVOLUTION, SIM_TIME  # noqa: F401
-
 _LAZY = {
+    "CRANK_ANGLE": "layout", "CRANK_ANGLE_WRAPPED": "layout", "MODES": "layout", "REVOLUTION": "layout",
+    "SIM_TIME": "layout",
     "Recorder": "recorder", "RecorderProcess": "process", "ViewerOptions": "sinks", "RecordingSpec": "spec",
     "spec_from_scenario": "spec", "read_back": "reader", "read_scalars": "reader", "read_blueprint": "reader",
     "read_column": "reader", "read_static": "reader", "chunk_counts": "reader", "run_blueprint": "blueprint",
@@ -85,7 +85,7 @@ _LAZY = {
 
 def __getattr__(name):
     # Imported on first use: the package itself must not import rerun (the run's process of
-    # `cosim run` never does).
+    # `cosim run` never does), nor numpy (`cosim --help` imports the package for its options).
     if name in _LAZY:
         from importlib import import_module
         return getattr(import_module(f"{__name__}.{_LAZY[name]}"), name)

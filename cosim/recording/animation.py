@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from ..files import clear_link
-
+from ..metrics import last_revolution
 from . import linkage as drawing
 from .layout import STRAIGHT_COLOR, engine_color
 
@@ -26,7 +26,6 @@ def write_gif(path, runs: dict, stations: dict | None = None, exaggeration: floa
     from matplotlib import animation
     from matplotlib import pyplot as plt
 
-    from ..metrics import last_revolution
     picks = {}
     for engine, run in runs.items():
         if len(run.t) and run.nodes:

@@ -52,7 +52,7 @@ from pathlib import Path
 
 from .batch import StepBatcher
 from .recorder import Recorder, checked_arguments
-from .sinks import ViewerOptions
+from .sinks import ViewerOptions, serve_until_interrupted
 
 log = logging.getLogger("cosim.recording")
 _DONE = object()
@@ -347,7 +347,6 @@ def _child(level: int) -> int:
         if writer.viewer.viewer == "serve" and writer.urls:
             writer.rec.flush(timeout_sec=writer.viewer.timeout_s)
             report(serving=writer.urls[0])
-            from .sinks import serve_until_interrupted
             serve_until_interrupted(parent)
     except KeyboardInterrupt:
         pass

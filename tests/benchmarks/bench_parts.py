@@ -90,7 +90,7 @@ def bench_overhead(rig, macro_multiples, revolutions, pairs: int = OVERHEAD_PAIR
     fractions of the engine's time, at macro steps of ``macro_multiples`` TMM steps (1 deg)."""
     from cosim.engines import make_engine
     from cosim.master import CoSimulation
-    from cosim.run import RunOptions, run_scenario
+    from cosim.runs import RunOptions, run_scenario
     from cosim.scenario import load
     from .bench_accuracy import timed
     sc = load(rig)

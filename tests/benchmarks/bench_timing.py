@@ -72,7 +72,7 @@ def timed_process(rig: str, engine: str, setting: dict, revolutions: float, cold
     Returns {"first_call_s", "setup_s", "march_s", "sim_s" (warm run, [s]), "cold_s" (cold run,
     engine creation included [s]), "maxrss_kB"}."""
     from cosim.engines import make_engine
-    from cosim.engines.base import run_prescribed
+    from cosim.master import run_prescribed
     from .bench_accuracy import scenario_for, timed
     sc = scenario_for(rig, engine, setting)
 
@@ -94,7 +94,7 @@ def timed_process(rig: str, engine: str, setting: dict, revolutions: float, cold
 
 def periodic_solve(rig: str, setting: dict) -> float:
     """Wall time [s] of the TMM's periodic steady-state solve at ``setting`` (after a first call)."""
-    from cosim.sweep import periodic_solution
+    from cosim.sweeps import periodic_solution
     from .bench_accuracy import scenario_for
     sc = scenario_for(rig, "tmm", setting)
     tic = time.perf_counter()

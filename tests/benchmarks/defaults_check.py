@@ -18,7 +18,8 @@ import sys
 import time
 from pathlib import Path
 
-from cosim.engines import make_engine, run_prescribed
+from cosim.engines import make_engine
+from cosim.master import run_prescribed
 from cosim.metrics import last_revolution, run_change
 from cosim.runlog import write_json
 from cosim.scenario import load, scenario_names

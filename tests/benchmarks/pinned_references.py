@@ -37,7 +37,8 @@ WEAK_DRIVE, FLEXIBLE_CRANK = "crank_rocker_373rpm_weak_drive", "crank_rocker_373
 def refined_peaks(name: str, engine: str, gauge: str, count: float, step: float) -> dict:
     """``engine``'s steady +/- bending peak [microstrain] of ``gauge`` at the scenario's setting
     with its count times ``count`` and its step times ``step``, run until steady."""
-    from cosim.engines import make_engine, run_prescribed
+    from cosim.engines import make_engine
+    from cosim.master import run_prescribed
     from cosim.metrics import last_revolution, run_change
     setting = scaled(default_setting(name, engine), count=count, step=step)
     sc = scenario_for(name, engine, setting)

@@ -25,7 +25,7 @@ RPM = "100:500:5"          # 81 points
 def sweep(workers: int, segments: int, rpm: str, out_dir: Path, model: str = "full") -> dict:
     """Run the periodic sweep into ``out_dir`` (which must not hold a run) with the TMM ``model``
     ('full' or 'reduced'); wall time [s] and median time per point [s]."""
-    from cosim.sweep import run_sweep
+    from cosim.sweeps import run_sweep
     out_dir.mkdir(parents=True, exist_ok=True)
     path = out_dir / "rig.toml"
     path.write_text(f'extends = "{SCENARIO_DIR / "crank_rocker_373rpm"}.toml"\n\n[solver.tmm]\n'

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import concurrent.futures
 import functools
+import os
 from dataclasses import dataclass
 from typing import Mapping
 
@@ -346,6 +347,11 @@ def _thread_chunks(B: int, solves: int) -> int:
 @functools.lru_cache(maxsize=None)
 def _pool(threads: int) -> concurrent.futures.ThreadPoolExecutor:
     return concurrent.futures.ThreadPoolExecutor(max_workers=threads, thread_name_prefix="tmm-kernel")
+
+
+# A forked child (a sweep's worker) has none of the parent's pool threads: work handed to the
+# copied pool would wait forever. The child makes its own on first use.
+os.register_at_fork(after_in_child=_pool.cache_clear)
 
 
 def _in_parts(kernel, B: int, chunks: int, *args) -> None:

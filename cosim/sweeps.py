@@ -27,12 +27,24 @@ from pathlib import Path
 
 import numpy as np
 
-from .master import macro_step_for
+from tmm_core import TMMError
+from tmm_core.ked import CrankMotion
+from tmm_core.periodic import periodic_steady_state
+from tmm_core.reduced import ReducedOptions, build_basis
+from tmm_core.reduced_periodic import periodic_steady_state_reduced, stage_points
+from tmm_core.reduced_stages import StageCoefficients
+
+from .engines import ENGINES
+from .figures import peaks_by_speed
+from .master import CoSimulation, macro_step_for
+from .metrics import steadiness
+from .overrides import apply_overrides, prescribed_speed
 from .parallel import describe, executor
 from .physics_flags import buckling_flags
+from .resonance import campbell, frequency_map, plot_sweep
+from .runs import last_revolution_stats
 from .run_guards import MAX_HOURS, check_study, estimate_cost
 from .runlog import run_folder, write_csv, write_json
-from .overrides import apply_overrides
 from .scenario import ScenarioError, from_dict, load
 
 log = logging.getLogger(__name__)
@@ -75,11 +87,8 @@ def sweep_point(raw: dict, path: str, rpm: float, engines: tuple, revolutions: f
     """One speed: last-revolution peaks per engine and gauge (runs in a worker). The transfer-
     matrix engine uses the periodic steady-state solve (``method = "periodic"``, with its Floquet
     multipliers) or time marching like the others (``"march"``)."""
-    from .master import CoSimulation
-    from .metrics import steadiness
-    from .run import last_revolution_stats
 
-    sc = from_dict(apply_overrides(raw, {"drive.speed": f"{rpm} rpm", "drive.mode": "prescribed"}), path)
+    sc = from_dict(apply_overrides(raw, prescribed_speed(rpm)), path)
     out = {"rpm": rpm, "engines": {}}
     tic = time.perf_counter()
     marched = tuple(e for e in engines if not (e == "tmm" and method == "periodic"))
@@ -112,10 +121,6 @@ SAVE_EVERY_S = 1.0
 
 def _reduced_parts(sc, td, options, many: bool):
     """``(basis, stage coefficients or None)`` of the scenario for the reduced model."""
-    from tmm_core.ked import CrankMotion
-    from tmm_core.reduced import build_basis
-    from tmm_core.reduced_periodic import stage_points
-    from tmm_core.reduced_stages import StageCoefficients
     raw = {k: v for k, v in sc.raw.items() if k != "drive"}
     raw["drive"] = {k: v for k, v in sc.raw.get("drive", {}).items() if k != "speed"}
     key = (json.dumps(raw, sort_keys=True, default=str), sc.drive.start_angle_rad, repr(options))
@@ -137,13 +142,10 @@ def periodic_solution(sc, many: bool = False):
     """The scenario's periodic steady state (``tmm_core.periodic.periodic_steady_state``) with its
     TMM settings at its drive speed. ``many``: this process solves many speeds of the scenario (a
     sweep's worker): the reduced model keeps its speed-free stage matrices."""
-    from tmm_core.periodic import periodic_steady_state
     s = sc.tmm
     td = sc.time_domain()
     if s.model == "reduced":
         # solver.tmm.model = "reduced": link modes plus a static correction (tmm_core.reduced).
-        from tmm_core.reduced import ReducedOptions
-        from tmm_core.reduced_periodic import periodic_steady_state_reduced
         options = ReducedOptions(modes=s.modes)
         basis, stages = _reduced_parts(sc, td, options, many)
         return periodic_steady_state_reduced(td, sc.drive.speed_rad_s, start_angle=sc.drive.start_angle_rad,
@@ -155,7 +157,6 @@ def periodic_solution(sc, many: bool = False):
 def periodic_point_histories(sc, n_grid: int = 360) -> dict:
     """Periodic TMM response on a uniform crank-angle grid (degrees from 0 to 360 - step, wrapped):
     {"status", "angle_deg", "gauges": {g: {"bending_ue", "axial_ue"}}} (lists, picklable)."""
-    from tmm_core import TMMError
     try:
         p = periodic_solution(sc)
     except TMMError as exc:
@@ -174,7 +175,6 @@ def periodic_point(sc, many: bool = False) -> dict:
     """Periodic steady state of the scenario's TMM model at its drive speed: peaks, drive
     torque range and the largest Floquet multiplier (|mu| > 1: parametric resonance); ``many``:
     see :func:`periodic_solution`."""
-    from tmm_core import TMMError
     try:
         p = periodic_solution(sc, many)
     except TMMError as exc:
@@ -199,7 +199,7 @@ def sweep_point_cost(sc, rpms, engines, revolutions, method: str) -> dict:
     """One point's :func:`cosim.run_guards.estimate_cost` at the sweep's lowest speed (the dearest
     point: steps in seconds grow with the period, steps in degrees do not), an upper bound for
     the others; ``revolutions`` None: the scenario's (until steady: its ``output.max_revolutions``)."""
-    slow = sc.with_overrides({"drive.speed": f"{float(np.min(rpms))!r} rpm", "drive.mode": "prescribed"})
+    slow = sc.with_overrides(prescribed_speed(float(np.min(rpms))))
     period = slow.revolution_period_s
     revs = revolutions or slow.output.revolutions or slow.output.max_revolutions
     marched = [e for e in engines if not (e == "tmm" and method == "periodic")]
@@ -317,13 +317,11 @@ def run_sweep(scenario: str, rpm, engines=("tmm",), revolutions: float | None = 
                             "periodic, or the full model (--model full) to march in time")
     rpms = parse_rpm(rpm) if isinstance(rpm, str) else np.asarray(rpm, dtype=float)
     revs = sc.output.revolutions if revolutions is None else revolutions
-    from .engines import ENGINES
     for e in engines:
         if e not in ENGINES:
             raise ScenarioError(f"unknown engine {e!r}; choose from {', '.join(ENGINES)}")
     check_study(sc, "sweep", _sweep_solves(rpm, rpms, revolutions), sweep_point_cost(sc, rpms, engines, revs, method),
                 workers, max_hours)
-    from .figures import peaks_by_speed
     record_peaks = peaks_by_speed(getattr(sc, "rig", None), float(rpms.min()), float(rpms.max()), records_dir)
     folder = run_folder(f"{sc.name}-sweep", out)
     log.info("sweep of %s at %d speeds (%s); results to %s", sc.name, len(rpms), ", ".join(engines), folder)
@@ -393,7 +391,6 @@ def _after_points(sc, folder: Path, summary: dict, points: list, rpms, resonance
     if resonance and not four_bar:
         log.info("no Campbell diagram: the natural-frequency map is implemented for four-bars only")
     if resonance and four_bar and points and summary["status"] != "interrupted":
-        from .resonance import campbell, frequency_map
         log.info("natural frequencies over a revolution for the Campbell diagram (--no-campbell skips it)")
         try:
             fmap = frequency_map(sc, progress=progress)
@@ -408,7 +405,6 @@ def _after_points(sc, folder: Path, summary: dict, points: list, rpms, resonance
                                                  (p["engines"].get("tmm") or {}).get("parametric_resonance"))
     summary["records_peaks"] = record_peaks
     if points:
-        from .resonance import plot_sweep
         summary["figures"] = [str(x.name) for x in plot_sweep(folder, sc.name, summary["points"], fmap,
                                                                 marks_rpm=[sc.drive.speed_rpm],
                                                                 record_peaks=record_peaks,

@@ -41,21 +41,35 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+import tomli_w
+
+from tmm_core import FourBarMechanism, TMMError
 
 from . import __version__
+from . import figures as run_figures      # through the module: a test puts a failing stand-in there
+from .compare import convention_warnings, score_history, score_peaks, sign_check
 from .engines import ENGINES, EngineUnavailable, make_engine
 from .files import write_atomic
-from .master import CoSimulation, InputError
-from .metrics import last_revolution, revolutions_completed, steadiness
-from .runlog import run_folder, write_json
-from .scenario import Scenario, load, resolved
 from .interrupted import mark_interrupted
 from .interrupts import Interrupts
+from .master import CoSimulation, InputError
+from .metrics import last_revolution, revolutions_completed, steadiness
 from .physics_flags import attach_flags, questionable
+from .recording.animation import write_gif
+from .recording.batch import check_linkage_rate
+from .recording.process import RecorderProcess
+from .recording.recorder import check_exaggeration
+from .recording.sinks import ViewerOptions
+from .records import history_over_angle, peaks_at, records_for
+from .results import write_parquet
 from .run_guards import MAX_HOURS, check_cost, plausibility_notes
 from .run_outcome import attempt, fail_out_of_memory, final_status, missing, out_of_memory
 from .run_progress import RunProgress, compile_notice
+from .runlog import run_folder, write_json
 from .samples import SampleCollector
+from .scenario import Scenario, load, resolved
+from .scenario_types import to_rpm
+from .synthesis import limit_positions
 from .traces import TraceWriter, TracesNotWritten
 
 SUMMARY_EVERY_S = 2.0
@@ -63,6 +77,7 @@ SUMMARY_EVERY_S = 2.0
 #: steady-state check, the scores and the figures use the last two.
 KEEP_REVOLUTIONS = 4
 log = logging.getLogger(__name__)
+
 
 @dataclass
 class RunOptions:
@@ -82,6 +97,10 @@ class RunOptions:
     records: Path | None = None          # records directory (default: the shipped scenarios/records)
     figures: bool = True                 # strains.png/.svg in the run folder
     max_hours: float = MAX_HOURS         # refuse a run estimated to take longer (estimate_cost)
+    #: Called with the summary as soon as the engines' results are summarised, before the
+    #: parquet copy and the figures are written (seconds more): the command line prints its
+    #: table there. The status it sees may still become 'completed with missing outputs'.
+    on_results: object = None
 
 
 @dataclass
@@ -113,10 +132,8 @@ def last_revolution_stats(run, period: float | None = None, t0: float = 0.0) -> 
 def linkage_summary(sc: Scenario) -> dict | None:
     """Limit positions and transmission-angle range of a four-bar scenario [deg]
     (:func:`cosim.synthesis.limit_positions`); None for other linkages or a non-Grashof one."""
-    from tmm_core import FourBarMechanism, TMMError
     if not isinstance(sc.mechanism, FourBarMechanism):
         return None
-    from .synthesis import limit_positions
     try:
         lim = limit_positions(sc.mechanism.geometry)
     except TMMError as exc:
@@ -138,7 +155,7 @@ def _engine_summary(ch, scenario: Scenario, sim_t0: float) -> dict:
     if ch.motor is not None and len(run.t):
         f = ch.speed_fluctuation()
         if len(f["mean"]):
-            d["speed"] = {"mean_rpm_last": float(f["mean"][-1] * 30 / math.pi),
+            d["speed"] = {"mean_rpm_last": float(to_rpm(f["mean"][-1])),
                           "fluctuation_last": float(f["fluctuation"][-1]),
                           "fluctuation_per_revolution": [float(x) for x in f["fluctuation"]]}
         try:
@@ -155,7 +172,59 @@ def _engine_summary(ch, scenario: Scenario, sim_t0: float) -> dict:
 def run_scenario(scenario, options: RunOptions = RunOptions(), callback=None) -> RunResult:
     """Run a scenario (name, path or :class:`Scenario`) through ``options.engines`` and write the
     log folder. Returns the folder and the summary; never raises for an engine's failure (it is
-    in the summary), only for bad input before anything runs."""
+    in the summary), only for bad input before anything runs.
+
+    The pipeline: the plan (every check before anything is written), the folder with its opening
+    summary, the engines' loop (traces and recording written as it goes), the summary of the
+    results (printed through ``options.on_results``), then the slower files."""
+    plan = _plan(scenario, options)
+    folder = run_folder(plan.sc.name, options.out)
+    summary = _open_folder(plan, options, folder)
+    writer = TraceWriter(folder / "traces.csv")
+    notes = []
+    # Started before the engines set up: its child process imports rerun meanwhile.
+    recorder = _start_recorder(plan.sc, plan.mode, plan.engines, folder, options, plan.viewer, summary)
+    exports = _start_exports(plan.engines, folder)
+    status, result, write_failed = _run_engines(plan, options, callback, folder, summary, notes, writer, recorder)
+    _summarise_results(plan, options, folder, summary, notes, status, result, recorder, exports)
+    if options.on_results is not None:
+        options.on_results(dict(summary, status=final_status(status, summary)))
+    if writer.columns is not None and status == "interrupted":
+        # Stop promptly (a signal asks for it): traces.csv is the run's file, which cosim.load_run
+        # reads; the parquet copy and the figure are not made.
+        notes.append("traces.parquet and the strain figure are not written for an interrupted run "
+                     "(cosim.load_run reads traces.csv)")
+    elif writer.columns is not None and not write_failed and "out_of_memory" not in summary:
+        _write_results(folder, plan.sc, summary, notes, options)
+    if recorder is not None:
+        _close_recorder(recorder, summary, notes)
+    summary["status"] = final_status(status, summary)
+    if notes:
+        summary["notes"] = notes
+    write_json(folder / "summary.json", summary)
+    return RunResult(folder, summary, result, notes, recorder)
+
+
+@dataclass(frozen=True)
+class _Plan:
+    """A run as checked before anything is written: the scenario, drive mode, engines (and those
+    unavailable, with the reason), the master, its length [revolutions, s] and cost estimate."""
+
+    sc: Scenario
+    mode: str
+    engines: dict
+    unavailable: dict
+    cosim: CoSimulation
+    revolutions: float
+    until_steady: bool
+    duration_s: float
+    cost: dict
+    viewer: object
+
+
+def _plan(scenario, options: RunOptions) -> _Plan:
+    """Every check that can refuse the run, before its folder exists: engines, viewer, drive mode,
+    length, cost and the records directory."""
     sc = scenario if isinstance(scenario, Scenario) else load(scenario)
     for e in options.engines:
         if e not in ENGINES:
@@ -182,40 +251,46 @@ def run_scenario(scenario, options: RunOptions = RunOptions(), callback=None) ->
         raise InputError(f"max_hours (--max-hours) must be a positive number of hours, got {options.max_hours!r}")
     cost = check_cost(sc, list(engines), duration, cosim.macro_step_s, options.max_hours)
     if options.records is not None:       # a bad user records directory is refused before the run
-        from .records import records_for
         records_for(sc, Path(options.records))
+    return _Plan(sc, mode, engines, unavailable, cosim, revolutions, until_steady, duration, cost, viewer)
 
-    folder = run_folder(sc.name, options.out)
-    log.info("%s at %.4g rpm through %s (%s, %s); results to %s", sc.name, sc.drive.speed_rpm, ", ".join(engines),
-             mode, "until steady" if until_steady else f"{revolutions:g} revolutions", folder)
-    import tomli_w
+
+def _open_folder(plan: _Plan, options: RunOptions, folder: Path) -> dict:
+    """The run folder's first files: the resolved scenario and the opening summary (status
+    'incomplete' until the run ends), which is returned."""
+    sc, cosim = plan.sc, plan.cosim
+    log.info("%s at %.4g rpm through %s (%s, %s); results to %s", sc.name, sc.drive.speed_rpm,
+             ", ".join(plan.engines), plan.mode,
+             "until steady" if plan.until_steady else f"{plan.revolutions:g} revolutions", folder)
     write_atomic(folder / "scenario.resolved.toml", tomli_w.dumps(resolved(sc)))
-    summary = {"scenario": sc.name, "status": "incomplete", "bench_version": __version__, "mode": mode,
-               "engines_requested": list(options.engines), "revolutions": revolutions,
-               "until_steady": until_steady, "steady_tolerance": sc.output.steady_tolerance,
-               "duration_s": duration, "macro_step_s": cosim.macro_step_s,
-               "estimate": {"wall_time_s": cost["seconds"], "trace_bytes": cost["bytes"]},
+    summary = {"scenario": sc.name, "status": "incomplete", "bench_version": __version__, "mode": plan.mode,
+               "engines_requested": list(options.engines), "revolutions": plan.revolutions,
+               "until_steady": plan.until_steady, "steady_tolerance": sc.output.steady_tolerance,
+               "duration_s": plan.duration_s, "macro_step_s": cosim.macro_step_s,
+               "estimate": {"wall_time_s": plan.cost["seconds"], "trace_bytes": plan.cost["bytes"]},
                "coupling": {"scheme": cosim.coupling.scheme, "extrapolation": cosim.coupling.extrapolation}
-               if mode == "motor" else None,
+               if plan.mode == "motor" else None,
                "started": time.strftime("%Y-%m-%dT%H:%M:%S"), "progress": 0.0,
-               "engines": {n: {"status": "unavailable", "error": msg} for n, msg in unavailable.items()},
+               "engines": {n: {"status": "unavailable", "error": msg} for n, msg in plan.unavailable.items()},
                "files": {"traces": "traces.csv", "recording": None, "scenario": "scenario.resolved.toml"}}
     summary["linkage"] = linkage_summary(sc)
     write_json(folder / "summary.json", summary)
+    return summary
 
-    writer = TraceWriter(folder / "traces.csv")
-    notes = []
-    # Started before the engines set up: its child process imports rerun meanwhile.
-    recorder = [_start_recorder(sc, mode, engines, folder, options, viewer, summary)]
-    stations = [False]
-    exports = _start_exports(engines, folder)
 
+def _run_engines(plan: _Plan, options: RunOptions, callback, folder: Path, summary: dict, notes: list,
+                 writer: TraceWriter, recorder) -> tuple:
+    """The master's loop, every macro step's samples written to traces.csv and the recording as
+    it goes; returns ``(status, CoSimResult or None, whether the traces could not be written)``.
+    An interrupt, a full disk or running out of memory ends it with the steps so far on disk."""
+    engines = plan.engines
     if "tmm" in engines:
         compile_notice()
-    progress = RunProgress(until_steady, f"{sc.name} ({', '.join(engines)})", bar=options.progress)
+    progress = RunProgress(plan.until_steady, f"{plan.sc.name} ({', '.join(engines)})", bar=options.progress)
     last_write = [time.monotonic()]
     failures = {}
     written_t = [None]
+    stations = [False]
     interrupts = Interrupts()
 
     # The macro steps' samples, collected once for traces.csv and the recording, go to both in
@@ -226,18 +301,18 @@ def run_scenario(scenario, options: RunOptions = RunOptions(), callback=None) ->
         block = samples.take()
         if block:
             writer.write_block(block)
-            if recorder[0] is not None:
-                recorder[0].log_samples(block)
+            if recorder is not None:
+                recorder.log_samples(block)
 
     def on_step(step):
         interrupts.check()              # a signal an engine swallowed: this macro step is not written
         samples.add(step.outputs)
         written_t[0] = step.t
-        if recorder[0] is not None:
+        if recorder is not None:
             if not stations[0]:         # the engines are reset now and know their meshes
-                recorder[0].set_stations({n: e.node_stations() for n, e in engines.items() if _has_stations(e)})
+                recorder.set_stations({n: e.node_stations() for n, e in engines.items() if _has_stations(e)})
                 stations[0] = True
-            recorder[0].log_macro_step(step, samples=False)
+            recorder.log_macro_step(step, samples=False)
         if samples.due():
             take_block()
         failures.update(step.failed)
@@ -252,8 +327,8 @@ def run_scenario(scenario, options: RunOptions = RunOptions(), callback=None) ->
     status, result, write_failed = None, None, False
     try:
         with interrupts:
-            result = cosim.run(duration, callback=on_step, until_steady=until_steady,
-                               keep_revolutions=KEEP_REVOLUTIONS)
+            result = plan.cosim.run(plan.duration_s, callback=on_step, until_steady=plan.until_steady,
+                                    keep_revolutions=KEEP_REVOLUTIONS)
             take_block()                # the last macro steps
         status = result.status
         if interrupts.signal is not None:
@@ -280,8 +355,8 @@ def run_scenario(scenario, options: RunOptions = RunOptions(), callback=None) ->
             summary.update(status="failed", error=f"{type(exc).__name__}: {exc}")
             with contextlib.suppress(Exception):
                 write_json(folder / "summary.json", summary)
-            if recorder[0] is not None:
-                recorder[0].close()
+            if recorder is not None:
+                recorder.close()
             raise
         status, write_failed = "failed", True   # no parquet copy or figure: no memory for them
         log.error("%s", fail_out_of_memory(summary, notes, "running the engines", exc))
@@ -289,38 +364,31 @@ def run_scenario(scenario, options: RunOptions = RunOptions(), callback=None) ->
     finally:
         writer.close()
         progress.close(completed=status not in (None, "interrupted"))
+    return status, result, write_failed
+
+
+def _summarise_results(plan: _Plan, options: RunOptions, folder: Path, summary: dict, notes: list, status: str,
+                       result, recorder, exports: dict) -> None:
+    """The summary after the loop: status, how it stopped, each engine's results, steadiness,
+    scores, and the engines' own files; running out of memory here keeps the data as written."""
     summary["status"] = status
     if result is not None:
-        summary["stop"] = {"steady": "every engine steady", "end": "revolution limit" if until_steady else
+        summary["stop"] = {"steady": "every engine steady", "end": "revolution limit" if plan.until_steady else
                            "fixed length"}.get(result.stop, result.stop)
     summary["finished"] = time.strftime("%Y-%m-%dT%H:%M:%S")
     try:
         if result is not None:
-            _summarise(sc, result, summary, notes, recorder[0], options)
-        if recorder[0] is not None:
-            _log_steadiness(recorder[0], summary)
-            recorder[0].hand_over()         # the child finishes the file while the results are written
-        for name in engines:
+            _summarise(plan.sc, result, summary, notes, recorder, options)
+        if recorder is not None:
+            _log_steadiness(recorder, summary)
+            recorder.hand_over()         # the child finishes the file while the results are written
+        for name in plan.engines:
             summary["engines"].setdefault(name, {"status": "interrupted"})
-        _finish_exports(exports, engines, result, folder, summary, notes, options)
+        _finish_exports(exports, plan.engines, result, folder, summary, notes, options)
     except Exception as exc:              # out of memory after the loop: the run's data stay as written
         if not out_of_memory(exc):
             raise
         log.error("%s", fail_out_of_memory(summary, notes, "summarising the results", exc))
-    if writer.columns is not None and status == "interrupted":
-        # Stop promptly (a signal asks for it): traces.csv is the run's file, which cosim.load_run
-        # reads; the parquet copy and the figure are not made.
-        notes.append("traces.parquet and the strain figure are not written for an interrupted run "
-                     "(cosim.load_run reads traces.csv)")
-    elif writer.columns is not None and not write_failed and "out_of_memory" not in summary:
-        _write_results(folder, sc, summary, notes, options)
-    if recorder[0] is not None:
-        _close_recorder(recorder[0], summary, notes)
-    summary["status"] = final_status(status, summary)
-    if notes:
-        summary["notes"] = notes
-    write_json(folder / "summary.json", summary)
-    return RunResult(folder, summary, result, notes, recorder[0])
 
 
 def _stopped_with_the_run(summary: dict, engines, why: str) -> None:
@@ -390,9 +458,6 @@ def _close_recorder(recorder, summary: dict, notes: list) -> None:
 def _viewer_options(options: RunOptions):
     """The recording's viewer (cosim.recording.sinks.ViewerOptions), None for no recording;
     a bad choice is refused naming the option."""
-    from .recording.batch import check_linkage_rate
-    from .recording.recorder import check_exaggeration
-    from .recording.sinks import ViewerOptions
     try:
         check_exaggeration(options.exaggeration)          # the recording's and the animation's
         if options.viewer == "none":
@@ -410,7 +475,6 @@ def _start_recorder(sc: Scenario, mode: str, engines: dict, folder: Path, option
     <folder>/run.rrd and is named in the summary's files."""
     if viewer is None:
         return None
-    from .recording.process import RecorderProcess
     path = Path(options.save_path) if options.save_path is not None else folder / "run.rrd"
     # The engines' stations come with the first macro step (set_stations): they know their meshes then.
     rec = RecorderProcess(sc, {name: {} for name in engines}, mode, save_path=path, viewer=viewer,
@@ -443,7 +507,6 @@ def _finish_exports(exports: dict, engines: dict, result, folder: Path, summary:
         return "model.xml"
 
     def gif():
-        from .recording.animation import write_gif
         runs = {n: ch.run for n, ch in result.channels.items()}
         stations = {n: e.node_stations() for n, e in engines.items() if _has_stations(e)}
         return write_gif(folder / "linkage.gif", runs, stations, options.exaggeration).name
@@ -470,12 +533,10 @@ def _write_results(folder: Path, sc: Scenario, summary: dict, notes: list, optio
     a note and a missing output, running out of memory fails the run and stops here
     (:func:`cosim.run_outcome.attempt`; traces.csv stays the run's crash-safe file)."""
     def parquet():
-        from .results import write_parquet
         return write_parquet(folder).name
 
     def figures():
-        from .figures import write_run_figures
-        return [p.name for p in write_run_figures(folder, sc, options.records)]
+        return [p.name for p in run_figures.write_run_figures(folder, sc, options.records)]
 
     write_json(folder / "summary.json", summary)          # the figure reads the final verdicts
     files = summary["files"]
@@ -491,13 +552,11 @@ def score_records(sc: Scenario, result, summary: dict, recorder=None, directory=
     """Records of the scenario's rig at its speed: listed in the summary, scored against every
     engine's last revolution (peaks records: peak errors; histories over crank angle: peak, RMS,
     correlation, phase lag, scale, envelope), drawn in the recording under /records."""
-    from .compare import convention_warnings, score_history, score_peaks, sign_check
-    from .records import history_over_angle, peaks_at, records_for
 
     recs = records_for(sc, directory)
     if not recs:
         return
-    rpm = abs(sc.drive.speed_rad_s) * 30 / math.pi
+    rpm = sc.drive.speed_rpm
     gauges = {g.name: g for g in sc.gauges}
     summary["records"], scores, warnings = {}, [], []
     summary["records_used"] = [{"name": r.name, "kind": r.kind, "format": r.format,
