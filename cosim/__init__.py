@@ -35,9 +35,9 @@ __all__ = ["__version__", "load", "Scenario", "ScenarioError", "run", "sweep", "
 def __getattr__(name):
     # Imported on first use: `cosim --help` should not pay for the scenario loader or pandas.
     if name in _OWNERS:
-        value = getattr(importlib.import_module(f".{_OWNERS[name]}", __name__), name)
-        globals()[name] = value
-        return value
+        # Not cached in the module's namespace: the owner module is cached by the import system,
+        # and the package's namespace stays what this file writes.
+        return getattr(importlib.import_module(f".{_OWNERS[name]}", __name__), name)
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
