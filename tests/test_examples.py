@@ -55,7 +55,7 @@ def test_the_public_api_is_curated():
 def test_the_cosim_api_example_runs_and_agrees_with_the_command_line(tmp_path):
     """examples/cosim_api.py through ``cosim``'s exported names alone; its numbers against the
     command line's run of the same scenario (``cosim run crank_rocker_373rpm --engines tmm``,
-    deterministic: the same peak) and a closed form (373 rpm = 373 * 2 pi / 60 rad/s)."""
+    the same peak to round-off) and a closed form (373 rpm = 373 * 2 pi / 60 rad/s)."""
     out = _example("cosim_api").main(tmp_path / "api")
     assert out["status"] == "completed"
     assert out["crank_speed_rad_s"] == pytest.approx(373 * 2 * math.pi / 60, rel=1e-9)     # traces: 10 digits
@@ -67,7 +67,10 @@ def test_the_cosim_api_example_runs_and_agrees_with_the_command_line(tmp_path):
                     "-q", "--out", str(cli)], cwd=tmp_path, check=True, capture_output=True,
                    env={**os.environ, "PYTHONPATH": str(ROOT)})
     summary = json.loads((cli / "summary.json").read_text())
-    assert summary["engines"]["tmm"]["gauges"]["coupler_mid"]["bending_max_ue"] == out["peak_summary_ue"]
+    # The same run to round-off: BLAS's summation order follows its thread count, which an earlier
+    # test in this process may have limited (measured 3e-14 relative between the two).
+    assert summary["engines"]["tmm"]["gauges"]["coupler_mid"]["bending_max_ue"] == pytest.approx(
+        out["peak_summary_ue"], rel=1e-12)
 
 
 def test_every_name_cosim_exports_resolves():
