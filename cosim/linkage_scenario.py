@@ -1,96 +1,11 @@
 """The ``type = "linkage"`` scenario format: any planar linkage in motion, no code per mechanism.
 
-A linkage is drawn once, assembled, at a *reference* position (joint coordinates, as Shin's
-CASDAM takes them); link lengths, plate shapes, slide lines and assembly branches all follow from
-that drawing. Its motion comes from an ordered list of closed-form modules (Shin's component-module
-approach, :mod:`tmm_core.linkage`), each placing joints from joints already placed::
-
-    [linkage]
-    type = "linkage"
-    crank = "crank"                 # the driven link; its path starts at its ground pivot
-    crank_zero = "0 deg"            # the crank angle is measured from this global direction (default 0)
-
-    [joints.1]   position = ["0 in", "0 in"], support = "pinned"      # ground pivots are pinned
-    [joints.13]  position = [...], support = "slider", direction = "90 deg", weight = "0.2 lbf"
-                                    # a pin on a block sliding along a ground line (optional block mass;
-                                    # links welded here slide with the block without turning)
-    [joints.2]   position = ["1.294 in", "4.830 in"]                  # moving joints: where they are drawn
-
-    [links.coupler]  path = ["2", "3", "4"], section = "bar", material = "steel",
-                     segments = 4,          # per part of the path (default solver.tmm.segments)
-                     welded_at = ["5b"],    # ends welded to the joint (default: revolutes)
-                     rigid = false,         # only the crank may be rigid
-                     damping = {ratio, frequency}, point_masses = [{position (along the path), mass | weight}]
-    [plates.plate]   vertices = ["3", "10", "11"], thickness = "0.5 in", material = "steel",
-                     centroid = "9"         # optional: a joint at the plate's centre of mass
-    [sliders.block5] block = "5b", guide = "5", along = "follower"    # a block sliding along a moving link
-    [springs.s]      between = ["4", "11"], stiffness = "100 lbf/in", free_length = "5 in"
-    [loads.p]        joint = "13", force = ["0 lbf", "-100 lbf"], moment = "0 lbf*in"
-
-    [[modules]]                     # in order; each closes one loop (and fixes the links that meet there)
-    type = "crank"                  # Shin type 1: the input link
-    link = "crank"
-    [[modules]]
-    type = "rrr"                    # Shin type 2, the RRR dyad: two links meeting at `joint`
-    joint = "4"
-    links = ["coupler", "follower"]
-    [[modules]]
-    type = "rrp"                    # Shin types 3, 5, 6, the RRP dyad: `joint` of `link` on a slide: a
-    joint = "13"                    # ground slider support, or a block sliding along a guide link
-    link = "link_13_11"             # placed before (at the block: type 6; on an arm of it: type 5)
-    branch = 1                      # optional: +1 / -1; default: the drawn configuration's
-    [[modules]]
-    type = "rpr"                    # Shin types 7, 8, the RPR dyad (inverted slider-crank): the block
-    joint = "B"                     # pinned at `joint` (placed before; type 8), or carrying a link welded
-    link = "follower"               # to it that ends there (type 7), slides along `link`, which turns
-                                    # about its one joint placed before (its pivot); optional branch
-    [[modules]]
-    type = "prp"                    # the PRP dyad: `joint` on two slides (its slider support, and
-    joint = "S"                     # [sliders] blocks holding it along guides placed before); no link
-    [[modules]]
-    type = "rpp"                    # the RPP dyad (Scotch yoke): the block pinned at `joint` (placed
-    joint = "B"                     # before) slides along `link`, which slides along the ground (links
-    link = "yoke"                   # welded at a slider joint) or along a guide placed before
-
-**Shin's eight component types** (Ch. 2, Fig. 2.1; App. A) map to modules: 1 ``crank``; 2
-``rrr``; 3 ``rrp`` on a ground slide; 4 none (a "solid link": every joint of a placed link or plate
-follows from its pose); 5 ``rrp`` at the end of an arm welded to a block sliding along a moving
-guide (Table 2.1's block 5 and arm 5-7); 6 ``rrp`` at the block itself; 8 ``rpr`` with the block
-pinned at the known joint (Shin's "slider input": that joint placed by an earlier module, e.g. the
-slider of an ``rrp``); 7 ``rpr`` with the block carrying a link to the known joint, the follower's
-slide line off its pivot (an eccentric follower: links welded at a kink): type 8 on the line the
-known joint traces in the follower, then type 4 for the block (``tmm_core.linkage.SHIN_TYPES``).
-With ``prp`` and ``rpp`` every planar dyad of lower pairs has its module.
-
-**Slides.** A block along a moving guide is a ``[sliders.*]`` table: the block joint drawn at a
-guide joint of the guide link (a joint where the guide carries a rotation: interior to its path
-or welded), the links welded at the block joint moving with the block; the block turns with the
-guide. A ground slide is a joint with ``support = "slider"`` and a ``direction``: a pin sliding on
-the ground line; links welded at a slider joint are welded to its block, so they slide along the
-line without turning (a yoke; ``sliding_clamp`` in the instantaneous structure). The transfer-
-matrix structure holds one slide per joint: a joint on two slides (``prp``) is a slider joint
-held by a block's arm, or the end of arms of two blocks.
-
-**Loops and branches.** Every module closes one loop: a dyad joins two links to joints already
-placed (the main loop first, each sub-loop after the joints it hangs from: Shin's branch
-points), an rrp closes a loop through a slide, an rpr through a slide along a guide that turns
-about a known pivot, a prp through two slides, an rpp through a slide along a sliding link. A
-link placed by a module has one joint placed before it (none for the blocks of a prp and the
-sliding link of an rpp); its other joints (a ternary link's or a plate's branch points, Shin's
-type 4 "solid link") follow from its pose. The branch of each module is the side on which the drawn
-configuration assembles (rrr: the side of the line from the first link's known joint to the
-second's; rrp: the sign of the link's component along the slide; rpr: the sign of the component
-of pivot -> joint along the slide), so the linkage moves on the branch it is drawn in; prp and rpp
-have one assembly (no branch). Links welded to one another, or to a slider block, move as one
-body.
-
-The loader turns the crank through a revolution from the drawn position (CCW, 1440 positions) and
-refuses a linkage that cannot assemble there, or whose module comes within 0.5 deg of a toggle
-(it locks: two dyad links collinear, a link square to its slide, the line pivot -> joint square
-to an rpr's slide, two slides parallel), naming the module and the crank angle. The
-instantaneous structure of the transfer-matrix model clamps the crank at its pivot (Shin); a
-straight link with interior joints is split into parts ``name[a-b]`` (gauges, point masses and loads are placed along the
-whole path and land on the part).
+A linkage is drawn once, assembled, at a reference position (joint coordinates); its motion comes
+from an ordered list of closed-form modules (Shin's component-module approach,
+:mod:`tmm_core.linkage`), each placing joints from joints already placed. The format (joints,
+links, plates, sliders, springs, loads, modules and their branches, Shin's component types, the
+load-time assembly and toggle check) has one home: docs/scenario-format.md, "Linkages in motion"
+and "Every table of a linkage in motion".
 
 Owns: the ``type = "linkage"`` format and its load-time assembly check. Boundaries: no run logic;
 shared springs and loads are cosim.joint_tables.

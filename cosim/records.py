@@ -1,39 +1,11 @@
 """Experimental and published records: format, loading with strict validation, and ingestion of raw
 lab recordings.
 
-A record is a CSV file with a TOML sidecar of the same stem (``table1.csv`` + ``table1.toml``)::
-
-    [record]
-    name = "fe_table1"                      # unique
-    format = "history" | "peaks" | "values"
-    kind = "measurement" | "published_model" | "published_comparison" | "synthetic"
-    rig = "fe_crank_rocker"                 # matched against [scenario] rig of a scenario
-    speed = "373 rpm"                       # history records: the crank speed (peaks/values: per row)
-    description = "..."
-    sign_convention = "tension positive" | "not stated"
-    [provenance]   source, table, figure, page, notes (OCR caveats)     (required; free text)
-    [index]        column = "time_s" | "crank_angle_deg", unit = "s" | "deg"   (history records)
-    [channels.<column>]                     (history records; one per data column)
-        gauge = "coupler_mid"               # the scenario gauge it measures (or link/position)
-        face = "top" | "bottom" | "unknown"
-        quantity = "bending" | "axial" | "surface" | "deflection" | "raw" | "trigger"
-        unit = "microstrain" | "uin/in" | "strain" | "mm" | "in" | "V" | ...
-        calibration = 250.0                 # raw records: physical units per raw unit
-        calibration_unit = "microstrain"    # what the calibration gives
-    [acquisition]  sample_rate = "2751 Hz", trigger_channel = "trig", trigger_angle = "0 deg",
-                   filter = "none" | "low-pass 200 Hz" (what was applied before the file was written)
-
-``peaks`` records have the columns ``rpm, gauge, peak (+|-), quantity (bending|axial), value, unit``
-and may carry ``percent`` (as printed); ``values`` records ``quantity, link, value, unit, note``.
-
-Every malformed input raises :class:`RecordError` naming the file, the line and the column: a
-missing column, a non-monotonic index, a trigger with no pulses, a unit that is not a strain or
-length (or, for raw channels, has no calibration), a non-numeric cell or NaN. Nothing is dropped
-silently: a partially usable record is refused with the first bad line.
-
-Ingestion of raw recordings is :mod:`cosim.record_ingest` (which checks, beyond loading, that time is
-evenly sampled at the declared rate and that the trigger channel holds a once-per-revolution
-trigger); a trigger channel must be declared with ``quantity = "trigger"``.
+A record is a CSV file with a TOML sidecar of the same stem (``table1.csv`` + ``table1.toml``);
+its format (history, peaks and values records, channels, calibration, acquisition) has one home:
+docs/user-guide.md, "Records: measurements and published results". Every malformed input raises
+:class:`RecordError` naming the file, the line and the column; nothing is dropped silently.
+Ingestion of raw recordings is :mod:`cosim.record_ingest`.
 
 Owns: the record format and strict loading. Boundaries: no scoring
 (cosim.compare); units through cosim.units.

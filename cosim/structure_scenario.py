@@ -1,28 +1,9 @@
 """General planar structures held at one configuration: a scenario format and its static run.
 
 A scenario with ``[linkage] type = "structure"`` describes any planar mechanism frozen at one
-position (Shin's multiloop examples): joints with positions and supports, links running through
-a path of joints, rigid plates, springs, slider joints and loads. No code is written per
-mechanism::
-
-    [linkage]
-    type = "structure"
-    analysis = "beam_column"        # "linear" | "beam_column" | "large_deflection"
-
-    [joints.1]   position = ["0 in", "0 in"], support = "clamped"
-    [joints.13]  position = [...], support = "slider", direction = "0 deg"   # or "sliding_clamp"
-    [links.coupler]  path = ["2", "3", "4"], section = "bar", material = "steel", segments = 4,
-                     welded_at = ["5b"]   # link ends welded to the joint (default: revolutes; a
-                                          # clamped support welds; interior path joints are continuous)
-    [plates.plate]   centroid = "9", vertices = ["3", "10", "11"]
-    [springs.s]      between = ["4", "11"], stiffness = "100 lbf/in", free_length = "5 in"
-    [sliders.s5]     block = "5b", guide = "5", along = "follower"       # a link through the guide
-    [loads.p]        joint = "13", force = ["-100 lbf", "0 lbf"], moment = "0 lbf*in"
-                     # or link = "x", position = "3 in" (a node of that link), force = [...]
-
-``segments`` is per part of the path (between consecutive key joints). Topology errors name the
-item: unknown joints, links or sections; a link that dangles (a revolute at a joint nothing else
-holds); a plate vertex used twice; a mechanism type the bench does not run.
+position (Shin's multiloop examples): joints with positions and supports, links running through a
+path of joints, rigid plates, springs, slider joints and loads. The format has one home:
+docs/scenario-format.md, "Structures held at one position". Topology errors name the item.
 
 Owns: the ``type = "structure"`` format and its static run. Boundaries: no time-domain runs.
 """
