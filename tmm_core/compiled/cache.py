@@ -28,9 +28,8 @@ import shutil
 from pathlib import Path
 
 #: Time [s] of compiling the time-domain kernels when numba's cache is empty, on an idle 2-core
-#: machine: the first prescribed TMM run of the FE rig takes about 46 s of process CPU, of which
-#: about 2 s are the run itself (compiling is single-threaded, so wall time is the same on an
-#: idle machine and longer on a loaded one).
+#: machine: the first prescribed TMM run of the FE rig took 52 s (wall and process CPU alike:
+#: compiling is single-threaded), of which about 2 s are the run itself; longer on a loaded one.
 COMPILE_ESTIMATE_S = 50.0
 
 HERE = Path(__file__).resolve().parent
