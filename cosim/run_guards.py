@@ -93,12 +93,12 @@ def _tmm_step_s(sc: Scenario, segments: int, macro_per_step: float) -> float:
     qualifies and a revolution's stored factorizations fit the time domain's memory budget (the
     engine's own test, :meth:`tmm_core.TimeDomain.configurations`), else the numpy path."""
     try:
-        from tmm_core import transient
-        from tmm_core.compiled import march as compiled_march, statics as compiled_statics
+        from tmm_core import backend, transient
+        from tmm_core.compiled import statics as compiled_statics
         budget = transient.MAX_STEP_DATA_BYTES
         per_revolution = sc.revolution_period_s / sc.engine_step_s("tmm")
         structure = sc.mechanism.structure()
-        compiled = (compiled_march.AVAILABLE and compiled_statics.supported(structure)
+        compiled = (backend.choose_backend(None) == "compiled" and compiled_statics.supported(structure)
                     and per_revolution * compiled_statics.stored_bytes_per_configuration(
                         [m.n_segments for m in structure.members]) <= budget)
     except Exception:                # no crank speed, no structure: the numpy path's estimate

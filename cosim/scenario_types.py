@@ -209,11 +209,12 @@ class Scenario(Variants):
         """The time [s] of one crank revolution at the drive speed."""
         return self.drive.period_s
 
-    def time_domain(self, mechanism=None):
+    def time_domain(self, mechanism=None, backend: str | None = None):
         """The transfer-matrix time domain (:class:`tmm_core.TimeDomain`) of this scenario with its
         ``solver.tmm`` settings, gravity and gauges; ``mechanism`` replaces the scenario's (e.g.
-        the same four-bar with applied joint moments)."""
+        the same four-bar with applied joint moments); ``backend`` as TimeDomain's (None: its
+        default)."""
         s = self.tmm
         return TimeDomain(self.mechanism if mechanism is None else mechanism, integrator=s.integrator,
                           coupling=s.coupling, beam_column=s.beam_column, gravity=self.gravity, gauges=self.gauges,
-                          axial_force=s.axial_force)
+                          axial_force=s.axial_force, backend=backend)

@@ -11,9 +11,10 @@ import pytest
 
 from cosim.scenario import load
 from tmm_core import CrankMotion, TimeDomain
-from tmm_core.compiled import march as compiled_march, statics as compiled_statics
+from tmm_core.compiled import statics as compiled_statics
+from tmm_core.compiled.cache import AVAILABLE as NUMBA
 
-pytestmark = pytest.mark.skipif(not compiled_march.AVAILABLE, reason="numba is not installed")
+pytestmark = pytest.mark.skipif(not NUMBA, reason="numba is not installed")
 
 
 def _both(sc, revolutions=1.0, **kw):
@@ -86,7 +87,7 @@ def test_the_engine_uses_the_compiled_path_and_gets_the_same_answer():
         original = TimeDomain.__init__
 
         def init(self, *a, _c=compiled, **k):
-            original(self, *a, **k, backend="compiled" if _c else "numpy")
+            original(self, *a, **{**k, "backend": "compiled" if _c else "numpy"})
         TimeDomain.__init__ = init
         try:
             runs.append(run_prescribed(engine, sc, revolutions=1.0))
@@ -111,7 +112,7 @@ def test_motor_driven_steps_use_the_stored_factorizations_and_agree_with_numpy()
         return original_factors(*a, **k)
     for compiled in (False, True):
         def init(self, *a, _c=compiled, **k):
-            original_init(self, *a, **k, backend="compiled" if _c else "numpy")
+            original_init(self, *a, **{**k, "backend": "compiled" if _c else "numpy"})
         TimeDomain.__init__, step_data.compiled_factors = init, counted
         try:
             res = CoSimulation(sc, {"tmm": make_engine("tmm")}, mode="motor").run(revolutions=0.15)

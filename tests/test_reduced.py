@@ -176,9 +176,9 @@ def test_compiled_revolution_matches_the_numpy_reference(beam_column):
     linear periodic state (Newton on every step from the previous step's stage accelerations),
     then a second one from the result with the monodromy (guesses from the first revolution, full
     Newton), then a third without it (chord iterations on the stored factorizations)."""
-    from tmm_core.compiled import reduced_periodic as compiled_reduced_periodic
+    from tmm_core.compiled.cache import AVAILABLE as NUMBA
     from tmm_core.reduced_periodic import ReducedModel
-    if not compiled_reduced_periodic.AVAILABLE:
+    if not NUMBA:
         pytest.skip("numba not installed")
     _, td, _, basis, crank = _small_rig(beam_column)
     ref, fast = ReducedModel(td, crank, basis, backend="numpy"), ReducedModel(td, crank, basis, backend="compiled")
@@ -210,8 +210,8 @@ def test_compiled_periodic_solve_matches_the_numpy_reference():
     """The periodic steady state (Newton shooting, second-order term) with the compiled
     revolutions and with numpy: gauge strains, drive torque and Floquet multipliers agree to 1e-10;
     both converge (residual below the shooting tolerance)."""
-    from tmm_core.compiled import reduced_periodic as compiled_reduced_periodic
-    if not compiled_reduced_periodic.AVAILABLE:
+    from tmm_core.compiled.cache import AVAILABLE as NUMBA
+    if not NUMBA:
         pytest.skip("numba not installed")
     sc, td, options, basis, _ = _small_rig()
     kw = dict(options=options, basis=basis)

@@ -105,7 +105,6 @@ class ReducedModel:
             raise InputError("the reduced model carries both second-order terms or neither")
         self.td, self.basis = td, basis
         self.backend = td.backend if backend is None else choose_backend(backend)
-        self.compiled = self.backend == "compiled"
         #: Compiled path: chord Newton iterations in the revolutions without the monodromy (see
         #: tmm_core.compiled.reduced_periodic); False refactorizes every iteration, as the numpy path does.
         self.chord = True
@@ -258,6 +257,11 @@ class ReducedModel:
                 mono = S @ mono
         self.stage_acc = accs
         return np.concatenate([eta, v]), mono, None if outs is None else outs.reshape(3 * self.N, -1)
+
+    @property
+    def compiled(self) -> bool:
+        """Whether the revolutions run in the compiled kernel (the backend, as a flag)."""
+        return self.backend == "compiled"
 
     def _revolution_compiled(self, x0, nonlinear, outputs, jacobian):
         """:meth:`revolution` in the compiled kernel (same guesses, same Newton tolerance)."""

@@ -116,8 +116,6 @@ class TimeDomain(StepSolver):
             backend = "numpy"
         #: 'compiled' or 'numpy', for every stage of this model (tmm_core.backend).
         self.backend = choose_backend(backend)
-        #: Whether the stages run the compiled kernels (the backend, as a flag).
-        self.compiled = self.backend == "compiled"
         #: The second-order terms the 'dynamic' step carries (both by default; one alone is for
         #: the experiment that separates them, scenarios/engines_agree_experiment.py).
         self.dynamic_terms = tuple(dynamic_terms)
@@ -326,6 +324,11 @@ class TimeDomain(StepSolver):
         if not with_maps:
             return batch(None)
         return batch(step_data.numpy_maps(self, factor, drive))
+
+    @property
+    def compiled(self) -> bool:
+        """Whether the stages run the compiled kernels (the backend, as a flag)."""
+        return self.backend == "compiled"
 
     @property
     def compiled_factorization(self) -> bool:

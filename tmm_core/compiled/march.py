@@ -25,13 +25,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import cache
 from .time_step import factored_solve  # the compiled one once bound (tmm_core.compiled.binding)
 
 # numba is imported (and the kernels compiled or loaded from its cache) on first use only, by
 # tmm_core.compiled.binding: the command line and the numpy path do not pay for it. Without numba
 # the numpy path still works.
-AVAILABLE = cache.AVAILABLE
 
 NEWMARK, HOUBOLT, GENERALIZED_ALPHA = 0, 1, 2
 INTEGRATOR_CODES = {"newmark": NEWMARK, "houbolt": HOUBOLT, "generalized_alpha": GENERALIZED_ALPHA}

@@ -36,10 +36,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import cache
 from .binding import single
 
-AVAILABLE = cache.AVAILABLE
 
 
 def integrator_coefficients(integrator, dt: float):

@@ -36,9 +36,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import cache
 
-AVAILABLE = cache.AVAILABLE
 #: Refactorize while the chord iteration contracts slower than this (update ratio).
 CHORD_CONTRACTION = 0.03
 #: The stage Newton iteration's tolerance (update relative to the stage accelerations) and

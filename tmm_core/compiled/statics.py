@@ -27,8 +27,6 @@ from ..matrices import frame_rotation
 from ..statics import StaticSolution, change_scales, change_weights
 from ..structure import LinearSolution, LoadCase, MemberResult, factorize, support_reactions
 
-AVAILABLE = structure_kernel.AVAILABLE
-
 
 def supported(structure) -> bool:
     """Does the compiled path handle this structure (joints and members only, see

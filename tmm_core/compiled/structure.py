@@ -54,13 +54,11 @@ import math
 
 import numpy as np
 
-from . import cache
 from .. import matrices
-from .dense import iteration_converged, iteration_start, lu_solve, state_change
+from .dense import iteration_converged, lu_solve, state_change
 from .riccati import factor_configuration, factor_scratch
 from .step_data import maps_scratch, solve_loads_many
 
-AVAILABLE = cache.AVAILABLE
 
 INV_FACT = np.array(matrices.INV_FACT)        # the Stumpff series' 1/k! (the numpy path's table)
 
@@ -139,7 +137,9 @@ def solve_range(b_start, b_stop, segments, configuration, Fn, joints, outputs, c
     cs = np.zeros((M, mmax + 1, 3))
     af = np.zeros((M, 3))
     scratch_factor = factor_scratch(nf)
-    t6, t1, t2 = scratch_factor[2], scratch_factor[17], scratch_factor[18]     # shared with the load solve
+    # Its t6, t1, t2 and the index vectors zi, fi serve the load solve too.
+    _Kc, _T6, t6, _tmp6, _Kff, _Ks, _work, _c5, _sp, _T11, _T12, _T21, _T22, _A, _Bm, _C, _D, t1, t2, zi, fi = \
+        scratch_factor
     Kfull = np.zeros((nd, nd))
     rfull = np.zeros(nd)
     lu = np.zeros((nf, nf))
@@ -157,7 +157,6 @@ def solve_range(b_start, b_stop, segments, configuration, Fn, joints, outputs, c
     S0 = np.zeros(6)
     zl = np.zeros(6)
     qe = np.zeros(6)
-    zi, fi = scratch_factor[19], scratch_factor[20]
     stn = np.zeros((Kn.shape[1], 2, 6))
     # Many load sets with compact outputs (the maps): the load solve vectorized across them.
     many = compact and R > 1 and not full
