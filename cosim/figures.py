@@ -40,8 +40,10 @@ def gauge_label(name: str) -> str:
 
 
 def new_figure(**kwargs):
-    """A matplotlib Figure with an Agg canvas, independent of pyplot's state."""
+    """A matplotlib Figure with an Agg canvas, independent of pyplot's state, laid out by
+    constrained layout unless ``layout`` says otherwise (:func:`save` relies on it)."""
     from matplotlib.figure import Figure
+    kwargs.setdefault("layout", "constrained")
     return Figure(**kwargs)
 
 
@@ -52,7 +54,10 @@ def save(fig, folder, stem: str, dpi: int = 130) -> list:
     with matplotlib.rc_context({"svg.fonttype": "none"}):
         for ext in ("png", "svg"):
             path = Path(folder) / f"{stem}.{ext}"
-            fig.savefig(clear_link(path), dpi=dpi, bbox_inches="tight")
+            # No bbox_inches="tight": the figures are laid out by constrained layout, which
+            # already keeps the legends and notes beside the axes inside the canvas; "tight"
+            # drew every figure twice more (0.5 s of a TMM run's 4 s).
+            fig.savefig(clear_link(path), dpi=dpi)
             paths.append(path)
     return paths
 

@@ -9,7 +9,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy.interpolate import CubicHermiteSpline
 
 
 def extrapolate(history, t, order: int):
@@ -33,6 +32,9 @@ def crank_extrapolation(t_a, angle, speed, accel):
 def crank_interpolation(t, angle, speed, accel=None):
     """Crank motion through samples: angle cubic Hermite (consistent with the speeds), speed and
     acceleration piecewise linear (the acceleration from the Hermite spline if not given)."""
+    # Imported here: scipy.interpolate takes 0.8 s to import (it pulls in scipy.optimize), and
+    # only a motor-driven run's coupling needs it; a prescribed run's start-up does not pay it.
+    from scipy.interpolate import CubicHermiteSpline
     spline = CubicHermiteSpline(t, angle, speed)
 
     def motion(tq):
