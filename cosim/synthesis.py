@@ -3,8 +3,8 @@
 as one record in the unit of the ground length.
 
 Owns: the synthesized linkage as a scenario file and as the command's result record. Boundaries:
-the mathematics is tmm_core.synthesis; the options are read by cosim.cli and the table printed by
-cosim.report.
+the mathematics is tmm_core.synthesis; the options are read and the result printed by cosim.cli,
+its table written by cosim.report.
 """
 from __future__ import annotations
 
