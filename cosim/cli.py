@@ -7,7 +7,7 @@
     cosim identify <name> ... --validate <name>  calibrate declared unknowns, predict held-out speeds
     cosim compare <folder>                       the table of a run, sweep or uncertainty folder
     cosim new <name> [--like SCENARIO]           a commented scenario file to start from
-    cosim synthesize --case I|II ...             link lengths of a rigid crank-rocker (cosim.synthesis)
+    cosim synthesize --case I|II ...             link lengths of a rigid crank-rocker (tmm_core.synthesis)
     cosim export-fmu <name|path> -o X.fmu        an FMI 2.0 FMU of one engine or the motor (cosim.fmi)
 
 Bad input (unknown scenario or engine, malformed range, bad scenario file) ends with a one-line
@@ -55,6 +55,7 @@ if _IMPORTING:
         _IMPORTING = False
 
 import argparse  # noqa: E402  (after the handler, on purpose)
+import json  # noqa: E402
 import logging  # noqa: E402
 import math  # noqa: E402
 import os  # noqa: E402
@@ -317,7 +318,7 @@ def _new_parser(sub) -> None:
 
 
 def _synthesize_parser(sub) -> None:
-    """``cosim synthesize`` (run by :func:`cosim.synthesis.run_command`)."""
+    """``cosim synthesize`` (run by :func:`synthesize_main`)."""
     s = sub.add_parser(
         "synthesize", help="link lengths of a rigid crank-rocker from its rocker swing and limit positions",
         description="Rigid crank-rocker synthesis (FE thesis Ch. III). Case I: from the rocker swing, the folded "
@@ -352,7 +353,7 @@ def _export_fmu_parser(sub) -> None:
 
 
 def _identify_parser(sub) -> None:
-    """``cosim identify`` (run by :func:`cosim.identify.run_command`)."""
+    """``cosim identify`` (run by :func:`identify_main`)."""
     p = sub.add_parser("identify", help="calibrate declared unknowns at some speeds, predict held-out ones",
                        description="Calibrate chosen unknowns of the scenarios' [uncertainty] table against their "
                                    "records by bounded least squares within the declared ranges, then predict the "
@@ -490,14 +491,100 @@ def _dispatch(parser, args) -> int:
         from .fmi.command import run_command as export_fmu_command
         return export_fmu_command(args)
     if args.command == "identify":
-        from .identify import run_command as identify_command
-        return identify_command(args, progress=not _quiet(args))
+        return identify_main(args)
     if args.command == "synthesize":
-        from .synthesis import run_command
-        return run_command(args)
+        return synthesize_main(args)
     if args.command == "compare":
         return compare_main(args.run_dir)
     parser.print_help()
+    return 0
+
+
+def _parse_sigma(text: str) -> tuple:
+    """``--sigma REL%,ABS``: (relative part, absolute part [microstrain]), both >= 0, not both 0."""
+    try:
+        rel, absolute = (x.strip() for x in str(text).split(","))
+        rel = float(rel.rstrip("%")) / (100.0 if rel.endswith("%") else 1.0)
+        absolute = float(absolute)
+        if rel < 0 or absolute < 0 or rel + absolute <= 0:
+            raise ValueError
+    except ValueError:
+        raise ValueError(f"--sigma {text!r}: write the relative and absolute parts, e.g. 10%,5") from None
+    return rel, absolute
+
+
+def identify_main(args) -> int:
+    """``cosim identify``: its options read and checked, the identification run
+    (:func:`cosim.identify.identify`), its table and where the results went printed."""
+    validation = [s.strip() for s in args.validate.split(",") if s.strip()]
+    names = [s.strip() for s in args.parameters.split(",") if s.strip()] if args.parameters else None
+    if args.starts < 1:
+        raise ValueError(f"--starts must be at least 1, got {args.starts}")
+    max_hours = _max_hours(args)
+    rel, absolute = _parse_sigma(args.sigma)
+    from .identify import identify
+    from .report import identification_table
+    folder, result = identify(args.scenarios, validation, names, args.records, args.out, starts=args.starts,
+                              workers=args.workers, scheduler=args.scheduler, sigma_relative=rel,
+                              sigma_absolute_ue=absolute, progress=not _quiet(args), max_hours=max_hours)
+    print(identification_table(result))
+    print(f"\nwritten to {folder}")
+    return 0 if result["status"] == "completed" else 1
+
+
+def _quantity(option: str, text: str, kind: str):
+    """``text`` as a pint quantity of kind 'length' or 'angle'; a bare number is refused."""
+    from .units import UREG, quantity     # pint on use: `cosim --help` stays quick
+    example = {"length": "in", "angle": "deg"}[kind]
+    try:
+        q = quantity(text)
+    except Exception:
+        raise ValueError(f"option {option} = {text!r}: not a quantity with a unit, e.g. '11 {example}'") from None
+    if not hasattr(q, "units") or q.units == UREG.dimensionless:      # "81 %" has a unit: refused below
+        raise ValueError(f"option {option} = {text!r}: has no unit; write it with one, e.g. '{text} {example}'")
+    target = UREG.meter if kind == "length" else UREG.radian     # pint counts angles as dimensionless
+    if UREG.get_root_units(q.units)[1] != target or not math.isfinite(q.magnitude):
+        raise ValueError(f"option {option} = {text!r}: is not a finite {kind}")
+    return q
+
+
+def _case_inputs(args) -> dict:
+    """The case's angle options [rad]; an option of the other case is refused rather than ignored."""
+    own = {"I": ("rocker_limit", "min_transmission"), "II": ("crank_limits",)}[args.case]
+    for name in ("rocker_limit", "min_transmission", "crank_limits"):
+        value, option = getattr(args, name), "--" + name.replace("_", "-")
+        if (value is not None) != (name in own):
+            raise ValueError(f"option {option} is required for case {args.case}" if value is None else
+                             f"option {option} = {value!r}: is not used by case {args.case}")
+    if args.like is not None and args.scenario_out is None:
+        raise ValueError(f"option --like = {args.like!r}: is only used with --scenario-out")
+    if args.overwrite and args.scenario_out is None:
+        raise ValueError("option --overwrite: is only used with --scenario-out")
+    out = args.scenario_out
+    if out is not None and (out.exists() or out.is_symlink()) and not (args.overwrite and out.is_file()):
+        raise ValueError(f"option --scenario-out = {str(out)!r}: already exists" +
+                         ("; give another path, or --overwrite to replace it" if not out.is_dir() else
+                          " and is a folder; give a file path"))
+    given = ([(n, "--" + n.replace("_", "-"), getattr(args, n)) for n in own] if args.case == "I" else
+             [(n, f"--crank-limits ({n.upper()})", t) for n, t in zip(("theta1", "theta3"), args.crank_limits)])
+    return {name: float(_quantity(option, text, "angle").to("rad").magnitude) for name, option, text in given}
+
+
+def synthesize_main(args) -> int:
+    """``cosim synthesize``: its options read (values with units), the crank-rocker synthesized
+    (:mod:`tmm_core.synthesis`), printed (table or one JSON object), optionally written as a scenario."""
+    ground = _quantity("--ground", args.ground, "length")
+    oscillation = float(_quantity("--oscillation", args.oscillation, "angle").to("rad").magnitude)
+    inputs = _case_inputs(args)
+    from tmm_core.synthesis import synthesize_case_one, synthesize_case_two
+    from .report import synthesis_table
+    from .synthesis import result_record, write_scenario
+    result = (synthesize_case_one if args.case == "I" else synthesize_case_two)(
+        float(ground.to("m").magnitude), oscillation, **inputs)
+    written = (write_scenario(result, args.scenario_out, args.like or SYNTHESIS_LIKE, ground.units)
+               if args.scenario_out is not None else None)
+    record = result_record(result, ground.units, written)
+    print(json.dumps(record) if args.json else synthesis_table(record))
     return 0
 
 

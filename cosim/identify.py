@@ -29,8 +29,10 @@ predict held-out scenarios without ever reading their records during the fit.
 Output folder: ``identification.json``, ``identification.png/.svg`` (recorded against predicted
 peaks with the strain over the revolution, per scenario and gauge) and ``identification.rrd``.
 
-Owns: ``cosim identify``: calibration, confidence, held-out validation. Boundaries: held-out
-records are read only after the fit; the model run is cosim.unknowns.
+Owns: the identification behind ``cosim identify``: calibration, confidence, held-out validation.
+Boundaries: held-out records are read only after the fit; the model run is cosim.unknowns; the
+command's options are read by cosim.cli and its table written by cosim.report (this module
+returns the result and writes the output folder).
 """
 from __future__ import annotations
 
@@ -265,48 +267,36 @@ def _confidence(unknowns, continuous, best, m) -> tuple:
                        "singular_values": [float(v) for v in sv]}
 
 
-def identify(calibration, validation=(), parameters=None, records_dir=None, out=None, settings: Settings = Settings(),
-             starts: int = 3, workers=None, scheduler=None, sigma_relative: float = 0.10, sigma_absolute_ue: float = 5.0,
-             max_nfev: int | None = None, seed: int = 1, record: bool = True, progress: bool = True,
-             max_hours: float = MAX_HOURS) -> tuple:
-    """Calibrate, then predict the held-out scenarios; returns ``(folder, result)``. ``max_hours``:
-    refuse an identification estimated to take longer (before any fit starts)."""
-    plan = check_inputs(calibration, validation, parameters, records_dir)
-    cal, val, unknowns, names = plan["calibration"], plan["validation"], plan["unknowns"], plan["parameters"]
-    continuous = [n for n in names if not unknowns[n].discrete]
-    combos = _combos(unknowns, names, cal[0].gauges)
-    nfev = max_nfev or 40 * (len(continuous) + 1)
-    _check_cost(cal, len(combos), starts, nfev, settings, workers, max_hours)
+def _starting_points(n: int, starts: int, seed: int) -> list:
+    """The fits' starts in the ``n`` scaled unknowns: mid-range, then random points (one start
+    when nothing is continuous: every start would be the same fit)."""
     rng = np.random.default_rng(seed)
-    x0s = [[0.5] * len(continuous)] + [rng.random(len(continuous)).tolist() for _ in range(max(0, starts - 1))]
-    if not continuous:
-        x0s = x0s[:1]
-    tag = "+".join(sc.name for sc in cal)
-    folder = run_folder(f"{tag}-identify", out)
-    log.info("identify %s on %s (%d choices x %d starts); results to %s", ", ".join(names), tag, len(combos),
-             len(x0s), folder)
-    raws = [(sc.raw, str(sc.path or sc.name)) for sc in cal]
-    jobs = [(raws, unknowns, continuous, c, x0, plan["targets"], settings, sigma_relative, sigma_absolute_ue,
-             nfev) for c in combos for x0 in x0s]
-    tic = time.perf_counter()
-    fits = parallel_map(fit_job, jobs, workers, scheduler, desc="identify" if progress else None)
-    ok = [f for f in fits if f["status"] == "completed"]
-    result = {"status": "failed", "calibration_scenarios": [sc.name for sc in cal],
-              "calibration_rpm": [rpm_of(sc) for sc in cal], "validation_scenarios": [sc.name for sc in val],
-              "identified": names, "settings": {"segments": settings.segments, "step_deg": settings.step_deg,
-                                                "tolerance": settings.tolerance, "method": "time marching to the "
-                                                "steady revolution (cosim.unknowns.solve)"},
-              "sigma_model": {"relative": sigma_relative, "absolute_ue": sigma_absolute_ue},
-              "records_used": plan["records"], "fits": [{k: f.get(k) for k in ("choice", "x0", "status", "cost",
-                                                                                "message", "error", "solves")}
-                                                         for f in fits]}
-    if not ok:
-        result["error"] = "every fit failed: " + "; ".join(str(f.get("error")) for f in fits[:3])
-        write_json(folder / "identification.json", result)
-        return folder, result
-    best = min(ok, key=lambda f: f["cost"])
-    m = len(best["fun"])
-    params, corr, stats = _confidence(unknowns, continuous, best, m)
+    x0s = [[0.5] * n] + [rng.random(n).tolist() for _ in range(max(0, starts - 1))]
+    return x0s if n else x0s[:1]
+
+
+def _fit_record(plan: dict, settings: Settings, sigma: tuple, fits: list) -> dict:
+    """The identification's record before its outcome: the scenarios, the unknowns identified,
+    the model's settings, the sigma model (relative, absolute [microstrain]) and every fit."""
+    cal, val = plan["calibration"], plan["validation"]
+    return {"status": "failed", "calibration_scenarios": [sc.name for sc in cal],
+            "calibration_rpm": [rpm_of(sc) for sc in cal], "validation_scenarios": [sc.name for sc in val],
+            "identified": plan["parameters"], "settings": {"segments": settings.segments,
+                                                           "step_deg": settings.step_deg,
+                                                           "tolerance": settings.tolerance,
+                                                           "method": "time marching to the steady revolution "
+                                                                     "(cosim.unknowns.solve)"},
+            "sigma_model": {"relative": sigma[0], "absolute_ue": sigma[1]},
+            "records_used": plan["records"], "fits": [{k: f.get(k) for k in ("choice", "x0", "status", "cost",
+                                                                              "message", "error", "solves")}
+                                                       for f in fits]}
+
+
+def _identified(result: dict, plan: dict, continuous: list, best: dict, ok: list) -> None:
+    """Record the best fit in ``result``: each unknown's value with its confidence (continuous) or
+    its cost per value (discrete), the statistics and how each gauge is read at the best choice."""
+    cal, unknowns, names = plan["calibration"], plan["unknowns"], plan["parameters"]
+    params, corr, stats = _confidence(unknowns, continuous, best, len(best["fun"]))
     where = [f"{sc.name} ({rpm_of(sc):.0f} rpm)" for sc in cal]
     for n in params:
         params[n]["identified_at"] = where
@@ -323,24 +313,30 @@ def identify(calibration, validation=(), parameters=None, records_dir=None, out=
                   reading_note="a gauge's bending sign is its face times its polarity: Table I's peaks cannot tell "
                                "them apart (its axial strains are printed as magnitudes)")
     result["fixed"] = {n: "the scenario's own value" for n in unknowns if n not in names}
-    # Calibration residuals (the calibrated model at the optimum; solves are fast and cached).
-    x = np.array(best["x"])
-    sample = _sample(unknowns, continuous, x, choice)
-    # The predictions' covariance: the records' information plus the declared ranges as a prior (a
-    # uniform range's variance, 1/12 of its width squared, in the scaled unknowns), so that an
-    # unknown the records leave open spreads a prediction over its range, not beyond it.
-    J = np.array(best["jac"]).reshape(m, len(continuous))
-    cov = np.linalg.inv(J.T @ J / stats["s2"] + 12.0 * np.eye(len(continuous))) if continuous else np.zeros((0, 0))
-    preds = predict(cal + val, unknowns, continuous, x, choice, cov, settings, workers, scheduler)
+
+
+def _prediction_covariance(best: dict, n: int, s2: float) -> np.ndarray:
+    """The predictions' covariance in the ``n`` scaled continuous unknowns: the records'
+    information (the best fit's Jacobian over ``s2``) plus the declared ranges as a prior (a
+    uniform range's variance, 1/12 of its width squared, in the scaled unknowns), so that an
+    unknown the records leave open spreads a prediction over its range, not beyond it."""
+    if not n:
+        return np.zeros((0, 0))
+    J = np.array(best["jac"]).reshape(len(best["fun"]), n)
+    return np.linalg.inv(J.T @ J / s2 + 12.0 * np.eye(n))
+
+
+def _validated(result: dict, plan: dict, preds: dict, sigma: tuple, records_dir) -> None:
+    """Record in ``result`` the calibrated model against the calibration records, then (only now
+    are they read) against the held-out records, and every scenario's predicted peaks."""
+    cal, val = plan["calibration"], plan["validation"]
     result["calibration"] = {}
     for sc in cal:
-        result["calibration"][sc.name] = compare(preds[sc.name], plan["targets"][sc.name], sigma_relative,
-                                                 sigma_absolute_ue)
-    # Only now are the held-out records read.
+        result["calibration"][sc.name] = compare(preds[sc.name], plan["targets"][sc.name], *sigma)
     result["validation"], result["predictions"] = {}, {}
-    for sc in val:
+    for sc in val:                              # only now are the held-out records read
         peaks, used = record_peaks(sc, records_dir)
-        result["validation"][sc.name] = compare(preds[sc.name], peaks, sigma_relative, sigma_absolute_ue)
+        result["validation"][sc.name] = compare(preds[sc.name], peaks, *sigma)
         result["predictions"][sc.name] = {"rpm": rpm_of(sc), "records_used": used,
                                           "note": None if peaks else "no record of the rig at this speed"}
     for sc in cal + val:
@@ -348,8 +344,11 @@ def identify(calibration, validation=(), parameters=None, records_dir=None, out=
         result["predictions"][sc.name].update(peaks=preds[sc.name]["peaks"], sigma_ue=preds[sc.name]["sigma_ue"],
                                               nominal_peaks=preds[sc.name]["nominal"]["peaks"],
                                               speed_fluctuation=preds[sc.name]["speed_fluctuation"])
-    result["wall_time_s"] = time.perf_counter() - tic
-    result["sample"] = {k: (v if isinstance(v, (str, int)) else float(v)) for k, v in sample.items()}
+
+
+def _write(folder: Path, result: dict, preds: dict, record: bool) -> None:
+    """identification.json (first without, then with the figures' names), the figure and the
+    recording; a figure that cannot be drawn never loses the identification."""
     write_json(folder / "identification.json", result)
     try:
         result["figures"] = [p.name for p in plot(folder, result, preds)]
@@ -358,6 +357,48 @@ def identify(calibration, validation=(), parameters=None, records_dir=None, out=
     if record:
         record_rrd(folder / "identification.rrd", result, preds)
     write_json(folder / "identification.json", result)
+
+
+def identify(calibration, validation=(), parameters=None, records_dir=None, out=None, settings: Settings = Settings(),
+             starts: int = 3, workers=None, scheduler=None, sigma_relative: float = 0.10, sigma_absolute_ue: float = 5.0,
+             max_nfev: int | None = None, seed: int = 1, record: bool = True, progress: bool = True,
+             max_hours: float = MAX_HOURS) -> tuple:
+    """Calibrate, then predict the held-out scenarios; returns ``(folder, result)``. ``max_hours``:
+    refuse an identification estimated to take longer (before any fit starts)."""
+    plan = check_inputs(calibration, validation, parameters, records_dir)
+    cal, val, unknowns, names = plan["calibration"], plan["validation"], plan["unknowns"], plan["parameters"]
+    continuous = [n for n in names if not unknowns[n].discrete]
+    combos = _combos(unknowns, names, cal[0].gauges)
+    nfev = max_nfev or 40 * (len(continuous) + 1)
+    _check_cost(cal, len(combos), starts, nfev, settings, workers, max_hours)
+    x0s = _starting_points(len(continuous), starts, seed)
+    tag = "+".join(sc.name for sc in cal)
+    folder = run_folder(f"{tag}-identify", out)
+    log.info("identify %s on %s (%d choices x %d starts); results to %s", ", ".join(names), tag, len(combos),
+             len(x0s), folder)
+    raws = [(sc.raw, str(sc.path or sc.name)) for sc in cal]
+    jobs = [(raws, unknowns, continuous, c, x0, plan["targets"], settings, sigma_relative, sigma_absolute_ue,
+             nfev) for c in combos for x0 in x0s]
+    tic = time.perf_counter()
+    fits = parallel_map(fit_job, jobs, workers, scheduler, desc="identify" if progress else None)
+    ok = [f for f in fits if f["status"] == "completed"]
+    sigma = (sigma_relative, sigma_absolute_ue)
+    result = _fit_record(plan, settings, sigma, fits)
+    if not ok:
+        result["error"] = "every fit failed: " + "; ".join(str(f.get("error")) for f in fits[:3])
+        write_json(folder / "identification.json", result)
+        return folder, result
+    best = min(ok, key=lambda f: f["cost"])
+    _identified(result, plan, continuous, best, ok)
+    # The calibrated model at the optimum, with its calibration residuals (solves are fast and cached).
+    x = np.array(best["x"])
+    sample = _sample(unknowns, continuous, x, best["choice"])
+    cov = _prediction_covariance(best, len(continuous), result["statistics"]["s2"])
+    preds = predict(cal + val, unknowns, continuous, x, best["choice"], cov, settings, workers, scheduler)
+    _validated(result, plan, preds, sigma, records_dir)
+    result["wall_time_s"] = time.perf_counter() - tic
+    result["sample"] = {k: (v if isinstance(v, (str, int)) else float(v)) for k, v in sample.items()}
+    _write(folder, result, preds, record)
     return folder, result
 
 
@@ -406,63 +447,3 @@ def compare(pred: dict, peaks: dict, rel, absolute) -> dict:
                 "error": None if mod is None else float(mod / rec - 1.0),
                 "normalized": None if mod is None else float((mod - rec) / _sigma(rec, rel, absolute))}
     return out
-
-
-def table(result: dict) -> str:
-    """The printed summary of an identification."""
-    lines = [f"identification on {', '.join(result['calibration_scenarios'])}: {result['status']}"]
-    if result.get("error"):
-        return "\n".join(lines + [f"error: {result['error']}"])
-    st = result["statistics"]
-    lines.append(f"chi^2 {st['chi2']:.3g} over {st['peaks']} peaks, {st['unknowns']} continuous unknowns "
-                 f"(sigma: {result['sigma_model']['relative']:.0%} of the peak and "
-                 f"{result['sigma_model']['absolute_ue']:g} ue)")
-    for n, p in result["parameters"].items():
-        if p.get("discrete"):
-            lines.append(f"  {n:<18} {p['value']!s:>12}  (choice; cost per value {p['best_cost_per_value']})")
-        else:
-            flags = ", ".join(f for f, on in (("at a bound of its range", p["at_bound"]),
-                                              ("not constrained by the records", not p["constrained"])) if on)
-            lines.append(f"  {n:<18} {p['value']:>12.4g} +/- {p['sigma']:.2g} {p['unit']}  95 %: "
-                         f"{p['interval95'][0]:.3g}..{p['interval95'][1]:.3g}" + (f"  [{flags}]" if flags else ""))
-    for title, block in (("calibration", result.get("calibration", {})), ("validation", result.get("validation", {}))):
-        for scn, gauges in block.items():
-            for g, sides in gauges.items():
-                cells = []
-                for side, c in sides.items():
-                    err = "n/a" if c["error"] is None else f"{c['error']:+.0%}"
-                    sig = "" if not c.get("sigma_ue") else f" +/- {c['sigma_ue']:.0f}"
-                    model = "n/a" if c["model_ue"] is None else f"{c['model_ue']:.0f}{sig}"
-                    cells.append(f"{side} record {c['record_ue']:.0f} model {model} ({err})")
-                lines.append(f"  {title:<11} {scn} {g}: " + "; ".join(cells))
-    return "\n".join(lines)
-
-
-def _parse_sigma(text: str) -> tuple:
-    try:
-        rel, absolute = (x.strip() for x in str(text).split(","))
-        rel = float(rel.rstrip("%")) / (100.0 if rel.endswith("%") else 1.0)
-        absolute = float(absolute)
-        if rel < 0 or absolute < 0 or rel + absolute <= 0:
-            raise ValueError
-    except ValueError:
-        raise ValueError(f"--sigma {text!r}: write the relative and absolute parts, e.g. 10%,5") from None
-    return rel, absolute
-
-
-def run_command(args, progress: bool = True) -> int:
-    """``cosim identify``: prints the table and where the results went."""
-    validation = [s.strip() for s in args.validate.split(",") if s.strip()]
-    names = [s.strip() for s in args.parameters.split(",") if s.strip()] if args.parameters else None
-    if args.starts < 1:
-        raise ValueError(f"--starts must be at least 1, got {args.starts}")
-    max_hours = MAX_HOURS if args.max_hours is None else args.max_hours
-    if not (math.isfinite(max_hours) and max_hours > 0):
-        raise ValueError(f"--max-hours must be a positive finite number, got {max_hours!r}")
-    rel, absolute = _parse_sigma(args.sigma)
-    folder, result = identify(args.scenarios, validation, names, args.records, args.out, starts=args.starts,
-                              workers=args.workers, scheduler=args.scheduler, sigma_relative=rel,
-                              sigma_absolute_ue=absolute, progress=progress, max_hours=max_hours)
-    print(table(result))
-    print(f"\nwritten to {folder}")
-    return 0 if result["status"] == "completed" else 1

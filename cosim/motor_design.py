@@ -74,49 +74,70 @@ def derive_pm_dc_motor(rated_power_W: float, rated_speed_rad_s: float, rated_vol
     return values, why
 
 
-def motor(r: Reader, data, drive: DriveSpec, mech):
+#: The rating's design knobs of :func:`derive_pm_dc_motor`: key of the ``[motor]`` table ->
+#: (argument, unit).
+RATING_KNOBS = {"efficiency": ("efficiency", ""), "copper_loss_share": ("copper_loss_share", ""),
+                "coulomb_share": ("coulomb_share", ""),
+                "electrical_time_constant": ("electrical_time_constant_s", "s"),
+                "rotor_inertia_per_power": ("rotor_inertia_per_W", "kg*m**2/W")}
+#: Every key of the ``[motor]`` table.
+MOTOR_KEYS = set(MOTOR_CONSTANTS) | set(RATING_KNOBS) | {
+    "rated_power", "rated_speed", "rated_voltage", "supply_voltage", "gear_ratio", "flywheel_inertia", "flywheels",
+    "shaft_stiffness", "shaft_damping", "controller", "setpoint", "reversible"}
 
-    knobs = {"efficiency": ("efficiency", ""), "copper_loss_share": ("copper_loss_share", ""),
-             "coulomb_share": ("coulomb_share", ""), "electrical_time_constant": ("electrical_time_constant_s", "s"),
-             "rotor_inertia_per_power": ("rotor_inertia_per_W", "kg*m**2/W")}
-    d = r.table(data, "motor", set(MOTOR_CONSTANTS) | set(knobs) | {
-        "rated_power", "rated_speed", "rated_voltage", "supply_voltage", "gear_ratio", "flywheel_inertia", "flywheels",
-        "shaft_stiffness", "shaft_damping", "controller", "setpoint", "reversible"})
+
+def _derived_constants(r: Reader, d: dict, missing: list) -> dict:
+    """The motor constants ``missing`` from the table, derived from its rating (recorded as
+    assumptions): ``{MotorParameters field: SI value}``."""
+    rating = [k for k in ("rated_power", "rated_speed", "rated_voltage") if k in d]
+    if len(rating) < 3:
+        need = sorted({"rated_power", "rated_speed", "rated_voltage"} - set(rating))
+        raise r.fail(f"motor.{need[0]}", f"is required to derive the motor constants not given "
+                                         f"({', '.join(missing)})")
+    P = in_range(r, d, "rated_power", "W", RATED_POWER_W)
+    w = r.quantity(d["rated_speed"], "motor.rated_speed", "rad/s", positive=True)
+    V = in_range(r, d, "rated_voltage", "V", VOLTAGE_V)
+    kw = {name: r.quantity(d[k], f"motor.{k}", unit, positive=True)
+          for k, (name, unit) in RATING_KNOBS.items() if k in d}
+    for k in ("efficiency", "copper_loss_share", "coulomb_share"):       # fractions, named by their own key
+        if k in d and not (kw[RATING_KNOBS[k][0]] < 1 if k == "efficiency" else kw[RATING_KNOBS[k][0]] <= 1):
+            raise r.fail(f"motor.{k}", "must be a fraction " + ("below 1 (100 %)" if k == "efficiency"
+                                                                else "of at most 1 (100 %)"), d[k])
+    try:
+        derived, why = derive_pm_dc_motor(P, w, V, **kw)
+    except InputError as exc:
+        raise r.fail("motor.rated_power", str(exc)) from None
+    values = {}
+    for key in missing:
+        name, unit = MOTOR_CONSTANTS[key]
+        values[name] = derived[name]
+        r.assumptions.append(Assumption(f"motor.{key}", f"{derived[name]:.6g} {unit.replace('**', '^')}", why))
+    return values
+
+
+def _constants(r: Reader, d: dict) -> dict:
+    """The motor's electrical and friction constants (SI): those the table gives, the others
+    derived from its rating; then the supply voltage [V]."""
     values = {}
     for key, (name, unit) in MOTOR_CONSTANTS.items():
         if key in d:
             strict = key in ("resistance", "inductance", "torque_constant", "back_emf")
             values[name] = r.quantity(d[key], f"motor.{key}", unit, positive=strict, nonnegative=not strict)
-    rating = [k for k in ("rated_power", "rated_speed", "rated_voltage") if k in d]
     missing = [k for k in MOTOR_CONSTANTS if MOTOR_CONSTANTS[k][0] not in values]
     if missing:
-        if len(rating) < 3:
-            need = sorted({"rated_power", "rated_speed", "rated_voltage"} - set(rating))
-            raise r.fail(f"motor.{need[0]}", f"is required to derive the motor constants not given "
-                                             f"({', '.join(missing)})")
-        P = in_range(r, d, "rated_power", "W", RATED_POWER_W)
-        w = r.quantity(d["rated_speed"], "motor.rated_speed", "rad/s", positive=True)
-        V = in_range(r, d, "rated_voltage", "V", VOLTAGE_V)
-        kw = {name: r.quantity(d[k], f"motor.{k}", unit, positive=True) for k, (name, unit) in knobs.items() if k in d}
-        for k in ("efficiency", "copper_loss_share", "coulomb_share"):       # fractions, named by their own key
-            if k in d and not (kw[knobs[k][0]] < 1 if k == "efficiency" else kw[knobs[k][0]] <= 1):
-                raise r.fail(f"motor.{k}", "must be a fraction " + ("below 1 (100 %)" if k == "efficiency"
-                                                                    else "of at most 1 (100 %)"), d[k])
-        try:
-            derived, why = derive_pm_dc_motor(P, w, V, **kw)
-        except InputError as exc:
-            raise r.fail("motor.rated_power", str(exc)) from None
-        for key in missing:
-            name, unit = MOTOR_CONSTANTS[key]
-            values[name] = derived[name]
-            r.assumptions.append(Assumption(f"motor.{key}", f"{derived[name]:.6g} {unit.replace('**', '^')}", why))
+        values |= _derived_constants(r, d, missing)
     if "supply_voltage" in d:
         values["supply_voltage_V"] = in_range(r, d, "supply_voltage", "V", VOLTAGE_V)
     elif "rated_voltage" in d:
         values["supply_voltage_V"] = in_range(r, d, "rated_voltage", "V", VOLTAGE_V)
     else:
         raise r.fail("motor.supply_voltage", "is required (or give rated_voltage)")
-    values["gear_ratio"] = r.number(d.get("gear_ratio", 1.0), "motor.gear_ratio", positive=True)
+    return values
+
+
+def _flywheel_inertia(r: Reader, d: dict) -> float:
+    """The flywheels' inertia [kg m^2]: ``flywheel_inertia``, or the sum of the ``flywheels``
+    (solid disks from diameter, thickness, density and count)."""
     if "flywheel_inertia" in d and "flywheels" in d:
         raise r.fail("motor.flywheels", "give either flywheel_inertia or flywheels, not both")
     J_fw = r.quantity(d.get("flywheel_inertia", "0 kg*m^2"), "motor.flywheel_inertia", "kg*m**2", nonnegative=True)
@@ -132,25 +153,41 @@ def motor(r: Reader, data, drive: DriveSpec, mech):
         J_fw += r.number(f.get("count", 1), f"{fk}.count", int, positive=True) * 0.5 * mass * radius**2   # solid disk
         if not J_fw <= MAX_MAGNITUDE:
             raise r.fail(fk, f"has an inertia of {J_fw:.3g} kg m^2: no rig is that size (check its numbers and units)")
-    values["flywheel_inertia_kg_m2"] = J_fw
+    return J_fw
+
+
+def _drive_train(r: Reader, d: dict) -> dict:
+    """Gear ratio, flywheel inertia [kg m^2], shaft stiffness [N m/rad] and damping [N m s/rad],
+    and whether the drive may reverse."""
+    values = {"gear_ratio": r.number(d.get("gear_ratio", 1.0), "motor.gear_ratio", positive=True),
+              "flywheel_inertia_kg_m2": _flywheel_inertia(r, d)}
     if "shaft_stiffness" in d:
         values["shaft_stiffness_Nm_rad"] = r.quantity(d["shaft_stiffness"], "motor.shaft_stiffness", "N*m/rad",
                                                       positive=True)
     values["shaft_damping_Nm_s_rad"] = r.quantity(d.get("shaft_damping", "0 N*m*s/rad"), "motor.shaft_damping",
                                                   "N*m*s/rad", nonnegative=True)
     values["reversible"] = r.number(d.get("reversible", False), "motor.reversible", bool)
+    return values
 
+
+def _setpoint(r: Reader, d: dict, drive: DriveSpec) -> SetPoint:
+    """The speed set-point: the drive's speed [rad/s], reached by a constant, ramp or step profile."""
     sp = r.table(d.get("setpoint", {}), "motor.setpoint", {"profile", "start", "t0", "duration"})
     speed = drive.speed_rad_s
     sign = -1.0 if speed < 0 else 1.0
-    setpoint = SetPoint(r.number(sp.get("profile", "constant"), "motor.setpoint.profile",
-                                 choices=("constant", "ramp", "step")), speed,
-                        sign * r.quantity(sp.get("start", "0 rpm"), "motor.setpoint.start", "rad/s", nonnegative=True),
-                        r.quantity(sp.get("t0", "0 s"), "motor.setpoint.t0", "s", nonnegative=True),
-                        r.quantity(sp.get("duration", "0 s"), "motor.setpoint.duration", "s", nonnegative=True))
-    values["setpoint"] = setpoint
+    return SetPoint(r.number(sp.get("profile", "constant"), "motor.setpoint.profile",
+                             choices=("constant", "ramp", "step")), speed,
+                    sign * r.quantity(sp.get("start", "0 rpm"), "motor.setpoint.start", "rad/s", nonnegative=True),
+                    r.quantity(sp.get("t0", "0 s"), "motor.setpoint.t0", "s", nonnegative=True),
+                    r.quantity(sp.get("duration", "0 s"), "motor.setpoint.duration", "s", nonnegative=True))
+
+
+def _controller(r: Reader, d: dict) -> tuple:
+    """``(controller table, its values)``: the current limit [A] and, when given, the PI gains
+    (kp [V s/rad], ki [V/rad]); a bandwidth instead of gains is designed by :func:`_parameters`."""
     ctrl = r.table(d.get("controller", {}), "motor.controller", {"bandwidth", "kp", "ki", "current_bandwidth",
                                                                  "current_limit"})
+    values = {}
     if "current_limit" in ctrl:
         values["current_limit_A"] = r.quantity(ctrl["current_limit"], "motor.controller.current_limit", "A",
                                                positive=True)
@@ -160,6 +197,12 @@ def motor(r: Reader, data, drive: DriveSpec, mech):
         values["kp_V_s_rad"] = r.quantity(ctrl.get("kp", "0 V*s/rad"), "motor.controller.kp", "V*s/rad",
                                           nonnegative=True)
         values["ki_V_rad"] = r.quantity(ctrl.get("ki", "0 V/rad"), "motor.controller.ki", "V/rad", nonnegative=True)
+    return ctrl, values
+
+
+def _parameters(r: Reader, values: dict, ctrl: dict, mech) -> MotorParameters:
+    """The motor's parameters; without PI gains, the gains designed for the speed-loop bandwidth
+    [Hz] (default 2 Hz) on the linkage's mean reflected inertia over a revolution."""
     try:
         params = MotorParameters(**values)
         if "kp" not in ctrl and "ki" not in ctrl:
@@ -173,6 +216,18 @@ def motor(r: Reader, data, drive: DriveSpec, mech):
             raise r.fail("motor.controller.current_bandwidth", "needs bandwidth (the gains are designed from both)")
     except InputError as exc:
         raise r.fail("motor", str(exc)) from None
+    return params
+
+
+def motor(r: Reader, data, drive: DriveSpec, mech) -> MotorParameters:
+    """The ``[motor]`` table of ``data`` read with ``r`` as :class:`cosim.motor.MotorParameters`
+    (SI): constants given or derived from the rating, drive train, set-point (the drive's speed)
+    and controller; a motor-driven ``drive`` has its set-point checked against the motor."""
+    d = r.table(data, "motor", MOTOR_KEYS)
+    values = _constants(r, d) | _drive_train(r, d)
+    values["setpoint"] = _setpoint(r, d, drive)
+    ctrl, controller = _controller(r, d)
+    params = _parameters(r, values | controller, ctrl, mech)
     if drive.mode == "motor":
         try:
             params.check_setpoint()

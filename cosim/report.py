@@ -3,8 +3,12 @@ run's comparison table, a sweep's peaks per speed, an uncertainty run's band, a 
 structure's results (:func:`report` picks the one that fits the folder). A summary that is not a
 JSON object, or a folder that is still running or was cut short, is said so, never a traceback.
 
-Owns: the text tables of ``cosim compare`` from a folder's summary.json. Boundaries: reads only
-summary.json; computes nothing new.
+The tables of ``cosim identify`` (:func:`identification_table`) and ``cosim synthesize``
+(:func:`synthesis_table`) are here too, from the records those commands return.
+
+Owns: the text tables of ``cosim compare`` from a folder's summary.json, and of ``cosim identify``
+and ``cosim synthesize`` from their results. Boundaries: reads only summary.json; computes nothing
+new; prints nothing (cosim.cli prints).
 """
 from __future__ import annotations
 
@@ -334,3 +338,52 @@ def failed_samples_text(failed: list, shown: int = 3, limit: int = 200) -> str:
              for e, heads in sorted(groups.items(), key=lambda kv: -len(kv[1]))[:shown]]
     more = f"; {len(groups) - shown} other error(s)" if len(groups) > shown else ""
     return f"{len(failed)}: " + "; ".join(parts) + more
+
+
+def identification_table(result: dict) -> str:
+    """The printed summary of an identification (the result of :func:`cosim.identify.identify`):
+    its fit, the identified unknowns and the calibration and validation peaks [microstrain]."""
+    lines = [f"identification on {', '.join(result['calibration_scenarios'])}: {result['status']}"]
+    if result.get("error"):
+        return "\n".join(lines + [f"error: {result['error']}"])
+    st = result["statistics"]
+    lines.append(f"chi^2 {st['chi2']:.3g} over {st['peaks']} peaks, {st['unknowns']} continuous unknowns "
+                 f"(sigma: {result['sigma_model']['relative']:.0%} of the peak and "
+                 f"{result['sigma_model']['absolute_ue']:g} ue)")
+    for n, p in result["parameters"].items():
+        if p.get("discrete"):
+            lines.append(f"  {n:<18} {p['value']!s:>12}  (choice; cost per value {p['best_cost_per_value']})")
+        else:
+            flags = ", ".join(f for f, on in (("at a bound of its range", p["at_bound"]),
+                                              ("not constrained by the records", not p["constrained"])) if on)
+            lines.append(f"  {n:<18} {p['value']:>12.4g} +/- {p['sigma']:.2g} {p['unit']}  95 %: "
+                         f"{p['interval95'][0]:.3g}..{p['interval95'][1]:.3g}" + (f"  [{flags}]" if flags else ""))
+    for title, block in (("calibration", result.get("calibration", {})), ("validation", result.get("validation", {}))):
+        for scn, gauges in block.items():
+            for g, sides in gauges.items():
+                cells = []
+                for side, c in sides.items():
+                    err = "n/a" if c["error"] is None else f"{c['error']:+.0%}"
+                    sig = "" if not c.get("sigma_ue") else f" +/- {c['sigma_ue']:.0f}"
+                    model = "n/a" if c["model_ue"] is None else f"{c['model_ue']:.0f}{sig}"
+                    cells.append(f"{side} record {c['record_ue']:.0f} model {model} ({err})")
+                lines.append(f"  {title:<11} {scn} {g}: " + "; ".join(cells))
+    return "\n".join(lines)
+
+
+def synthesis_table(record: dict) -> str:
+    """The printed summary of ``cosim synthesize`` (:func:`cosim.synthesis.result_record`): lengths
+    in the record's unit, angles [deg] from the ground line (crank pivot -> rocker pivot), CCW."""
+    r = record
+    lines = [f"four-bar synthesis, case {r['case']} (FE thesis Ch. III): {r['grashof']}, residual {r['residual']:.1e}",
+             ", ".join(f"{k} {r[k]:.6g} {r['unit']}" for k in ("crank", "coupler", "rocker", "ground"))]
+    for end, names in {"extended": ("phi2", "mu2", "theta1"), "folded": ("phi4", "mu4", "theta3")}.items():
+        lines.append(f"{end + ' limit:':<16} crank angle {r[f'crank_angle_{end}_deg']:7.3f} deg, rocker angle "
+                     f"{r[f'rocker_angle_{end}_deg']:7.3f} deg ("
+                     + ", ".join(f"{k} {r[k + '_deg']:.3f}" for k in names) + ")")
+    lines += [f"oscillation {r['oscillation_deg']:.3f} deg, time ratio {r['time_ratio']:.3f}; transmission angle "
+              f"{r['transmission_min_deg']:.3f} deg (crank angle 0) to {r['transmission_max_deg']:.3f} deg (180 deg)",
+              "angles in deg from the ground line (crank pivot -> rocker pivot), counter-clockwise"]
+    if r.get("scenario"):
+        lines.append(f"scenario written to {r['scenario']}")
+    return "\n".join(lines)

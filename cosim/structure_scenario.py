@@ -9,6 +9,7 @@ Owns: the ``type = "structure"`` format and its static run. Boundaries: no time-
 """
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -47,15 +48,9 @@ class StaticScenario(Variants):
     loader: object = field(default=None, repr=False, compare=False)
 
 
-def build(r, top: dict, path: str, default_name: str, materials: dict, sections: dict, meta: dict):
-    """Build a :class:`StaticScenario` from the TOML tree (``r`` is the scenario reader)."""
-    lk = r.table(top["linkage"], "linkage", {"type", "analysis"}, {"type"})
-    for unused in ("drive", "gauges", "gravity", "solver", "output", "motor", "coupling", "uncertainty", "modules"):
-        if unused in top:      # a structure at one position has no motion: the table would be ignored
-            raise r.fail(unused, "a structure held at one position (linkage.type = \"structure\") has no "
-                                 f"[{unused}]: remove it")
-    analysis = r.number(lk.get("analysis", "beam_column"), "linkage.analysis", choices=ANALYSES)
-
+def _joints(r, top: dict) -> tuple:
+    """``(positions {joint: (x, y) [m]}, [Joint])`` of the ``[joints.*]`` tables: position,
+    support and the support's direction [rad]."""
     joints_raw = r.names(top.get("joints", {}), "joints")
     if not joints_raw:
         raise r.fail("joints", "a structure needs [joints.<name>] tables")
@@ -67,47 +62,64 @@ def build(r, top: dict, path: str, default_name: str, materials: dict, sections:
         support = r.number(d.get("support", "free"), f"{key}.support",
                            choices=("free", "pinned", "clamped", "slider", "sliding_clamp"))
         joints.append(Joint(name, support, r.quantity(d.get("direction", "0 deg"), f"{key}.direction", "rad")))
-    joint_ref = joint_checker(r, positions)
+    return positions, joints
 
-    clamped = {j.name for j in joints if j.support in ("clamped", "sliding_clamp")}
-    members, parts = [], {}
-    links_raw = r.names(top.get("links", {}), "links")
-    for name, d in links_raw.items():
-        key = f"links.{name}"
-        d = r.table(d, key, {"path", "section", "material", "segments", "welded_at"}, {"path", "section", "material"})
-        route = r.unwrap(d["path"], f"{key}.path")
-        if not isinstance(route, list) or len(route) < 2:
-            raise r.fail(f"{key}.path", "must list at least two joints", route)
-        route = [joint_ref(j, f"{key}.path") for j in route]
-        sec = sections.get(r.text(d["section"], f"{key}.section"))
-        if sec is None:
-            raise r.fail(f"{key}.section", f"unknown section (defined: {', '.join(sorted(sections)) or 'none'})",
-                         d["section"])
-        mat = materials.get(r.text(d["material"], f"{key}.material"))
-        if mat is None:
-            raise r.fail(f"{key}.material", f"unknown material (defined: {', '.join(sorted(materials)) or 'none'})",
-                         d["material"])
-        n = r.number(d.get("segments", 4), f"{key}.segments", int, positive=True)
-        if n > MAX_SEGMENTS:
-            raise r.fail(f"{key}.segments", f"must be at most {MAX_SEGMENTS}", n)
-        welds = r.unwrap(d.get("welded_at", []), f"{key}.welded_at")
-        if not isinstance(welds, list):
-            raise r.fail(f"{key}.welded_at", "must be a list of joints", welds)
-        welded = {joint_ref(j, f"{key}.welded_at") for j in welds}
-        names = []
-        for i, (a, b) in enumerate(zip(route[:-1], route[1:])):
-            L = float(np.linalg.norm(positions[b] - positions[a]))
-            if L <= 0:
-                raise r.fail(f"{key}.path", f"joints '{a}' and '{b}' coincide", route)
-            start = "rigid" if (i > 0 or a in welded or a in clamped) else "pin"
-            end = "rigid" if (i < len(route) - 2 or b in welded or b in clamped) else "pin"
-            mname = name if len(route) == 2 else f"{name}[{a}-{b}]"
-            members.append(Member.uniform(mname, a, b, L, n, sec, mat, start_connection=start, end_connection=end))
-            names.append(mname)
-        parts[name] = names
 
-    plates = []
-    seen = {}
+@dataclass(frozen=True)
+class _Frame:
+    """What a link of the format is built on: the joints' positions [m], the check of a joint's
+    name, the clamped joints, and the sections and materials by name."""
+
+    positions: dict
+    joint_ref: Callable
+    clamped: frozenset
+    sections: dict
+    materials: dict
+
+
+def _named(r, table: dict, key: str, kind: str, defined: dict):
+    """The section or material a link names, refused naming the ones defined."""
+    found = defined.get(r.text(table[kind], f"{key}.{kind}"))
+    if found is None:
+        raise r.fail(f"{key}.{kind}", f"unknown {kind} (defined: {', '.join(sorted(defined)) or 'none'})",
+                     table[kind])
+    return found
+
+
+def _link_members(r, name: str, d: dict, frame: _Frame) -> list:
+    """The members of link ``name``: one per pair of consecutive joints of its path, pinned at
+    its two ends unless welded there or clamped, rigidly joined along the path."""
+    key = f"links.{name}"
+    d = r.table(d, key, {"path", "section", "material", "segments", "welded_at"}, {"path", "section", "material"})
+    route = r.unwrap(d["path"], f"{key}.path")
+    if not isinstance(route, list) or len(route) < 2:
+        raise r.fail(f"{key}.path", "must list at least two joints", route)
+    route = [frame.joint_ref(j, f"{key}.path") for j in route]
+    sec = _named(r, d, key, "section", frame.sections)
+    mat = _named(r, d, key, "material", frame.materials)
+    n = r.number(d.get("segments", 4), f"{key}.segments", int, positive=True)
+    if n > MAX_SEGMENTS:
+        raise r.fail(f"{key}.segments", f"must be at most {MAX_SEGMENTS}", n)
+    welds = r.unwrap(d.get("welded_at", []), f"{key}.welded_at")
+    if not isinstance(welds, list):
+        raise r.fail(f"{key}.welded_at", "must be a list of joints", welds)
+    welded = {frame.joint_ref(j, f"{key}.welded_at") for j in welds}
+    members = []
+    for i, (a, b) in enumerate(zip(route[:-1], route[1:])):
+        L = float(np.linalg.norm(frame.positions[b] - frame.positions[a]))
+        if L <= 0:
+            raise r.fail(f"{key}.path", f"joints '{a}' and '{b}' coincide", route)
+        start = "rigid" if (i > 0 or a in welded or a in frame.clamped) else "pin"
+        end = "rigid" if (i < len(route) - 2 or b in welded or b in frame.clamped) else "pin"
+        mname = name if len(route) == 2 else f"{name}[{a}-{b}]"
+        members.append(Member.uniform(mname, a, b, L, n, sec, mat, start_connection=start, end_connection=end))
+    return members
+
+
+def _plates(r, top: dict, joint_ref) -> list:
+    """The rigid plates of ``[plates.*]``: a centroid joint and vertex joints (a joint is the
+    vertex of one plate at most)."""
+    plates, seen = [], {}
     for name, d in r.names(top.get("plates", {}), "plates").items():
         key = f"plates.{name}"
         d = r.table(d, key, {"centroid", "vertices"}, {"centroid", "vertices"})
@@ -120,7 +132,11 @@ def build(r, top: dict, path: str, default_name: str, materials: dict, sections:
                 raise r.fail(f"{key}.vertices", f"joint '{v}' is already a vertex of plate '{seen[v]}'", v)
             seen[v] = name
         plates.append(RigidBody(name, joint_ref(d["centroid"], f"{key}.centroid"), tuple(verts)))
-    springs = read_springs(r, top, joint_ref)
+    return plates
+
+
+def _sliders(r, top: dict, joint_ref, members: list, parts: dict) -> list:
+    """The slider joints of ``[sliders.*]``: a block joint sliding along a link at its guide joint."""
     sliders = []
     for name, d in r.names(top.get("sliders", {}), "sliders").items():
         key = f"sliders.{name}"
@@ -133,25 +149,51 @@ def build(r, top: dict, path: str, default_name: str, materials: dict, sections:
         if member is None:
             raise r.fail(f"{key}.guide", f"joint '{guide}' is not on link '{link}'", guide)
         sliders.append(SliderJoint(name, joint_ref(d["block"], f"{key}.block"), guide, member.name))
+    return sliders
 
+
+def _key_nodes(members: list) -> dict:
+    """``{joint: [(member, node index)]}``: the member ends at each joint."""
+    key_nodes = {}
+    for m in members:
+        key_nodes.setdefault(m.start, []).append((m.name, 0))
+        key_nodes.setdefault(m.end, []).append((m.name, m.n_segments))
+    return key_nodes
+
+
+def build(r, top: dict, path: str, default_name: str, materials: dict, sections: dict, meta: dict):
+    """Build a :class:`StaticScenario` from the TOML tree (``r`` is the scenario reader)."""
+    lk = r.table(top["linkage"], "linkage", {"type", "analysis"}, {"type"})
+    for unused in ("drive", "gauges", "gravity", "solver", "output", "motor", "coupling", "uncertainty", "modules"):
+        if unused in top:      # a structure at one position has no motion: the table would be ignored
+            raise r.fail(unused, "a structure held at one position (linkage.type = \"structure\") has no "
+                                 f"[{unused}]: remove it")
+    analysis = r.number(lk.get("analysis", "beam_column"), "linkage.analysis", choices=ANALYSES)
+    positions, joints = _joints(r, top)
+    joint_ref = joint_checker(r, positions)
+    clamped = frozenset(j.name for j in joints if j.support in ("clamped", "sliding_clamp"))
+    frame = _Frame(positions, joint_ref, clamped, sections, materials)
+    members, parts = [], {}
+    for name, d in r.names(top.get("links", {}), "links").items():
+        own = _link_members(r, name, d, frame)
+        members += own
+        parts[name] = [m.name for m in own]
+    plates = _plates(r, top, joint_ref)
+    springs = read_springs(r, top, joint_ref)
+    sliders = _sliders(r, top, joint_ref, members, parts)
     loads = {}
     for key, d, vec in read_loads(r, top, {"joint", "link", "position", "force", "moment"}):
         member, node = _load_node(r, key, d, members, parts, positions)
         loads.setdefault(member.name, np.zeros((member.n_segments + 1, 3)))[node] += vec
-
     try:
         structure = Structure(tuple(joints), tuple(members), tuple(springs), tuple(plates), tuple(sliders))
     except TMMError as exc:
         raise r.fail("linkage", str(exc)) from None
     _check_dangling(r, structure)
-    key_nodes = {}
-    for m in members:
-        key_nodes.setdefault(m.start, []).append((m.name, 0))
-        key_nodes.setdefault(m.end, []).append((m.name, m.n_segments))
     return StaticScenario(str(meta.get("name", default_name)), str(meta.get("description", "")),
                           Path(path) if path != "<dict>" else None, tuple(meta.get("sources", [])), structure,
-                          LoadCase(positions, loads), analysis, parts, key_nodes, tuple(r.assumptions), top,
-                          str(meta["rig"]) if "rig" in meta else None)
+                          LoadCase(positions, loads), analysis, parts, _key_nodes(members), tuple(r.assumptions),
+                          top, str(meta["rig"]) if "rig" in meta else None)
 
 
 def _load_node(r, key, d, members, parts, positions):

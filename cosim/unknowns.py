@@ -17,8 +17,8 @@ A key is one of three kinds:
   made with :meth:`cosim.scenario.Scenario.with_overrides` and validated by the loader;
 * a **model key** (``model.*``, :data:`MODEL_KEYS`): physics the scenario file has no key for,
   carried by the transfer-matrix model only: the drive's inertia (a free-wheeling crank,
-  :mod:`cosim.drive_profile`), moments at the pins (gauge wires, joint friction,
-  :mod:`cosim.joint_loads`), and gravity written as the fraction of g in the linkage plane and
+  :mod:`tmm_core.free_wheel`), moments at the pins (gauge wires, joint friction,
+  :mod:`tmm_core.pin_moments`), and gravity written as the fraction of g in the linkage plane and
   its direction (set as ``gravity.vector``);
 * a **measurement key**: how a gauge reads the model's strain: ``gauges.<g>.face`` (top/bottom:
   flips the bending sign) and ``measurement.polarity.<g>`` (+1/-1: flips bending and axial).
@@ -42,11 +42,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from tmm_core import CrankMotion, TMMError
+from tmm_core.free_wheel import free_wheel
+from tmm_core.pin_moments import JointLoadedFourBar, JointMoment
 from tmm_core.reduced import ReducedOptions
 from tmm_core.reduced_periodic import periodic_steady_state_reduced
 
-from .drive_profile import free_wheel
-from .joint_loads import JointLoadedFourBar, JointMoment
 from .run_guards import estimate_cost
 from .scenario import ScenarioError, from_dict
 from .unknowns_table import (DISTRIBUTIONS, MODEL_KEYS, Unknown, Variant, declared,  # noqa: F401

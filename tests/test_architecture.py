@@ -23,10 +23,6 @@ CYCLES: dict = {}
 
 #: Functions over the limits for now: "module.function" -> reason.
 LONG_FUNCTIONS = {
-    "cosim.engines.mujoco._mjcf": "the MJCF writer; issue 35 item 3",
-    "cosim.identify.identify": "the identification pipeline, 16 parameters; issue 35 (typed options)",
-    "cosim.motor_design.motor": "the [motor] table's reader; issue 35 item 3",
-    "cosim.structure_scenario.build": "the structure format's builder; issue 35 item 3",
     "tmm_core.compiled.march.march": "the compiled march of the time step (8 records): the step loop with its axial iteration; issue 33 item 4 (one step)",
     "tmm_core.compiled.riccati.factor_configuration": "compiled factorization of one configuration (7 records), one loop over the chain; issue 33",
     "tmm_core.compiled.step_data.solve_loads_many": "compiled load solve of many load sets (6 records), one sweep; issue 33",

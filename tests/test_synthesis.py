@@ -1,4 +1,5 @@
-"""Rigid four-bar synthesis, limit positions and `cosim synthesize` (cosim.synthesis).
+"""Rigid four-bar synthesis, limit positions (tmm_core.synthesis) and `cosim synthesize` (cosim.cli,
+cosim.synthesis).
 
 Expected values are the publication's, never this code's: the FE thesis, Ch. III (Case Studies I
 and II, Eqs. 3.4-3.17) prescribes angles of its Ch. IX rig, crank 7, coupler 10, rocker 12, ground
@@ -15,9 +16,9 @@ import pytest
 
 from cosim.cli import main
 from cosim.scenario import load
-from cosim.synthesis import grashof_class, limit_positions, synthesize_case_one, synthesize_case_two
 from cosim.units import INCH
 from tmm_core import FourBarGeometry, InputError, fourbar_motion
+from tmm_core.synthesis import grashof_class, limit_positions, synthesize_case_one, synthesize_case_two
 
 DEG = math.radians
 FE_RIG_IN = (7.0, 10.0, 12.0, 11.0)                 # crank, coupler, rocker, ground [in], thesis Ch. IX

@@ -7,12 +7,12 @@ import math
 import numpy as np
 import pytest
 
-from cosim.drive_profile import free_wheel
-from cosim.joint_loads import JOINTS, JointLoadedFourBar, JointMoment, mean_relative_angle
 from cosim.scenario import load
 from cosim.unknowns import Settings, declared, read, solve, steady_march, variant
 from tmm_core import CrankMotion, InputError, TimeDomain
+from tmm_core.free_wheel import free_wheel
 from tmm_core.periodic import periodic_steady_state
+from tmm_core.pin_moments import JOINTS, JointLoadedFourBar, JointMoment, mean_relative_angle
 
 FAST = Settings(step_deg=1.0)
 

@@ -114,13 +114,10 @@ class MujocoEngine:
         return self._dt
 
     # -- model --------------------------------------------------------------------------------
-    def _mjcf(self, scenario: Scenario) -> str:
-        lk, tree, s, dt = self.lk, self.tree, scenario.mujoco, self._dt
-        kin = lk.kinematics
-        g = scenario.gravity or (0.0, 0.0)
-        children = {}
-        for body in tree.order:
-            children.setdefault(tree.parent[body], []).append(body)
+    def _member_sites(self) -> dict:
+        """A site at every station of every member (``self.member_sites``: link -> site names);
+        returns the sites per body, ``{body: [(name, local position [m])]}``."""
+        lk, tree, kin = self.lk, self.tree, self.lk.kinematics
         self.member_sites = {}
         sites_of = {}
         for i, (link, a, b, _, _) in enumerate(lk.members):
@@ -133,21 +130,23 @@ class MujocoEngine:
                 sites_of.setdefault(body, []).append((name, tree.local(body, kin.reference_position(a) + x * e)))
                 names.append(name)
             self.member_sites[link.name] = names
-        # A site at each closure joint and spring end on the bodies that hold it.
-        self.joint_sites = {}
+        return sites_of
 
-        def joint_site(body, j):
-            key = (body, j)
-            if key not in self.joint_sites:
-                name = f"j{len(self.joint_sites)}"
-                self.joint_sites[key] = name
-                sites_of.setdefault(body, []).append((name, tree.local(body, kin.reference_position(j))))
-            return self.joint_sites[key]
-        self.closure_sites = [(joint_site(b1, j), joint_site(b2, j)) for b1, b2, j in tree.closures]
-        world_sites = ['<site name="world_ref" pos="0 0 0"/>'] + [
-            f'<site name="{n}" pos="{_f(*p, 0)}"/>' for n, p in sites_of.get(None, [])]
-        tendons = []
-        for sp in lk.springs:
+    def _joint_site(self, sites_of: dict, body, j) -> str:
+        """The site at joint ``j`` on ``body``, added to ``sites_of`` the first time it is asked for."""
+        key = (body, j)
+        if key not in self.joint_sites:
+            name = f"j{len(self.joint_sites)}"
+            self.joint_sites[key] = name
+            position = self.tree.local(body, self.lk.kinematics.reference_position(j))
+            sites_of.setdefault(body, []).append((name, position))
+        return self.joint_sites[key]
+
+    def _spring_tendons(self, sites_of: dict, world_sites: list) -> list:
+        """A spatial tendon per spring between its two joints (a grounded end gets a world site,
+        appended to ``world_sites``)."""
+        kin, tendons = self.lk.kinematics, []
+        for sp in self.lk.springs:
             ends = []
             for j in (sp.a, sp.b):
                 if j in kin.ground:
@@ -155,46 +154,57 @@ class MujocoEngine:
                     world_sites.append(f'<site name="{name}" pos="{_f(*kin.reference_position(j), 0)}"/>')
                     ends.append(name)
                 else:
-                    ends.append(joint_site(next(b for b in tree.order if j in kin.bodies[b]), j))
+                    ends.append(self._joint_site(sites_of, next(b for b in self.tree.order if j in kin.bodies[b]), j))
             tendons.append(f'<spatial name="spring_{sp.name}" stiffness="{sp.k:.17g}" '
                            f'springlength="{sp.free_length:.17g}"><site site="{ends[0]}"/><site site="{ends[1]}"/>'
                            '</spatial>')
+        return tendons
+
+    def _load_actuators(self) -> list:
+        """A fixed-gear actuator per loaded member node (force [N] and moment [N m] in the world
+        frame, switched on through its control); ``self.n_loads`` counts them."""
         loads = []
-        for name, F in lk.loads.items():
+        for name, F in self.lk.loads.items():
             for k in np.flatnonzero(np.any(np.asarray(F) != 0, axis=-1)):
                 site = self.member_sites[name][k]
                 loads.append(f'<general name="load_{len(loads)}" site="{site}" refsite="world_ref" '
                              f'group="{LOAD_GROUP}" gear="{_f(F[k][0], F[k][1], 0, 0, 0, F[k][2])}"/>')
         self.n_loads = len(loads)
+        return loads
 
-        def body_xml(body, parent):
-            O, phi = tree.frame[body]
-            if parent is None:
-                pos, euler = O, (kin.crank_zero if body == kin.crank else phi)
-            else:
-                Op, php = tree.frame[parent]
-                pos, euler = rot2(-php) @ (O - Op), phi - php
-            kind = tree.joint[body]
-            if body == kin.crank:
-                # The crank's frame is turned by its zero direction: its hinge angle is the crank angle.
-                anchor = np.zeros(2)
-                jxml = f'<joint name="{body}_hinge" type="hinge" axis="0 0 1" armature="{self.armature:.17g}"/>'
-            elif kind[0] == "hinge":
-                anchor = tree.local(body, kin.reference_position(kind[1]))
-                jxml = f'<joint name="{body}_hinge" type="hinge" axis="0 0 1" pos="{_f(*anchor, 0)}"/>'
-            else:
-                axis = rot2(-phi) @ kind[2]
-                jxml = f'<joint name="{body}_slide" type="slide" axis="{_f(axis[0], axis[1], 0)}"/>'
-            m, c, J = tree.mass[body]
-            sites = sites_of.get(body, [])
-            # Planar: only the z inertia acts; x/y values only have to pass the triangle inequality.
-            return (f'<body name="{body}" pos="{_f(*pos, 0)}" euler="{_f(0, 0, euler)}">{jxml}'
-                    f'<inertial pos="{_f(*c, 0)}" mass="{m:.17g}" diaginertia="{_f(1e-6 * J, J, J)}"/>'
-                    + "".join(f'<site name="{n}" pos="{_f(*p, 0)}"/>' for n, p in sites)
-                    + "".join(body_xml(ch, body) for ch in children.get(body, []))
-                    + '</body>')
-        tree_xml = "".join(body_xml(b, None) for b in children.get(None, []))
-        kp, kd = self.gains
+    def _body_xml(self, body, parent, children: dict, sites_of: dict) -> str:
+        """``body`` and its subtree: its frame relative to ``parent``, its joint, inertial and sites."""
+        tree, kin = self.tree, self.lk.kinematics
+        O, phi = tree.frame[body]
+        if parent is None:
+            pos, euler = O, (kin.crank_zero if body == kin.crank else phi)
+        else:
+            Op, php = tree.frame[parent]
+            pos, euler = rot2(-php) @ (O - Op), phi - php
+        kind = tree.joint[body]
+        if body == kin.crank:
+            # The crank's frame is turned by its zero direction: its hinge angle is the crank angle.
+            jxml = f'<joint name="{body}_hinge" type="hinge" axis="0 0 1" armature="{self.armature:.17g}"/>'
+        elif kind[0] == "hinge":
+            anchor = tree.local(body, kin.reference_position(kind[1]))
+            jxml = f'<joint name="{body}_hinge" type="hinge" axis="0 0 1" pos="{_f(*anchor, 0)}"/>'
+        else:
+            axis = rot2(-phi) @ kind[2]
+            jxml = f'<joint name="{body}_slide" type="slide" axis="{_f(axis[0], axis[1], 0)}"/>'
+        m, c, J = tree.mass[body]
+        sites = sites_of.get(body, [])
+        # Planar: only the z inertia acts; x/y values only have to pass the triangle inequality.
+        return (f'<body name="{body}" pos="{_f(*pos, 0)}" euler="{_f(0, 0, euler)}">{jxml}'
+                f'<inertial pos="{_f(*c, 0)}" mass="{m:.17g}" diaginertia="{_f(1e-6 * J, J, J)}"/>'
+                + "".join(f'<site name="{n}" pos="{_f(*p, 0)}"/>' for n, p in sites)
+                + "".join(self._body_xml(ch, body, children, sites_of) for ch in children.get(body, []))
+                + '</body>')
+
+    def _sensors(self) -> list:
+        """Every body's joint position and angular acceleration, every member site's position and
+        acceleration, the closure sites' positions, the crank speed and the two actuators' forces;
+        ``self.hinges`` lists the hinged bodies."""
+        tree, kin = self.tree, self.lk.kinematics
         sensors = []
         self.hinges = [b for b in tree.order if tree.joint[b][0] == "hinge"]
         for body in tree.order:
@@ -208,8 +218,31 @@ class MujocoEngine:
         for a, b in self.closure_sites:
             for site in (a, b):
                 sensors.append(f'<framepos name="p_{site}" objtype="site" objname="{site}"/>')
-        sensors += [f'<jointvel name="w_crank" joint="{kin.crank}_hinge"/>',
-                    '<actuatorfrc name="f_servo" actuator="servo"/>', '<actuatorfrc name="f_motor" actuator="motor"/>']
+        return sensors + [f'<jointvel name="w_crank" joint="{kin.crank}_hinge"/>',
+                          '<actuatorfrc name="f_servo" actuator="servo"/>',
+                          '<actuatorfrc name="f_motor" actuator="motor"/>']
+
+    def _mjcf(self, scenario: Scenario) -> str:
+        """The MJCF of the linkage: the body tree with its sites, the closures as equality
+        constraints, springs as tendons, the servo, motor and load actuators, and the sensors."""
+        lk, tree, s, dt = self.lk, self.tree, scenario.mujoco, self._dt
+        kin = lk.kinematics
+        g = scenario.gravity or (0.0, 0.0)
+        children = {}
+        for body in tree.order:
+            children.setdefault(tree.parent[body], []).append(body)
+        sites_of = self._member_sites()
+        # A site at each closure joint and spring end on the bodies that hold it.
+        self.joint_sites = {}
+        self.closure_sites = [(self._joint_site(sites_of, b1, j), self._joint_site(sites_of, b2, j))
+                              for b1, b2, j in tree.closures]
+        world_sites = ['<site name="world_ref" pos="0 0 0"/>'] + [
+            f'<site name="{n}" pos="{_f(*p, 0)}"/>' for n, p in sites_of.get(None, [])]
+        tendons = self._spring_tendons(sites_of, world_sites)
+        loads = self._load_actuators()
+        tree_xml = "".join(self._body_xml(b, None, children, sites_of) for b in children.get(None, []))
+        kp, kd = self.gains
+        sensors = self._sensors()
         equality = "".join(f'<connect site1="{a}" site2="{b}" solref="{_f(s.solref_factor * dt, 1)}" '
                            f'solimp="{_f(s.solimp, s.solimp, 0.001, 0.5, 2)}"/>' for a, b in self.closure_sites)
         return f"""<mujoco model="{lk.name.split(' ')[0]}">

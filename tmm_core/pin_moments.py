@@ -23,11 +23,11 @@ revolution, so ``moment`` is the moment at the joint's mean angle (the preload) 
 the crank speed, so the friction's shape does not depend on the speed).
 
 The moment on a rigid crank (pin B) is carried to the drive torque. Only the transfer-matrix
-model carries these moments: the exudyn and MuJoCo engines are never given this mechanism (it is
-built only by :mod:`cosim.uncertainty` and :mod:`cosim.identify` for periodic TMM solves).
+model carries these moments: the exudyn and MuJoCo engines are never given this mechanism (the
+bench builds it only for the fast TMM model of its bands and identification, cosim.unknowns).
 
-Owns: moments at a four-bar's pins as TMM applied loads. Boundaries: no scenario parsing
-(cosim.unknowns declares them).
+Owns: moments at a four-bar's pins as TMM applied loads. Boundaries: no scenario parsing (the
+bench declares them as unknowns), no I/O.
 """
 from __future__ import annotations
 
@@ -35,7 +35,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from tmm_core import FourBarMechanism, InputError
+from .errors import InputError
+from .mechanism import FourBarMechanism
 
 JOINTS = {"B": ("crank", "coupler"), "C": ("coupler", "rocker"), "D": (None, "rocker")}
 #: Friction smoothing: the tanh width as a fraction of the crank speed.

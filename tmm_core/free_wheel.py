@@ -20,7 +20,7 @@ bound the effective ``J_d``, which is how the bench declares the drive's complia
 own torsional mode is not modelled).
 
 Owns: the periodic crank history of a free-wheeling drive of finite inertia. Boundaries: pure
-numerics; the motor model itself is cosim.motor.
+numerics, no I/O; the motor model itself is the bench's (cosim.motor).
 """
 from __future__ import annotations
 
@@ -29,9 +29,8 @@ import math
 import numpy as np
 from scipy.optimize import brentq
 
-from tmm_core import CrankMotion, InputError
-
-from .scenario_types import revolution_period_s
+from .errors import InputError
+from .ked import CrankMotion
 
 N_FINE = 7200
 
@@ -41,7 +40,7 @@ def free_wheel(mech, speed_rad_s: float, drive_inertia_kg_m2: float, steps: int,
     """``(CrankMotion over one period (steps + 1 samples), info)`` of a crank free-wheeling with
     the inertia ``drive_inertia_kg_m2`` on its shaft at mean speed ``speed_rad_s`` (sign = direction).
     ``applied``: a mechanism with ``generalized_force(q, direction)`` (the crank torque of applied
-    loads, e.g. :class:`cosim.joint_loads.JointLoadedFourBar`); the motor supplies their mean
+    loads, e.g. :class:`tmm_core.pin_moments.JointLoadedFourBar`); the motor supplies their mean
     (friction's loss) as a constant torque. ``info``: ``speed_fluctuation`` ((max - min) / mean
     of the speed), ``energy_J``, ``motor_torque_Nm``."""
     if not drive_inertia_kg_m2 > 0:
@@ -49,7 +48,7 @@ def free_wheel(mech, speed_rad_s: float, drive_inertia_kg_m2: float, steps: int,
     if not speed_rad_s:
         raise InputError("a free-wheeling crank needs a non-zero mean speed")
     s = math.copysign(1.0, speed_rad_s)
-    period = revolution_period_s(speed_rad_s)
+    period = 2 * math.pi / abs(speed_rad_s)                  # one revolution at the mean speed [s]
     u = np.linspace(0.0, 2 * math.pi, N_FINE + 1)          # crank rotation from the start, in the drive's direction
     q = start_angle + s * u
     J, dJ, Qg = mech.crank_inertia(q, gravity)
