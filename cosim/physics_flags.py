@@ -26,7 +26,7 @@ import math
 import numpy as np
 from tmm_core import FourBarMechanism
 from tmm_core.closed_forms import euler_load_N, first_bending_frequency_Hz
-from tmm_core.synthesis import grashof_class
+from tmm_core.fourbar_limits import grashof_class
 
 from .engines import is_rigid
 from .resonance import frequency_map

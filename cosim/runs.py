@@ -44,7 +44,7 @@ import numpy as np
 import tomli_w
 
 from tmm_core import FourBarMechanism, TMMError
-from tmm_core.synthesis import limit_positions
+from tmm_core.fourbar_limits import limit_positions
 
 from . import __version__
 from . import figures as run_figures      # through the module: a test puts a failing stand-in there
@@ -131,7 +131,7 @@ def last_revolution_stats(run, period: float | None = None, t0: float = 0.0) -> 
 
 def linkage_summary(sc: Scenario) -> dict | None:
     """Limit positions and transmission-angle range of a four-bar scenario [deg]
-    (:func:`tmm_core.synthesis.limit_positions`); None for other linkages or a non-Grashof one."""
+    (:func:`tmm_core.fourbar_limits.limit_positions`); None for other linkages or a non-Grashof one."""
     if not isinstance(sc.mechanism, FourBarMechanism):
         return None
     try:

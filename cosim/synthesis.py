@@ -63,7 +63,7 @@ def write_scenario(result: FourBarSynthesis, path: Path, like: str, unit) -> Pat
 
 def result_record(result: FourBarSynthesis, unit, written: Path | None = None) -> dict:
     """The command's result: lengths in ``unit`` (a pint unit, named under the key ``unit``), angles
-    in degrees (``<name>_deg``), the limit positions of :func:`tmm_core.synthesis.limit_positions` in degrees,
+    in degrees (``<name>_deg``), the limit positions of :func:`tmm_core.fourbar_limits.limit_positions` in degrees,
     the residual of the thesis equations and the scenario written (None if none)."""
     return ({"case": result.case, "unit": f"{unit:~}", "grashof": result.limits["grashof"]}
             | {k: float((getattr(result, k) * UREG.m).to(unit).magnitude)

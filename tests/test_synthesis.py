@@ -18,7 +18,8 @@ from cosim.cli import main
 from cosim.scenario import load
 from cosim.units import INCH
 from tmm_core import FourBarGeometry, InputError, fourbar_motion
-from tmm_core.synthesis import grashof_class, limit_positions, synthesize_case_one, synthesize_case_two
+from tmm_core.fourbar_limits import grashof_class, limit_positions
+from tmm_core.synthesis import synthesize_case_one, synthesize_case_two
 
 DEG = math.radians
 FE_RIG_IN = (7.0, 10.0, 12.0, 11.0)                 # crank, coupler, rocker, ground [in], thesis Ch. IX
@@ -145,3 +146,18 @@ def test_every_four_bar_run_reports_its_limit_positions_and_transmission_range()
     assert lk["oscillation_deg"] == pytest.approx(81.0748, abs=1e-4)
     assert lk["transmission_min_deg"] == pytest.approx(18.1949, abs=1e-4)
     assert linkage_summary(load("slider_crank_600rpm")) is None
+
+
+@pytest.mark.parametrize("branch", [1, -1])
+@pytest.mark.parametrize("ground_angle", [0.0, 0.7])
+def test_limit_positions_are_where_the_sampled_rocker_speed_changes_sign(branch, ground_angle):
+    # Independent of the closed form: the rocker's speed sampled over a revolution at 1e-4 rad.
+    g = FourBarGeometry(0.05, 0.2, 0.15, 0.18, ground_angle=ground_angle, branch=branch)
+    lim = limit_positions(g)
+    angle = np.linspace(0, 2 * np.pi, 62832)
+    w = fourbar_motion(g, angle, 1.0).rocker.omega
+    reversals = angle[np.flatnonzero(np.sign(w[:-1]) != np.sign(w[1:]))]
+    assert sorted([lim["crank_angle_extended_rad"], lim["crank_angle_folded_rad"]]) == \
+        pytest.approx(sorted(reversals), abs=2e-4)
+    m = fourbar_motion(g, np.array([lim["crank_angle_extended_rad"], lim["crank_angle_folded_rad"]]))
+    assert np.hypot(*(m.C - m.A).T) == pytest.approx([0.25, 0.15], rel=1e-12)      # in line: a + b, b - a

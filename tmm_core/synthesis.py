@@ -1,5 +1,5 @@
-"""Rigid four-bar synthesis (FE thesis Ch. III; docs/validation.md), limit positions and
-transmission angles of any four-bar.
+"""Rigid four-bar synthesis (FE thesis Ch. III; docs/validation.md): a crank-rocker from its
+rocker swing and limit positions.
 
 Thesis notation (Fig. 1): crank pivot M, crank pin A, coupler-rocker pin B, rocker pivot Q, with
 a = crank MA, b = coupler AB, c = rocker QB, d = ground MQ (the bench's A, B, C, D). Lengths are
@@ -14,7 +14,8 @@ in line (MB = a + b), at the *folded* limit folded on each other (MB = b - a); t
 * ``mu2``, ``mu4``: angle M-B-Q (the transmission angle) at the extended / folded limit.
 * ``mu1``: transmission angle with the crank along M->Q (crank angle 0), the smallest of a revolution.
 
-Owns: rigid four-bar synthesis, Grashof class, limit positions. Boundaries: no flexible analysis,
+Owns: rigid four-bar synthesis (the Grashof class and limit positions it checks are
+:mod:`tmm_core.fourbar_limits`'s). Boundaries: no flexible analysis,
 no I/O (the bench's ``cosim synthesize`` reads its options and writes its scenario).
 """
 from __future__ import annotations
@@ -26,7 +27,8 @@ import numpy as np
 from scipy.optimize import brentq, least_squares
 
 from .errors import ConvergenceError, InputError, require_positive
-from .kinematics import FourBarGeometry, fourbar_motion
+from .fourbar_limits import grashof_class, limit_positions
+from .kinematics import FourBarGeometry
 
 RESIDUAL_TOLERANCE = 1e-10   # of the thesis equations in ratios to d and radians: round-off, not "close"
 CHECK_TOLERANCE = 1e-8       # rad: the synthesized linkage through the bench's kinematics
@@ -34,74 +36,6 @@ CHECK_TOLERANCE = 1e-8       # rad: the synthesized linkage through the bench's 
 
 def _deg(x: float) -> str:
     return f"{math.degrees(x):.6g} deg"
-
-
-def _wrap(x):
-    """Angle(s) wrapped to (-pi, pi]."""
-    return np.angle(np.exp(1j * np.asarray(x)))
-
-
-def grashof_class(crank: float, coupler: float, rocker: float, ground: float, rtol: float = 1e-12) -> str:
-    """Grashof class: shortest s and longest l with s + l <= p + q give a link that turns fully.
-
-    'crank-rocker' (crank shortest), 'double-crank' (ground shortest), 'double-rocker' (coupler
-    shortest), 'rocker-crank' (rocker shortest); ' (change point)' is appended when s + l = p + q
-    (the links can fall in line, a toggle); 'non-Grashof triple-rocker' when s + l > p + q.
-    """
-    named = {"crank": crank, "coupler": coupler, "rocker": rocker, "ground": ground}
-    s, p, q, l = sorted(named.values())
-    excess = s + l - (p + q)
-    if excess > rtol * l:
-        return "non-Grashof triple-rocker"
-    shortest = min(("ground", "crank", "coupler", "rocker"), key=lambda k: named[k])   # ties: ground first
-    kind = {"crank": "crank-rocker", "ground": "double-crank", "coupler": "double-rocker",
-            "rocker": "rocker-crank"}[shortest]
-    return kind + (" (change point)" if abs(excess) <= rtol * l else "")
-
-
-def limit_positions(geometry: FourBarGeometry, samples: int = 720) -> dict:
-    """Limit positions and transmission-angle range of a four-bar whose crank turns fully.
-
-    Bench kinematics and conventions (:func:`tmm_core.fourbar_motion`, the geometry's branch):
-    crank angles [rad, 0..2 pi) from the ground line A->D, CCW; rocker angles [rad] of D->C from
-    that line. The limits are where the rocker's speed changes sign (``samples`` crank angles, then
-    Brent); the extended one has A-C = crank + coupler. The transmission angle (interior angle at C,
-    0..pi) grows with the distance B-D, i.e. from crank angle 0 (minimum) to pi (maximum).
-
-    Keys: ``grashof`` (:func:`grashof_class`), ``crank_angle_{extended,folded}_rad``,
-    ``rocker_angle_{extended,folded}_rad``, ``oscillation_rad``, ``time_ratio`` (longer over shorter
-    crank arc between the limits; these six are None for a double-crank, whose rocker never
-    reverses), ``transmission_{min,max}_rad``, ``crank_angle_transmission_{min,max}_rad``. Raises
-    :class:`InputError` if the crank cannot turn fully, :class:`tmm_core.AssemblyError` at a toggle.
-    """
-    g = geometry
-    kind = grashof_class(g.crank, g.coupler, g.rocker, g.ground)
-    if kind not in ("crank-rocker", "double-crank"):
-        raise InputError(f"limit positions need a crank that turns a full revolution without a toggle; "
-                         f"{g.describe()} is a {kind}")
-    ends = fourbar_motion(g, np.array([0.0, math.pi]))      # interior angle B-C-D = angle of coupler to rocker
-    mu_min, mu_max = np.abs(_wrap(ends.coupler.angle - ends.rocker.angle)).tolist()
-    out = {"grashof": kind, "transmission_min_rad": mu_min, "transmission_max_rad": mu_max,
-           "crank_angle_transmission_min_rad": 0.0, "crank_angle_transmission_max_rad": math.pi}
-    names = ("crank_angle_extended_rad", "crank_angle_folded_rad", "rocker_angle_extended_rad",
-             "rocker_angle_folded_rad", "oscillation_rad", "time_ratio")
-    if kind == "double-crank":
-        return out | dict.fromkeys(names)
-    grid = np.linspace(0.0, 2 * math.pi, samples + 1)
-    w = fourbar_motion(g, grid, 1.0).rocker.omega
-    roots = [brentq(lambda t: float(fourbar_motion(g, t, 1.0).rocker.omega), grid[i], grid[i + 1], xtol=1e-14)
-             % (2 * math.pi) for i in np.flatnonzero(np.sign(w[:-1]) != np.sign(w[1:]))]
-    crank_angles = [x for i, x in enumerate(roots)          # a reversal on a grid point is bracketed twice
-                    if all(abs(_wrap(x - y)) > 1e-9 for y in roots[:i])]
-    if len(crank_angles) != 2:
-        raise ConvergenceError(f"{g.describe()}: found {len(crank_angles)} rocker reversals, expected 2")
-    m = fourbar_motion(g, np.array(crank_angles))
-    ext, fold = np.argsort(-np.hypot(*(m.C - m.A).T))     # the extended limit reaches farther
-    rocker = _wrap(m.rocker.angle - g.ground_angle).tolist()
-    arc = (crank_angles[fold] - crank_angles[ext]) % (2 * math.pi)
-    return out | dict(zip(names, (crank_angles[ext], crank_angles[fold], rocker[ext], rocker[fold],
-                                  abs(float(_wrap(rocker[ext] - rocker[fold]))),
-                                  max(arc, 2 * math.pi - arc) / min(arc, 2 * math.pi - arc))))
 
 
 @dataclass(frozen=True)
