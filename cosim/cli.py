@@ -29,10 +29,9 @@ viewer's address is printed on stderr even with ``-q`` (:func:`cosim.recording.s
 written under ``./logs/`` of the current directory unless ``--out`` says otherwise.
 
 Owns: the ``cosim`` command: arguments (every subcommand's, synthesize and identify too),
-dispatch, exit codes, logging set-up. Boundaries: no numerics and no file formats: it calls run,
-sweep, uncertainty, identify, report. Each subcommand imports the modules that run it when it
-runs (the one place cosim imports its own modules inside functions), so ``cosim --help`` and
-``cosim list`` load none of the numerics.
+dispatch, logging set-up. Boundaries: no numerics and no file formats: each subcommand is a
+module of :mod:`cosim.commands` (:data:`COMMANDS`), imported when the command runs, so ``cosim
+--help`` and ``cosim list`` load none of the numerics.
 """
 from __future__ import annotations
 
@@ -55,19 +54,17 @@ if _IMPORTING:
         _IMPORTING = False
 
 import argparse  # noqa: E402  (after the handler, on purpose)
-import json  # noqa: E402
+import importlib  # noqa: E402
 import logging  # noqa: E402
-import math  # noqa: E402
 import os  # noqa: E402
 import sys  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 from . import __version__  # noqa: E402
 from .defaults import MAX_HOURS, SYNTHESIS_LIKE  # noqa: E402
+from .fmi.command import add_parser as add_fmu_parser  # noqa: E402
 from .interrupts import exit_status, interrupt_on_sigterm  # noqa: E402
-from .recording.options import add_viewer_arguments, viewer_from_args  # noqa: E402
-from .recording.sinks import copy_to_stdout, show_file  # noqa: E402
-from .run_outcome import MISSING_OUTPUTS  # noqa: E402
+from .recording.options import add_viewer_arguments  # noqa: E402
 from .runlog import out_folder  # noqa: E402
 from .scenario_files import SCENARIO_DIR, ScenarioFileError, read_with_bases, scenario_names  # noqa: E402
 
@@ -88,35 +85,6 @@ def list_scenarios() -> list[tuple[str, str]]:
         except ScenarioFileError as exc:   # a broken file is listed with its error, not hidden
             out.append((name, f"(cannot be loaded: {exc})"))
     return out
-
-
-def _engines(text: str) -> tuple:
-    from .engines import ENGINES          # the engine registry, loaded by the commands that run engines
-    names = tuple(x.strip() for x in text.split(",") if x.strip())
-    for n in names:
-        if n not in ENGINES:
-            raise ValueError(f"--engines: unknown engine {n!r}; choose from {', '.join(ENGINES)}")
-    if not names:
-        raise ValueError("--engines: give at least one engine")
-    if len(set(names)) != len(names):
-        raise ValueError(f"--engines: an engine is named twice ({text!r})")
-    return names
-
-
-#: The largest counts the command line takes (each sample or trajectory is a model run; more would
-#: allocate their design, gigabytes, before anything could say so).
-MAX_COUNT = {"--samples": 10_000, "--trajectories": 1_000, "--workers": 1_024}
-
-
-def _positive(args, flags) -> None:
-    """Each numeric flag given must be a positive finite number (counts at most MAX_COUNT); the
-    error names the flag. Checked before anything runs."""
-    for flag in flags:
-        value = getattr(args, flag.lstrip("-").replace("-", "_"), None)
-        if value is not None and not (math.isfinite(value) and value > 0):
-            raise ValueError(f"{flag} must be a positive finite number, got {value!r}")
-        if value is not None and value > MAX_COUNT.get(flag, math.inf):
-            raise ValueError(f"{flag} must be at most {MAX_COUNT[flag]}, got {value!r}")
 
 
 class _Prefix(logging.Formatter):
@@ -168,12 +136,6 @@ def _max_hours_argument(parser) -> None:
     parser.add_argument("--max-hours", type=float, metavar="H", help=MAX_HOURS_HELP)
 
 
-def _max_hours(args) -> float:
-    """``--max-hours``, checked positive and finite (default :data:`cosim.defaults.MAX_HOURS`)."""
-    _positive(args, ("--max-hours",))
-    return MAX_HOURS if getattr(args, "max_hours", None) is None else args.max_hours
-
-
 def _verbosity_arguments(parser, top: bool = False) -> None:
     """``-v``/``-q`` on ``cosim`` itself and on each subcommand (either place works)."""
     suffix = "_top" if top else ""
@@ -181,10 +143,6 @@ def _verbosity_arguments(parser, top: bool = False) -> None:
                         help="more detail on stderr (debug messages)")
     parser.add_argument("-q", "--quiet", dest=f"quiet{suffix}", action="store_true",
                         help="no progress bars; only warnings and errors on stderr")
-
-
-def _quiet(args) -> bool:
-    return bool(getattr(args, "quiet", False) or getattr(args, "quiet_top", False))
 
 
 def _executor_arguments(parser, jobs: str) -> None:
@@ -318,7 +276,7 @@ def _new_parser(sub) -> None:
 
 
 def _synthesize_parser(sub) -> None:
-    """``cosim synthesize`` (run by :func:`synthesize_main`)."""
+    """``cosim synthesize`` (run by :mod:`cosim.commands.synthesize`)."""
     s = sub.add_parser(
         "synthesize", help="link lengths of a rigid crank-rocker from its rocker swing and limit positions",
         description="Rigid crank-rocker synthesis (FE thesis Ch. III). Case I: from the rocker swing, the folded "
@@ -348,12 +306,11 @@ def _synthesize_parser(sub) -> None:
 def _export_fmu_parser(sub) -> None:
     """``cosim export-fmu`` (its options beside its command, in :mod:`cosim.fmi.command`, a light
     module: the export itself is imported when the command runs)."""
-    from .fmi.command import add_parser
-    _verbosity_arguments(add_parser(sub))
+    _verbosity_arguments(add_fmu_parser(sub))
 
 
 def _identify_parser(sub) -> None:
-    """``cosim identify`` (run by :func:`identify_main`)."""
+    """``cosim identify`` (run by :mod:`cosim.commands.identify`)."""
     p = sub.add_parser("identify", help="calibrate declared unknowns at some speeds, predict held-out ones",
                        description="Calibrate chosen unknowns of the scenarios' [uncertainty] table against their "
                                    "records by bounded least squares within the declared ranges, then predict the "
@@ -387,7 +344,8 @@ def main(argv: list[str] | None = None) -> int:
         args = parser.parse_args(argv)
     except KeyboardInterrupt:          # Ctrl-C while the subcommands' modules load: no traceback
         return exit_status()
-    setup_logging(getattr(args, "verbose", 0) + getattr(args, "verbose_top", 0), _quiet(args))
+    setup_logging(getattr(args, "verbose", 0) + getattr(args, "verbose_top", 0),
+                  bool(getattr(args, "quiet", False) or getattr(args, "quiet_top", False)))
     log = logging.getLogger("cosim.cli")
     log.debug("cosim %s, options %s", __version__, vars(args))
     try:
@@ -418,10 +376,6 @@ def _is_model_error(exc: Exception) -> bool:
             or (engines is not None and isinstance(exc, engines.EngineError)))
 
 
-#: Exit status of a run whose engines completed but some of whose outputs (recording, parquet,
-#: figure, model.xml, scores) are missing (cosim.run_outcome): its results are computed, yet a
-#: script that goes on to read them must not take it for a whole run (0), nor for a failure (1).
-EXIT_MISSING_OUTPUTS = 3
 #: Exit status when stdout's reader closed the pipe: 128 + SIGPIPE (13), the shell's convention.
 EXIT_BROKEN_PIPE = 141
 
@@ -440,6 +394,21 @@ def _one_line(exc) -> str:
     return " ".join(str(exc).split())
 
 
+#: The module and function that run each subcommand (``main(args) -> exit status``), imported
+#: when the command runs: the one place cosim loads its own modules on demand, so that ``cosim
+#: --help`` and ``cosim list`` import none of the numerics.
+COMMANDS = {
+    "run": ("cosim.commands.run", "main"),
+    "sweep": ("cosim.commands.sweep", "main"),
+    "uncertainty": ("cosim.commands.uncertainty", "main"),
+    "identify": ("cosim.commands.identify", "main"),
+    "compare": ("cosim.commands.compare", "main"),
+    "new": ("cosim.commands.new", "main"),
+    "synthesize": ("cosim.commands.synthesize", "main"),
+    "export-fmu": ("cosim.fmi.command", "run_command"),
+}
+
+
 def _dispatch(parser, args) -> int:
     if args.command == "list":
         rows = list_scenarios()
@@ -447,246 +416,11 @@ def _dispatch(parser, args) -> int:
         for name, desc in rows:
             print(f"{name:<{width}}  {desc}")
         return 0
-    if args.command == "run":
-        return run_main(args.scenario, args)
-    if args.command in ("sweep", "uncertainty"):
-        _positive(args, ("--samples", "--trajectories", "--workers"))
-        _refuse_structure(args.scenario, args.command)
-    if args.command == "sweep":
-        from .sweeps import parse_rpm, run_sweep
-        rpm = parse_rpm(args.rpm)
-        _positive(args, ("--revolutions", "--workers"))
-        from .report import sweep_table, unsolved_count
-        viewer, save = _viewer(args)
-        folder, summary = run_sweep(args.scenario, rpm, _engines(args.engines), args.revolutions, args.workers,
-                                    args.scheduler, args.out, record=viewer is not None, progress=not _quiet(args),
-                                    method=args.method, resonance=args.campbell, records_dir=args.records,
-                                    model=args.model, max_hours=_max_hours(args))
-        out = sys.stderr if viewer is not None and viewer.stdout else sys.stdout     # --stdout: the .rrd
-        print(sweep_table(summary), file=out)
-        print(f"\nsweep {summary['status']}: {len(summary['points'])} points{unsolved_count(summary)} in "
-              f"{summary['wall_time_s']:.1f} s; written to {folder}", file=out)
-        _show(folder / "sweep.rrd", viewer, save)
-        return _exit_code(summary["status"])
-    if args.command == "uncertainty":
-        from .report import uncertainty_table
-        from .uncertainty import run_uncertainty
-        viewer, save = _viewer(args)
-        folder, summary = run_uncertainty(args.scenario, args.samples, args.seed, args.workers, args.scheduler,
-                                          args.out, record=viewer is not None, progress=not _quiet(args),
-                                          records_dir=args.records, trajectories=args.trajectories,
-                                          max_hours=_max_hours(args))
-        out = sys.stderr if viewer is not None and viewer.stdout else sys.stdout     # --stdout: the .rrd
-        print(uncertainty_table(summary), file=out)
-        print(f"\nwritten to {folder}", file=out)
-        _show(folder / "uncertainty.rrd", viewer, save)
-        return _exit_code(summary["status"])
-    if args.command == "new":
-        from .template import new_scenario
-        path, bases = new_scenario(args.name, args.like, args.out)
-        print(f"wrote {path}" + (f" and its base file(s) {', '.join(str(b) for b in bases)}" if bases else ""))
-        print(f"run it with: cosim run {path}")
+    if args.command not in COMMANDS:
+        parser.print_help()
         return 0
-    if args.command == "export-fmu":
-        from .fmi.command import run_command as export_fmu_command
-        return export_fmu_command(args)
-    if args.command == "identify":
-        return identify_main(args)
-    if args.command == "synthesize":
-        return synthesize_main(args)
-    if args.command == "compare":
-        return compare_main(args.run_dir)
-    parser.print_help()
-    return 0
-
-
-def _parse_sigma(text: str) -> tuple:
-    """``--sigma REL%,ABS``: (relative part, absolute part [microstrain]), both >= 0, not both 0."""
-    try:
-        rel, absolute = (x.strip() for x in str(text).split(","))
-        rel = float(rel.rstrip("%")) / (100.0 if rel.endswith("%") else 1.0)
-        absolute = float(absolute)
-        if rel < 0 or absolute < 0 or rel + absolute <= 0:
-            raise ValueError
-    except ValueError:
-        raise ValueError(f"--sigma {text!r}: write the relative and absolute parts, e.g. 10%,5") from None
-    return rel, absolute
-
-
-def identify_main(args) -> int:
-    """``cosim identify``: its options read and checked, the identification run
-    (:func:`cosim.identify.identify`), its table and where the results went printed."""
-    validation = [s.strip() for s in args.validate.split(",") if s.strip()]
-    names = [s.strip() for s in args.parameters.split(",") if s.strip()] if args.parameters else None
-    if args.starts < 1:
-        raise ValueError(f"--starts must be at least 1, got {args.starts}")
-    max_hours = _max_hours(args)
-    rel, absolute = _parse_sigma(args.sigma)
-    from .identify import identify
-    from .report import identification_table
-    folder, result = identify(args.scenarios, validation, names, args.records, args.out, starts=args.starts,
-                              workers=args.workers, scheduler=args.scheduler, sigma_relative=rel,
-                              sigma_absolute_ue=absolute, progress=not _quiet(args), max_hours=max_hours)
-    print(identification_table(result))
-    print(f"\nwritten to {folder}")
-    return 0 if result["status"] == "completed" else 1
-
-
-def _quantity(option: str, text: str, kind: str):
-    """``text`` as a pint quantity of kind 'length' or 'angle'; a bare number is refused."""
-    from .units import UREG, quantity     # pint on use: `cosim --help` stays quick
-    example = {"length": "in", "angle": "deg"}[kind]
-    try:
-        q = quantity(text)
-    except Exception:
-        raise ValueError(f"option {option} = {text!r}: not a quantity with a unit, e.g. '11 {example}'") from None
-    if not hasattr(q, "units") or q.units == UREG.dimensionless:      # "81 %" has a unit: refused below
-        raise ValueError(f"option {option} = {text!r}: has no unit; write it with one, e.g. '{text} {example}'")
-    target = UREG.meter if kind == "length" else UREG.radian     # pint counts angles as dimensionless
-    if UREG.get_root_units(q.units)[1] != target or not math.isfinite(q.magnitude):
-        raise ValueError(f"option {option} = {text!r}: is not a finite {kind}")
-    return q
-
-
-def _case_inputs(args) -> dict:
-    """The case's angle options [rad]; an option of the other case is refused rather than ignored."""
-    own = {"I": ("rocker_limit", "min_transmission"), "II": ("crank_limits",)}[args.case]
-    for name in ("rocker_limit", "min_transmission", "crank_limits"):
-        value, option = getattr(args, name), "--" + name.replace("_", "-")
-        if (value is not None) != (name in own):
-            raise ValueError(f"option {option} is required for case {args.case}" if value is None else
-                             f"option {option} = {value!r}: is not used by case {args.case}")
-    if args.like is not None and args.scenario_out is None:
-        raise ValueError(f"option --like = {args.like!r}: is only used with --scenario-out")
-    if args.overwrite and args.scenario_out is None:
-        raise ValueError("option --overwrite: is only used with --scenario-out")
-    out = args.scenario_out
-    if out is not None and (out.exists() or out.is_symlink()) and not (args.overwrite and out.is_file()):
-        raise ValueError(f"option --scenario-out = {str(out)!r}: already exists" +
-                         ("; give another path, or --overwrite to replace it" if not out.is_dir() else
-                          " and is a folder; give a file path"))
-    given = ([(n, "--" + n.replace("_", "-"), getattr(args, n)) for n in own] if args.case == "I" else
-             [(n, f"--crank-limits ({n.upper()})", t) for n, t in zip(("theta1", "theta3"), args.crank_limits)])
-    return {name: float(_quantity(option, text, "angle").to("rad").magnitude) for name, option, text in given}
-
-
-def synthesize_main(args) -> int:
-    """``cosim synthesize``: its options read (values with units), the crank-rocker synthesized
-    (:mod:`tmm_core.synthesis`), printed (table or one JSON object), optionally written as a scenario."""
-    ground = _quantity("--ground", args.ground, "length")
-    oscillation = float(_quantity("--oscillation", args.oscillation, "angle").to("rad").magnitude)
-    inputs = _case_inputs(args)
-    from tmm_core.synthesis import synthesize_case_one, synthesize_case_two
-    from .report import synthesis_table
-    from .synthesis import result_record, write_scenario
-    result = (synthesize_case_one if args.case == "I" else synthesize_case_two)(
-        float(ground.to("m").magnitude), oscillation, **inputs)
-    written = (write_scenario(result, args.scenario_out, args.like or SYNTHESIS_LIKE, ground.units)
-               if args.scenario_out is not None else None)
-    record = result_record(result, ground.units, written)
-    print(json.dumps(record) if args.json else synthesis_table(record))
-    return 0
-
-
-def _exit_code(status: str) -> int:
-    """A command's exit status from its summary's status: 0 when it completed (with failed samples
-    or unsolved points too: the band, and a speed without a periodic solution, are results),
-    :data:`EXIT_MISSING_OUTPUTS` when a run completed but some of its files are missing, 128 + the
-    signal when a signal interrupted it, 1 otherwise."""
-    if status == MISSING_OUTPUTS:
-        return EXIT_MISSING_OUTPUTS
-    if status.startswith("completed"):
-        return 0
-    return exit_status() if status == "interrupted" else 1
-
-
-def _refuse_structure(scenario: str, command: str) -> None:
-    """A structure held at one position has no speed: ``sweep`` and ``uncertainty`` refuse it."""
-    from .scenario import load
-    sc = load(scenario)
-    if getattr(sc, "kind", None) == "structure":
-        raise ValueError(f"scenario '{scenario}' is a structure held at one position (linkage.type = 'structure'): "
-                         f"it has no crank speed, so `cosim {command}` cannot run it; use `cosim run {scenario}`")
-
-
-def compare_main(folder) -> int:
-    """``cosim compare``: the folder's own table; a summary that cannot be read or shown is one
-    ``error:`` line and exit 2, never a traceback."""
-    from .report import load_summary, report
-    summary = load_summary(folder)          # ValueError / FileNotFoundError name the file
-    try:
-        text = report(summary)
-    except Exception as exc:                # a summary.json edited by hand or from another version
-        raise ValueError(f"{Path(folder)}/summary.json: cannot be shown ({type(exc).__name__}: {exc}); it may be "
-                         "from another version of the bench or edited by hand") from None
-    print(text)
-    return 0
-
-
-def run_main(scenario: str, args=None) -> int:
-    """``cosim run``; also what each scenario script calls (``python scenarios/<name>.py``)."""
-    if args is None:      # a scenario script: its own command line with the same options
-        args = build_parser().parse_args(["run", scenario] + sys.argv[1:])
-        setup_logging(args.verbose, args.quiet)
-    from .report import comparison_table, status_notice
-    from .runs import RunOptions, run_scenario
-    viewer, save = _viewer(args)
-    from .scenario import load
-    sc = load(scenario)
-    if getattr(sc, "kind", None) == "structure":       # a structure at one position: static analysis
-        from .structure_scenario import run_static, summary_table
-        if getattr(args, "records", None) is not None:
-            logging.getLogger("cosim.cli").warning("--records: a static structure has no records to score; ignored")
-        if viewer is not None and (viewer.viewer != "save" or viewer.stdout or save):
-            logging.getLogger("cosim.cli").warning("a static structure writes no recording; the viewer flags are "
-                                                   "ignored")
-        folder, summary = run_static(sc, args.out)
-        print(summary_table(summary))
-        print(f"\nwritten to {folder}")
-        return 0
-    out = sys.stderr if viewer is not None and viewer.stdout else sys.stdout     # --stdout: the .rrd
-    shown = []       # the status the table was printed with
-
-    def answer(summary: dict) -> None:
-        """The table as soon as the engines' results are in, before the run's slower files."""
-        print(comparison_table(summary), file=out, flush=True)
-        shown.append(summary["status"])
-
-    engines = _engines(args.engines) if args.engines is not None else sc.output.engines
-    _positive(args, ("--revolutions", "--linkage-fps", "--viewer-timeout"))
-    max_hours = _max_hours(args)
-    options = RunOptions(engines=engines, mode=args.drive, revolutions=args.revolutions, out=args.out,
-                         viewer="none" if viewer is None else viewer.viewer,
-                         connect_url=None if viewer is None else viewer.url, save_path=save,
-                         viewer_timeout_s=5.0 if viewer is None else viewer.timeout_s,
-                         serve_address="127.0.0.1" if viewer is None else viewer.bind, exaggeration=args.exaggeration,
-                         linkage_fps=args.linkage_fps, animation=args.animation, progress=not _quiet(args),
-                         records=args.records, max_hours=max_hours, on_results=answer)
-    result = run_scenario(sc, options)
-    if not shown:
-        answer(result.summary)
-    elif result.summary["status"] != shown[0]:     # an output written after the table failed
-        print(f"\n{status_notice(result.summary) or 'status ' + result.summary['status']}", file=out)
-    print(f"\nwritten to {result.folder}", file=out)
-    recording = result.summary["files"].get("recording")
-    if viewer is not None and viewer.stdout and recording:
-        copy_to_stdout(result.folder / recording)          # an absolute --save path stays absolute
-    if result.recorder is not None and getattr(result.recorder, "serving", None):
-        logging.getLogger("cosim.cli").info("serving the recording until Ctrl-C")
-        result.recorder.serve_until_interrupted()
-    return _exit_code(result.summary["status"])
-
-
-def _viewer(args):
-    """(ViewerOptions or None, --save path or None) of the recording flags (cosim.recording.options)."""
-    return viewer_from_args(args)
-
-
-def _show(path: Path, viewer, save) -> None:
-    """A finished sweep/uncertainty recording in the viewer the flags ask for (and --save, --stdout)."""
-    if viewer is None or not path.exists():
-        return
-    show_file(path, viewer, save)
+    module, function = COMMANDS[args.command]
+    return getattr(importlib.import_module(module), function)(args)
 
 
 if __name__ == "__main__":

@@ -31,7 +31,7 @@ peaks with the strain over the revolution, per scenario and gauge) and ``identif
 
 Owns: the identification behind ``cosim identify``: calibration, confidence, held-out validation.
 Boundaries: held-out records are read only after the fit; the model run is cosim.unknowns; the
-command's options are read by cosim.cli and its table written by cosim.report (this module
+command's options are read by cosim.commands.identify and its table written by cosim.report (this module
 returns the result and writes the output folder).
 """
 from __future__ import annotations

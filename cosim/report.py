@@ -8,7 +8,7 @@ The tables of ``cosim identify`` (:func:`identification_table`) and ``cosim synt
 
 Owns: the text tables of ``cosim compare`` from a folder's summary.json, and of ``cosim identify``
 and ``cosim synthesize`` from their results. Boundaries: reads only summary.json; computes nothing
-new; prints nothing (cosim.cli prints).
+new; prints nothing (the commands of cosim.commands print).
 """
 from __future__ import annotations
 

@@ -3,7 +3,7 @@
 as one record in the unit of the ground length.
 
 Owns: the synthesized linkage as a scenario file and as the command's result record. Boundaries:
-the mathematics is tmm_core.synthesis; the options are read and the result printed by cosim.cli,
+the mathematics is tmm_core.synthesis; the options are read and the result printed by cosim.commands.synthesize,
 its table written by cosim.report.
 """
 from __future__ import annotations

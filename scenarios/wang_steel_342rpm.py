@@ -4,7 +4,7 @@ Runs the scenario through every engine, like `cosim run wang_steel_342rpm` (same
 """
 import sys
 
-from cosim.cli import run_main
+from cosim.commands.run import run_main
 
 if __name__ == "__main__":
     sys.exit(run_main("wang_steel_342rpm"))

@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 
 import cosim.figures
-from cosim.cli import EXIT_MISSING_OUTPUTS, _exit_code
+from cosim.commands.options import EXIT_MISSING_OUTPUTS, exit_code as _exit_code
 from cosim.runs import RunOptions, run_scenario
 from cosim.traces import read_traces
 

@@ -1,4 +1,4 @@
-"""Rigid four-bar synthesis, limit positions (tmm_core.synthesis) and `cosim synthesize` (cosim.cli,
+"""Rigid four-bar synthesis, limit positions (tmm_core.synthesis) and `cosim synthesize` (cosim.commands.synthesize,
 cosim.synthesis).
 
 Expected values are the publication's, never this code's: the FE thesis, Ch. III (Case Studies I
