@@ -49,6 +49,7 @@ from tmm_core.reduced_periodic import periodic_steady_state_reduced
 
 from .run_guards import estimate_cost
 from .scenario import ScenarioError, from_dict
+from .units import UREG
 from .unknowns_table import (DISTRIBUTIONS, MODEL_KEYS, Unknown, Variant, declared,  # noqa: F401
                              variant)
 
@@ -102,7 +103,8 @@ def steady_march(td, crank, tolerance: float, max_revolutions: int) -> tuple:
 
 def fast_model(sc, settings: Settings = Settings()):
     """The scenario at the fast model's mesh and step (what :func:`solve` runs)."""
-    return sc.with_overrides({"solver.tmm.segments": settings.segments, "solver.tmm.step": f"{settings.step_deg} deg"})
+    return sc.with_overrides({"solver.tmm.segments": settings.segments,
+                              "solver.tmm.step": UREG.Quantity(settings.step_deg, "deg")})
 
 
 def solve_cost(sc, settings: Settings = Settings()) -> dict:
