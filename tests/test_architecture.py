@@ -10,6 +10,8 @@ What breaks a rule today is listed below with its reason; the lists may only shr
 violation fails, and so does an entry that no longer violates (remove it: the rule then holds
 there for good)."""
 import ast
+import dataclasses
+import pickle
 from pathlib import Path
 
 import pytest
@@ -263,8 +265,8 @@ def test_no_function_takes_the_time_domain_facade_first():
 
 
 def test_the_discretization_is_frozen():
-    import dataclasses
-
+    """The model (issue 33 item 1) is a frozen record: no field is rebound, its mappings and the
+    arrays no kernel reads are read-only, and it pickles (an engine crosses process boundaries)."""
     from scenarios.rigs import alexander_lawrence
     from tmm_core import TimeDomain
     from tmm_core.discretization import Discretization
@@ -277,3 +279,7 @@ def test_the_discretization_is_frozen():
     with pytest.raises(ValueError):
         td.model.is_u[0] = False
     assert td.n_dof == td.model.n_dof and td.stack is not None
+    copy = pickle.loads(pickle.dumps(td))
+    assert copy.model.n_dof == td.n_dof and dict(copy.model.offsets) == dict(td.model.offsets)
+    with pytest.raises(TypeError):
+        copy.model.offsets[td.links[0].name] = 1

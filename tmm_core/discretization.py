@@ -111,6 +111,17 @@ class Discretization:
     outputs: OutputLayout
     gauge_segment: np.ndarray
 
+    def __getstate__(self):
+        # A mapping proxy does not pickle (a model crosses process boundaries with its engine):
+        # the offsets travel as a plain dict and are wrapped again on arrival.
+        state = dict(self.__dict__)
+        state["offsets"] = dict(self.offsets)
+        return state
+
+    def __setstate__(self, state):
+        for name, value in state.items():
+            object.__setattr__(self, name, MappingProxyType(value) if name == "offsets" else value)
+
     @property
     def compiled(self) -> bool:
         """Whether the stages run the compiled kernels (the backend, as a flag)."""
