@@ -119,22 +119,23 @@ MANY_SPEEDS = 10           # speeds per worker from which a sweep keeps the stag
 SAVE_EVERY_S = 1.0
 
 
-def _reduced_parts(sc, td, options, many: bool):
-    """``(basis, stage coefficients or None)`` of the scenario for the reduced model."""
+def _reduced_parts(sc, model, options, many: bool):
+    """``(basis, stage coefficients or None)`` of the scenario's time-domain ``model``
+    (:class:`tmm_core.discretization.Discretization`) for the reduced model."""
     raw = {k: v for k, v in sc.raw.items() if k != "drive"}
     raw["drive"] = {k: v for k, v in sc.raw.get("drive", {}).items() if k != "speed"}
     key = (json.dumps(raw, sort_keys=True, default=str), sc.drive.start_angle_rad, repr(options))
     if key not in _REDUCED:
         if len(_REDUCED) >= 2:
             _REDUCED.clear()
-        _REDUCED[key] = [build_basis(td, sc.drive.start_angle_rad, options), None]
+        _REDUCED[key] = [build_basis(model, sc.drive.start_angle_rad, options), None]
     parts = _REDUCED[key]
     if many and parts[1] is None:
         # The stage angles of a constant-speed revolution at options.steps steps: every speed's
         # (ReducedModel checks that they are, and builds directly where they are not).
         crank = CrankMotion.constant_speed(sc.drive.speed_rad_s, step_deg=360.0 / options.steps, revolutions=1.0,
                                            start_angle=sc.drive.start_angle_rad)
-        parts[1] = StageCoefficients.of(td, parts[0], stage_points(crank)[1])
+        parts[1] = StageCoefficients.of(model, parts[0], stage_points(crank)[1])
     return parts[0], parts[1]
 
 
@@ -143,14 +144,14 @@ def periodic_solution(sc, many: bool = False):
     TMM settings at its drive speed. ``many``: this process solves many speeds of the scenario (a
     sweep's worker): the reduced model keeps its speed-free stage matrices."""
     s = sc.tmm
-    td = sc.time_domain()
+    model = sc.time_domain().model
     if s.model == "reduced":
         # solver.tmm.model = "reduced": link modes plus a static correction (tmm_core.reduced).
         options = ReducedOptions(modes=s.modes)
-        basis, stages = _reduced_parts(sc, td, options, many)
-        return periodic_steady_state_reduced(td, sc.drive.speed_rad_s, start_angle=sc.drive.start_angle_rad,
+        basis, stages = _reduced_parts(sc, model, options, many)
+        return periodic_steady_state_reduced(model, sc.drive.speed_rad_s, start_angle=sc.drive.start_angle_rad,
                                              options=options, basis=basis, stages=stages)
-    return periodic_steady_state(td, sc.drive.speed_rad_s, step_s=sc.engine_step_s("tmm"),
+    return periodic_steady_state(model, sc.drive.speed_rad_s, step_s=sc.engine_step_s("tmm"),
                                  start_angle=sc.drive.start_angle_rad)
 
 

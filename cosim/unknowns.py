@@ -42,7 +42,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from tmm_core import CrankMotion, TMMError
+from tmm_core.batches import configurations
+from tmm_core.discretization import Discretization, HoldsModel, as_model
 from tmm_core.free_wheel import free_wheel
+from tmm_core.march import begin
 from tmm_core.pin_moments import JointLoadedFourBar, JointMoment
 from tmm_core.reduced import ReducedOptions
 from tmm_core.reduced_periodic import periodic_steady_state_reduced
@@ -79,14 +82,16 @@ def _joint_laws(model: dict):
     return [law for law in laws if law.active]
 
 
-def steady_march(td, crank, tolerance: float, max_revolutions: int) -> tuple:
-    """March the periodic crank history ``crank`` (one period, N + 1 samples) from the
-    quasi-static state, re-using one revolution of configurations, until two revolutions agree
-    to ``tolerance`` of their peak-to-peak: ``(outputs of the last revolution (N, n_out),
-    revolutions, change)``."""
+def steady_march(source: Discretization | HoldsModel, crank, tolerance: float, max_revolutions: int) -> tuple:
+    """March the time-domain model ``source`` (a :class:`tmm_core.discretization.Discretization`
+    or the one a :class:`tmm_core.TimeDomain` holds) through the periodic crank history ``crank``
+    (one period, N + 1 samples) from the quasi-static state, re-using one revolution of
+    configurations, until two revolutions agree to ``tolerance`` of their peak-to-peak:
+    ``(outputs of the last revolution (N, n_out), revolutions, change)``."""
+    model = as_model(source)
     N = len(crank.t) - 1
-    cfg = td.configurations(crank.angle[:N], crank.speed[:N], crank.acceleration[:N], crank.dt)
-    march = td.begin(crank.dt, crank.angle[0], crank.speed[0], crank.acceleration[0], start="quasi_static")
+    cfg = configurations(model, crank.angle[:N], crank.speed[:N], crank.acceleration[:N], crank.dt)
+    march = begin(model, crank.dt, crank.angle[0], crank.speed[0], crank.acceleration[0], start="quasi_static")
     idx = np.arange(1, N + 1) % N
     prev, change = None, math.inf
     for rev in range(1, max_revolutions + 1):
@@ -135,7 +140,7 @@ def solve(sc, model: dict | None = None, settings: Settings = Settings()) -> dic
     s = sc.tmm
     out = {"status": "failed", "error": None, "speed_fluctuation": 0.0}
     try:
-        td = sc.time_domain(mech)
+        discretized = sc.time_domain(mech).model
         kind = settings.model or s.model
         if kind not in ("full", "reduced"):
             raise ScenarioError(f"fast model: model must be 'full' or 'reduced', got {kind!r}")
@@ -154,12 +159,12 @@ def solve(sc, model: dict | None = None, settings: Settings = Settings()) -> dic
             crank = CrankMotion.constant_speed(w, step_deg=360.0 / n, revolutions=1.0,
                                                start_angle=sc.drive.start_angle_rad)
         if kind == "reduced":
-            p = periodic_steady_state_reduced(td, crank=crank, options=options)
+            p = periodic_steady_state_reduced(discretized, crank=crank, options=options)
             angles = p.angle
             outs = np.column_stack([p.drive_torque] + [np.column_stack(p.gauges[g.name]) for g in sc.gauges])
             revs, change = 1, p.residual
         else:
-            outs, revs, change = steady_march(td, crank, settings.tolerance, settings.max_revolutions)
+            outs, revs, change = steady_march(discretized, crank, settings.tolerance, settings.max_revolutions)
             angles = crank.angle[1:]
     except (TMMError, FloatingPointError, np.linalg.LinAlgError) as exc:
         out.update(error=f"{type(exc).__name__}: {exc}", wall_time_s=time.perf_counter() - tic)

@@ -186,31 +186,33 @@ def periodic_orbit(td, speed, step_deg, x0=None, iterations=12):
             return None, peaks(p.gauges), p.multipliers, 0
         x0 = np.zeros(len(keys) * td.n_dof)
     cfg = td.configurations(crank.angle[:N], crank.speed[:N], crank.acceleration[:N], dt, maps=True)
-    mono = per.compiled_periodic.monodromy if td.compiled else per._monodromy     # as periodic_steady_state
-    shot = per._shoot(td, cfg, keys, x0, N, dt, 1)
-    x0, shot, its = per._newton(td, cfg, keys, N, dt, mono, x0, shot, None, 1e-7, iterations, strict=False)
-    mu = np.linalg.eigvals(mono(td, cfg, keys, shot[1], dt))
+    model = td.model
+    mono = per._compiled_monodromy if td.compiled else per._monodromy     # as periodic_steady_state
+    shot = per._shoot(model, cfg, keys, x0, N, dt, 1)
+    x0, shot, its = per._newton(model, cfg, keys, N, dt, mono, x0, shot, None, 1e-7, iterations, strict=False)
+    mu = np.linalg.eigvals(mono(model, cfg, keys, shot[1], dt))
     mu = mu[np.argsort(-np.abs(mu))]
     outs = np.array(shot[2])
     pk = peaks(td.outputs.split(outs))
-    node_axial = gauge_node_axial(td, [z for _, z, _, _ in shot[1]])
+    node_axial = gauge_node_axial(model, [z for _, z, _, _ in shot[1]])
     for g, e in node_axial.items():
         pk[g] += [float(e.max()) * 1e6, float(e.min()) * 1e6]
     return x0, pk, mu, its
 
 
-def gauge_node_axial(td, zs):
-    """Axial strain [-] at every gauge that sits on a node, as the mean of the full strains
-    ``(u1 - u0 + Delta) / L`` of the two segments that meet there (the shipped output reads the
-    segment after the node alone), per step of the displacement history ``zs``."""
+def gauge_node_axial(model, zs):
+    """Axial strain [-] of the time-domain ``model`` (tmm_core.discretization.Discretization) at
+    every gauge that sits on a node, as the mean of the full strains ``(u1 - u0 + Delta) / L`` of
+    the two segments that meet there (the shipped output reads the segment after the node alone),
+    per step of the displacement history ``zs``."""
     from tmm_core.second_order import shape_products
-    seg = td.segments
+    seg = model.segments
     Z = np.asarray(zs)
     delta = shape_products(seg, Z)[0]
     strain = (Z[:, seg.end] - Z[:, seg.start] + delta) / seg.length
     out = {}
-    for g, j in zip(td.gauges, td.gauge_segment):
-        link = next(l for l in td.links if l.name == g.link)
+    for g, j in zip(model.gauges, model.gauge_segment):
+        link = next(l for l in model.links if l.name == g.link)
         on_node = np.any(np.isclose(link.stations, g.position_m, rtol=0, atol=1e-9)) and j > 0 and \
             seg.end[j - 1] == seg.start[j]
         out[g.name] = 0.5 * (strain[:, j - 1] + strain[:, j]) if on_node else strain[:, j]

@@ -10,6 +10,8 @@ What breaks a rule today is listed below with its reason; the lists may only shr
 violation fails, and so does an entry that no longer violates (remove it: the rule then holds
 there for good)."""
 import ast
+import dataclasses
+import pickle
 from pathlib import Path
 
 import pytest
@@ -42,7 +44,7 @@ WIDE_ENTRY_POINTS = {
     "Member": "a member's fields; issue 33 item 5",
     "KEDResult": "a result record (its fields are outputs, not options)",
     "quasi_static": "mechanism, angles, speed and the model options; issue 33 item 1 (a model built once)",
-    "TimeDomain": "the model options; issue 33 item 1 (a frozen model with its settings)",
+    "TimeDomain": "the model options, the keywords of the facade of discretization.discretize; issue 33 item 5",
     "periodic_steady_state_reduced": "solver options; issue 33 item 5",
 }
 MAX_PUBLIC_PARAMETERS = 8
@@ -57,9 +59,9 @@ PAIRS = (
      "tests/test_kernels.py::test_compiled_quasi_static_revolution_equals_numpy"),
     ("compiled.step_data.solve_loads_many (load-to-response maps)", "step_data.numpy_maps",
      "tests/test_kernels.py::test_compiled_configuration_maps_equal_numpy"),
-    ("compiled.time_step.factor_range, factored_solve (binding.factored)", "time_step.StepSolver (numpy step)",
+    ("compiled.time_step.factor_range, factored_solve (binding.factored)", "time_step.solve_step (numpy step)",
      "tests/test_kernels.py::test_compiled_march_on_stored_factorizations_equals_numpy_over_a_revolution"),
-    ("compiled.march.march (binding.march)", "time_step.StepSolver (numpy step), integrators",
+    ("compiled.march.march (binding.march)", "time_step.solve_step, step_loads (numpy step), integrators",
      "tests/test_kernels.py::test_compiled_march_equals_numpy_for_every_integrator_and_the_quasi_static_axial_force"),
     ("compiled.periodic.push, velocities (binding.single)", "periodic (batched numpy linearized step)",
      "tests/test_periodic.py::test_compiled_linearized_revolutions_match_numpy"),
@@ -228,3 +230,52 @@ def test_every_compiled_entry_point_has_its_reference_and_equality_test():
     for path in (ROOT / "tmm_core" / "compiled").glob("*.py"):
         if path.stem not in ("__init__", "binding", "cache", "dense"):
             assert (ROOT / "tmm_core" / f"{path.stem}.py").exists(), f"compiled/{path.name} mirrors no reference"
+
+
+def _first_parameter(node):
+    """The first parameter of a function other than ``self``/``cls`` (None without one)."""
+    a = node.args
+    params = a.posonlyargs + a.args
+    if params and params[0].arg in ("self", "cls"):
+        params = params[1:]
+    return params[0] if params else (a.kwonlyargs[0] if a.kwonlyargs else None)
+
+
+def test_no_function_takes_the_time_domain_facade_first():
+    """Issue 33 item 1: the stages take the frozen model (``discretization.Discretization``), not
+    the ``TimeDomain`` facade: no function of tmm_core or cosim takes a first parameter annotated
+    with TimeDomain or named ``td``; the facade mixes nothing in."""
+    found = []
+    for module, path in MODULES.items():
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                first = _first_parameter(node)
+                if first is None:
+                    continue
+                annotation = ast.unparse(first.annotation) if first.annotation is not None else ""
+                if first.arg == "td" or "TimeDomain" in annotation:
+                    found.append(f"{module}.{node.name}({first.arg}: {annotation or '-'})")
+    assert not found, f"functions taking the TimeDomain facade first (take the model): {found}"
+    from tmm_core import TimeDomain
+    assert TimeDomain.__bases__ == (object,), "TimeDomain is a facade over the model, no mixin"
+
+
+def test_the_discretization_is_frozen():
+    """The model (issue 33 item 1) is a frozen record: no field is rebound, its mappings and the
+    arrays no kernel reads are read-only, and it pickles (an engine crosses process boundaries)."""
+    from scenarios.rigs import alexander_lawrence
+    from tmm_core import TimeDomain
+    from tmm_core.discretization import Discretization
+    assert Discretization.__dataclass_params__.frozen
+    td = TimeDomain(alexander_lawrence(2), backend="numpy")
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        td.model.n_dof = 0
+    with pytest.raises(TypeError):
+        td.model.offsets[td.links[0].name] = 1
+    with pytest.raises(ValueError):
+        td.model.is_u[0] = False
+    assert td.n_dof == td.model.n_dof and td.stack is not None
+    copy = pickle.loads(pickle.dumps(td))
+    assert copy.model.n_dof == td.n_dof and dict(copy.model.offsets) == dict(td.model.offsets)
+    with pytest.raises(TypeError):
+        copy.model.offsets[td.links[0].name] = 1

@@ -46,8 +46,8 @@ def test_compiled_march_on_stored_factorizations_equals_numpy_over_a_revolution(
     """The map-free compiled march (tmm_core.compiled.time_step: a solve on each configuration's
     stored factorization per iteration, instead of the dense maps) against the numpy reference,
     FE rig at 373 rpm (second-order step); measured 2.5e-13."""
-    import tmm_core.transient as transient
-    monkeypatch.setattr(transient, "FACTORS_ABOVE_DOF", 0)
+    import tmm_core.batches as batches
+    monkeypatch.setattr(batches, "FACTORS_ABOVE_DOF", 0)
     sc = load("crank_rocker_373rpm")
     numpy_run, compiled_run = _both(sc)
     _assert_same(numpy_run, compiled_run)
@@ -62,8 +62,8 @@ def test_compiled_march_on_stored_factorizations_equals_numpy_over_a_revolution(
 @pytest.mark.parametrize("integrator", ["newmark", "generalized_alpha"])
 def test_compiled_march_on_stored_factorizations_for_the_linear_step(monkeypatch, integrator):
     """Alexander-Lawrence (elastic crank clamped at its pivot, bearing masses), linear step."""
-    import tmm_core.transient as transient
-    monkeypatch.setattr(transient, "FACTORS_ABOVE_DOF", 0)
+    import tmm_core.batches as batches
+    monkeypatch.setattr(batches, "FACTORS_ABOVE_DOF", 0)
     sc = load("alexander_lawrence_400rpm")
     _assert_same(*_both(sc, 0.5, integrator=integrator, axial_force="quasi_static"), rtol=5e-12)
 

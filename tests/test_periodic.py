@@ -66,7 +66,8 @@ def _rig(rpm, integrator=None):
     crank = CrankMotion.constant_speed(w, step_s=t.step_rad / w, revolutions=1.0, start_angle=s.drive.start_angle_rad)
     N = crank.steps_per_revolution()
     cfg = td.configurations(crank.angle[:N], crank.speed[:N], crank.acceleration[:N], crank.dt, maps=True)
-    return td, cfg, STATE_KEYS[td.integrator.name], N, crank.dt
+    # The stages' internals take the frozen model, not the facade.
+    return td.model, cfg, STATE_KEYS[td.integrator.name], N, crank.dt
 
 
 def _block_errors(fast, ref, n):
@@ -84,15 +85,16 @@ def test_compiled_linearized_revolutions_match_numpy(integrator):
     velocities with the integrator's own recursion."""
     from tmm_core.compiled import periodic as kp
     from tmm_core.periodic import _batched_step, _monodromy, _revolution, _state
-    td, cfg, keys, N, dt = _rig(241.0, integrator)
-    n, ns = td.n_dof, len(keys) * td.n_dof
-    forced, unit = _state(td, keys, np.zeros((1, ns))), _state(td, keys, np.eye(ns))
+    from tmm_core.time_step import kernel_data
+    model, cfg, keys, N, dt = _rig(241.0, integrator)
+    n, ns = model.n_dof, len(keys) * model.n_dof
+    forced, unit = _state(model, keys, np.zeros((1, ns))), _state(model, keys, np.eye(ns))
     for k in range(1, N + 1):
-        forced, _, _ = _batched_step(td, cfg, k % N, forced, dt)
-        unit, _, _ = _batched_step(td, cfg, k % N, unit, dt, forced=False)
+        forced, _, _ = _batched_step(model, cfg, k % N, forced, dt)
+        unit, _, _ = _batched_step(model, cfg, k % N, unit, dt, forced=False)
     Phi_ref = np.concatenate([unit[k] for k in keys], axis=1).T
     c_ref = np.concatenate([forced[k][0] for k in keys])
-    Phi, c = kp.linear_shooting(td, cfg, keys, N, dt)
+    Phi, c = kp.linear_shooting(model, kernel_data(model, cfg), keys, N, dt)
     assert np.max(_block_errors(Phi, Phi_ref, n)) < 1e-10
     # Newmark's revolution map is unstable on this rig (spectral radius 2.5: no numerical damping of
     # the stiff modes), which amplifies round-off in the forced response (measured 1.3e-10).
@@ -103,14 +105,14 @@ def test_compiled_linearized_revolutions_match_numpy(integrator):
     # Linearized about the revolution from the state one revolution after rest (with Newmark,
     # I - Phi is singular: no periodic solution to start from).
     x0 = c
-    _, trajectory, _ = _revolution(td, cfg, keys, x0, N, dt)
-    st, c_v = _state(td, keys, x0), td.integrator.coefficients(dt)[1]
+    _, trajectory, _ = _revolution(model, cfg, keys, x0, N, dt)
+    st, c_v = _state(model, keys, x0), model.integrator.coefficients(dt)[1]
     for j, (_, z, v, _) in enumerate(trajectory):
-        _, h_v = td.integrator.history(st, dt)
-        st = td.integrator.advance(st, z, dt)
+        _, h_v = model.integrator.history(st, dt)
+        st = model.integrator.advance(st, z, dt)
         np.testing.assert_allclose(v, c_v * z + h_v, rtol=0, atol=1e-10 * np.max(np.abs(v)))
-    M = kp.monodromy(td, cfg, keys, trajectory, dt)
-    M_ref = _monodromy(td, cfg, keys, trajectory, dt)
+    M = kp.monodromy(model, kernel_data(model, cfg), keys, trajectory, dt)
+    M_ref = _monodromy(model, cfg, keys, trajectory, dt)
     assert np.max(_block_errors(M, M_ref, n)) < 1e-10
 
 
@@ -123,11 +125,13 @@ def test_compiled_monodromy_matches_numpy_near_buckling():
     Coriolis term). Unscaled, the numpy solve alone lost 1e-7."""
     from tmm_core.compiled import periodic as kp
     from tmm_core.periodic import _monodromy, _revolution
-    td, cfg, keys, N, dt = _rig(373.0)
-    ns = len(keys) * td.n_dof
-    Phi, c = kp.linear_shooting(td, cfg, keys, N, dt)
-    _, trajectory, _ = _revolution(td, cfg, keys, np.linalg.solve(np.eye(ns) - Phi, c), N, dt)
-    M, M_ref = kp.monodromy(td, cfg, keys, trajectory, dt), _monodromy(td, cfg, keys, trajectory, dt)
+    from tmm_core.time_step import kernel_data
+    model, cfg, keys, N, dt = _rig(373.0)
+    ns = len(keys) * model.n_dof
+    Phi, c = kp.linear_shooting(model, kernel_data(model, cfg), keys, N, dt)
+    _, trajectory, _ = _revolution(model, cfg, keys, np.linalg.solve(np.eye(ns) - Phi, c), N, dt)
+    M = kp.monodromy(model, kernel_data(model, cfg), keys, trajectory, dt)
+    M_ref = _monodromy(model, cfg, keys, trajectory, dt)
     assert np.max(np.abs(M - M_ref)) < 1e-9 * np.max(np.abs(M_ref))
 
 

@@ -2,7 +2,7 @@
 maps, and the layout of a step's outputs.
 
 A time step of :class:`tmm_core.TimeDomain` reads one configuration of a
-:class:`ConfigurationBatch` (built by :meth:`tmm_core.TimeDomain.configurations` for B crank
+:class:`ConfigurationBatch` (built by :func:`tmm_core.batches.configurations` for B crank
 states) and returns an output row laid out by :class:`OutputLayout`: drive torque, then bending
 and axial strain per gauge. Naming the parts here keeps the index arithmetic in one place.
 

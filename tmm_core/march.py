@@ -1,76 +1,84 @@
-"""Incremental time-domain march of a :class:`tmm_core.TimeDomain` (one step or a block of steps).
+"""Incremental time-domain march of a model (:class:`tmm_core.discretization.Discretization`;
+one step or a block of steps), and its start.
 
 Owns the integrator state of a march (displacements, velocities, accelerations, the viscoelastic
 Maxwell stresses and the last step's axial forces); the state is replaced, never mutated, so an
-engine can save and restore it for a coupling iteration.
+engine can save and restore it for a coupling iteration. Also the initial states of a march:
+from rest (:func:`rest_acceleration`) or quasi-static (:func:`quasi_static_start`).
 """
 from __future__ import annotations
 
+from typing import Mapping
+
 import numpy as np
 
+from .batches import configurations
 from .compiled import binding as kernel_binding, march as compiled_march
-from .errors import InputError
-from .ked import quasi_static
-from .time_step import ANDERSON_DEPTH, AXIAL_FORCE_TOLERANCE
+from .discretization import Discretization
+from .errors import InputError, require_positive
+from .ked import Coupling, quasi_static
+from .time_step import ANDERSON_DEPTH, AXIAL_FORCE_TOLERANCE, kernel_data, solve_step, step_loads
 
 class March:
-    """Incremental time-domain march of a :class:`TimeDomain` (one step at a time).
+    """Incremental time-domain march of a model (one step at a time).
 
-    Built by :meth:`TimeDomain.begin` at a crank state; :meth:`advance` takes the crank state at
+    Built at a crank state (:meth:`tmm_core.TimeDomain.begin`) for the model ``model``, step
+    ``dt`` [s], the crank state (angle [rad], speed [rad/s], acceleration [rad/s^2]) and the start
+    ('rest' or 'quasi_static') or an ``initial`` state; :meth:`advance` takes the crank state at
     the end of the next step. ``z`` holds the current nodal displacements (stacked, local) and
     ``out`` the current outputs (drive torque [N m], then bending and axial strain per gauge).
     """
 
-    def __init__(self, td, dt, angle, speed, accel, start, initial):
+    def __init__(self, model: Discretization, dt, angle, speed, accel, start, initial):
         if start not in ("rest", "quasi_static"):
             raise InputError(f"start must be 'rest' or 'quasi_static', got {start!r}")
         if initial is not None:
             for key in ("d", "v", "a"):
-                if np.shape(initial.get(key)) != (td.n_dof,):
-                    raise InputError(f"initial['{key}'] must have shape ({td.n_dof},)")
-        self.td, self.dt = td, dt
-        integ = td.integrator
+                if np.shape(initial.get(key)) != (model.n_dof,):
+                    raise InputError(f"initial['{key}'] must have shape ({model.n_dof},)")
+        self.model, self.dt = model, dt
+        integ = model.integrator
         c_a, c_v = integ.coefficients(dt)
-        _, visco = td.link_factor(c_v, dt)
+        _, visco = model.link_factor(c_v, dt)
         a1 = np.array([angle])
-        d0 = v0 = np.zeros(td.n_dof)
+        d0 = v0 = np.zeros(model.n_dof)
         previous = (d0, d0)
         if initial is not None:
             d0, v0, a0 = (np.asarray(initial[k], dtype=float) for k in ("d", "v", "a"))
             previous = initial.get("previous", (d0, d0))
         elif start == "quasi_static":
-            d0, v0, a0, previous, out = td.quasi_static_start(angle, speed, accel, dt)
+            d0, v0, a0, previous, out = quasi_static_start(model, angle, speed, accel, dt)
         else:
             # Consistent initial acceleration from rest: M a0 = F(t0) (Newmark and generalized-alpha
             # are only first order otherwise; Houbolt does not use it).
-            first = td.configurations(a1, np.array([speed]), np.array([accel]), dt, maps=False)
-            a0 = td.rest_acceleration(first.rigid[0], first.motion)
+            first = configurations(model, a1, np.array([speed]), np.array([accel]), dt, maps=False)
+            a0 = rest_acceleration(model, first.rigid[0], first.motion)
         self.state = integ.initial(d0, v0, a0, previous)
         # Outputs of step 0: the quasi-static state for a quasi-static start; from rest the links
         # are undeformed (zero strain) and the drive torque is the rigid-body one.
         if start != "quasi_static" or initial is not None:
-            qs0 = quasi_static(td.mech, a1, speed, accel, beam_column=td.beam_column, gravity=td.gravity,
-                               gauges=td.gauges, backend=td.backend)
+            qs0 = quasi_static(model.mech, a1, speed, accel, beam_column=model.beam_column, gravity=model.gravity,
+                               gauges=model.gauges, backend=model.backend)
             out = np.concatenate([qs0.drive_torque] + [np.r_[b, a] for b, a in qs0.gauges.values()])
             if start == "rest" and initial is None:
                 out[1:] = 0.0
         self.out, self.z = out, d0
         self.n_out = len(out)
-        self.decay = np.ones(6 * td.n_seg)
-        self.gain = np.zeros(6 * td.n_seg)
+        self.decay = np.ones(6 * model.n_seg)
+        self.gain = np.zeros(6 * model.n_seg)
         off = 0
-        for link in td.links:
+        for link in model.links:
             if link.name in visco:
                 decay, g = visco[link.name]
                 sel = slice(off, off + 6 * link.total_segments)
-                self.decay[sel] = np.where(td.seg_E1[sel] > 0, decay, 1.0)
-                self.gain[sel] = g * td.seg_E1[sel]
+                self.decay[sel] = np.where(model.seg_E1[sel] > 0, decay, 1.0)
+                self.gain[sel] = g * model.seg_E1[sel]
             off += 6 * link.total_segments
         self.has_visco = bool(visco)
-        self.q_sls = np.zeros(6 * td.n_seg)
+        self.q_sls = np.zeros(6 * model.n_seg)
         if self.has_visco and (start == "quasi_static" or initial is not None):
             # Instantaneous elastic state: the Maxwell arms carry (E_0 - E_inf)/E * K d_0.
-            self.q_sls = td.seg_E1 * (td.seg_K @ (td.gather @ d0))
+            self.q_sls = model.seg_E1 * (model.seg_K @ (model.gather @ d0))
         #: Segment axial forces of the last step [N] (the next step's starting guess).
         self.axial = None
 
@@ -79,15 +87,15 @@ class March:
         the end of the step. Returns ``(z, out)``."""
         args = (np.array([angle], dtype=float), np.array([speed], dtype=float), np.array([acceleration], dtype=float),
                 self.dt)
-        return self.step_with(self.td.configurations(*args, maps=False), 0)
+        return self.step_with(configurations(self.model, *args, maps=False), 0)
 
     def step_with(self, cfg, idx):
-        """One step using configuration ``idx`` of a precomputed batch (see TimeDomain.configurations)."""
-        td = self.td
-        h_a, h_v = td.integrator.history(self.state, self.dt)
-        loads = td.step_loads(cfg, idx, h_a, h_v, viscous=(self.q_sls, self.decay, self.gain, self.state["d"])
+        """One step using configuration ``idx`` of a precomputed batch (:func:`tmm_core.batches.configurations`)."""
+        model = self.model
+        h_a, h_v = model.integrator.history(self.state, self.dt)
+        loads = step_loads(model, cfg, idx, h_a, h_v, viscous=(self.q_sls, self.decay, self.gain, self.state["d"])
                               if self.has_visco else None)
-        z, out, P = td.solve_step(cfg, idx, loads, self.state, self.dt, self.axial)
+        z, out, P = solve_step(model, cfg, idx, loads, self.state, self.dt, self.axial)
         self.axial = P
         return self._commit(z, out)
 
@@ -97,13 +105,13 @@ class March:
         Returns ``(zs, outs)``: displacements ``(k, n_dof)`` (None unless ``record_z``) and outputs ``(k, n_out)``; with
         ``record_axial`` also the segment axial forces ``(k, n_seg)`` of the 'dynamic' step."""
         indices = np.asarray(indices, dtype=np.int64)
-        td = self.td
-        if td.compiled and (cfg.maps is not None or cfg.factors is not None) and not self.has_visco \
-                and td.integrator.name in compiled_march.INTEGRATOR_CODES:
+        model = self.model
+        if model.compiled and (cfg.maps is not None or cfg.factors is not None) and not self.has_visco \
+                and model.integrator.name in compiled_march.INTEGRATOR_CODES:
             return self._compiled(cfg, indices, record_z, record_axial)
-        zs = np.empty((len(indices), td.n_dof)) if record_z else None
+        zs = np.empty((len(indices), model.n_dof)) if record_z else None
         outs = np.empty((len(indices), self.n_out))
-        Ps = np.empty((len(indices), len(td.segments.length))) if record_axial else None
+        Ps = np.empty((len(indices), len(model.segments.length))) if record_axial else None
         for j, i in enumerate(indices):
             z, outs[j] = self.step_with(cfg, int(i))
             if record_z:
@@ -113,16 +121,16 @@ class March:
         return (zs, outs, Ps) if record_axial else (zs, outs)
 
     def _compiled(self, cfg, indices, record_z, record_axial=False):
-        td, n, integ = self.td, self.td.n_dof, self.td.integrator
-        data = td.kernel_data(cfg)
+        model, n, integ = self.model, self.model.n_dof, self.model.integrator
+        data = kernel_data(model, cfg)
         code = compiled_march.INTEGRATOR_CODES[integ.name]
         params = np.array(integ.parameters if code == compiled_march.GENERALIZED_ALPHA else (0.0, 0.0, 0.0, 0.0), float)
         c_a, c_v = integ.coefficients(self.dt)
         st = self.state
         zero = np.zeros(n)
         arrays = [np.array(st.get(key, zero), dtype=float) for key in ("d", "v", "a", "acc", "d1", "d2")]
-        seg = td.segments
-        dynamic = td.axial_force == "dynamic"
+        seg = model.segments
+        dynamic = model.axial_force == "dynamic"
         P = np.array(self.axial if self.axial is not None else
                      (cfg.P0[indices[0]] if dynamic else np.zeros(len(seg.length))), dtype=float)
         outs = np.empty((len(indices), self.n_out))
@@ -131,14 +139,14 @@ class March:
         iterations = np.zeros(len(indices), dtype=np.int64)
         # The compiled march's records (tmm_core.compiled.march.march).
         integrator = (code, params, self.dt, c_a, c_v)
-        model = td.kernel_model()
-        settings = (td.coupling.coriolis, td.has_kv, dynamic, "shortening" in td.dynamic_terms,
-                    "axial_force" in td.dynamic_terms, td.axial_tolerance, AXIAL_FORCE_TOLERANCE, td.axial_iterations,
-                    ANDERSON_DEPTH)
+        kernel = model.kernel_model()
+        settings = (model.coupling.coriolis, model.has_kv, dynamic, "shortening" in model.dynamic_terms,
+                    "axial_force" in model.dynamic_terms, model.axial_tolerance, AXIAL_FORCE_TOLERANCE,
+                    model.axial_iterations, ANDERSON_DEPTH)
         j = 0
         while j < len(indices):
             recorded = (outs[j:], zs[j:] if record_z else zs, Ps[j:] if record_axial else Ps, iterations[j:])
-            done = kernel_binding.march()(integrator, indices[j:], data[:6], data[6:], model, settings,
+            done = kernel_binding.march()(integrator, indices[j:], data[:6], data[6:], kernel, settings,
                                           (*arrays, P), recorded)
             self.state = {key: arr.copy() for key, arr in zip(("d", "v", "a", "acc", "d1", "d2"), arrays) if key in st}
             self.axial = P.copy() if dynamic else self.axial
@@ -161,9 +169,68 @@ class March:
         return (zs, outs, Ps) if record_axial else (zs, outs)
 
     def _commit(self, z, out):
-        td = self.td
+        model = self.model
         if self.has_visco:
-            self.q_sls = self.decay * self.q_sls + self.gain * (td.seg_K @ (td.gather @ (z - self.state["d"])))
-        self.state = td.integrator.advance(self.state, z, self.dt)
+            self.q_sls = self.decay * self.q_sls + self.gain * (model.seg_K @ (model.gather @ (z - self.state["d"])))
+        self.state = model.integrator.advance(self.state, z, self.dt)
         self.z, self.out = z, out
         return z, out
+
+
+def begin(model: Discretization, dt: float, angle: float, speed: float, acceleration: float = 0.0, *,
+          start: str = "rest", initial: Mapping[str, np.ndarray] | None = None) -> March:
+    """Start an incremental march of ``model`` at a crank state (angle [rad], speed [rad/s],
+    acceleration [rad/s^2]) with step ``dt`` [s]; see :class:`March` (``start``, ``initial``)."""
+    return March(model, float(require_positive("time step dt_s", dt)), float(angle), float(speed),
+                 float(acceleration), start, initial)
+
+
+def rest_acceleration(model: Discretization, loads, motion):
+    """Accelerations [m/s^2, rad/s^2] of the lumped masses of ``model`` under ``loads`` (stacked
+    local [N, N m]) with the structure at rest and undeformed (``motion``: the crank state's
+    rigid-body motion): each mass alone, except at joints, where all member ends share the
+    translation (and, for rigid connections, the rotation); supported DOFs stay at rest."""
+    m = model.m_vec
+    a = np.divide(loads, m, out=np.zeros_like(loads), where=m > 0)
+    structure = model.structure
+    for joint in structure.joints:
+        ends = []
+        for link, member in zip(model.links, structure.members):
+            n = link.total_segments
+            if member.start == joint.name:
+                ends.append((link, model.offsets[link.name], member.start_connection))
+            if member.end == joint.name:
+                ends.append((link, model.offsets[link.name] + 3 * n, member.end_connection))
+        F, M_sum = np.zeros(2), 0.0
+        for link, i, _ in ends:
+            c, s_ = np.cos(motion.link(link.name).angle[0]), np.sin(motion.link(link.name).angle[0])
+            R = np.array([[c, -s_], [s_, c]])           # local -> global
+            F += R @ loads[i:i + 2]
+            M_sum += m[i]
+        acc = F / M_sum if M_sum > 0 and joint.support == "free" else np.zeros(2)
+        rigid = [e for e in ends if e[2] == "rigid"]
+        J_sum = sum(m[i + 2] for _, i, _ in rigid)
+        Mz = sum(loads[i + 2] for _, i, _ in rigid)
+        for link, i, conn in ends:
+            c, s_ = np.cos(motion.link(link.name).angle[0]), np.sin(motion.link(link.name).angle[0])
+            a[i:i + 2] = np.array([[c, s_], [-s_, c]]) @ acc
+            if conn == "rigid":
+                a[i + 2] = Mz / J_sum if J_sum > 0 and joint.support != "clamped" else 0.0
+    return a
+
+
+def quasi_static_start(model: Discretization, th, w, a, dt):
+    """Elastic state of the quasi-static solution of ``model`` at the first crank positions
+    (angle ``th`` [rad], speed ``w`` [rad/s], acceleration ``a`` [rad/s^2], step ``dt`` [s]):
+    ``(d0, v0, a0, (d_-1, d_-2), out0)``, ``out0`` the outputs at ``th`` (drive torque [N m],
+    then bending and axial strain per gauge), from the same quasi-static batch (one solve of four
+    positions instead of a second one for the outputs: ~2 ms of a set-up)."""
+    angles = th + np.array([-2.0, -1.0, 0.0, 1.0]) * w * dt
+    qs = quasi_static(model.mech, angles, w, a, beam_column=model.beam_column, coupling=Coupling(),
+                      gravity=model.gravity, gauges=model.gauges, backend=model.backend)
+    z = np.concatenate([qs.solution.members[l.name].state[:, :, 0, :3].reshape(4, -1) for l in model.links], -1)
+    d2, d1, d0, dp = z
+    v0 = (dp - d1) / (2 * dt)
+    a0 = (dp - 2 * d0 + d1) / dt**2
+    out0 = np.concatenate([qs.drive_torque[2:3]] + [np.r_[b[2], a[2]] for b, a in qs.gauges.values()])
+    return d0, v0, a0, (d1, d2), out0

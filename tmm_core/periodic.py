@@ -39,9 +39,12 @@ from scipy.integrate import solve_ivp
 
 from .compiled import periodic as compiled_periodic
 from .errors import ConvergenceError, InputError, TMMError
+from .batches import configurations
+from .discretization import Discretization, HoldsModel, as_model
 from .ked import CrankMotion
-from .transient import TimeDomain
+from .march import begin
 from .second_order import linearization
+from .time_step import kernel_data, step_loads
 
 STATE_KEYS = {"newmark": ("d", "v", "a"), "generalized_alpha": ("d", "v", "a", "acc"), "houbolt": ("d", "d1", "d2")}
 
@@ -62,33 +65,35 @@ class PeriodicResult:
     info: dict
 
 
-def _batched_step(td: TimeDomain, cfg, idx, state, dt, forced: bool = True):
+def _batched_step(model: Discretization, cfg, idx, state, dt, forced: bool = True):
     """One linear time step for a batch of states: every array in ``state`` is (M, n_dof).
     ``forced=False``: without the rigid-body loads and the maps' constant parts (homogeneous)."""
-    h_a, h_v = td.integrator.history(state, dt)
-    loads = td.step_loads(cfg, idx, h_a, h_v, rigid=forced)
+    h_a, h_v = model.integrator.history(state, dt)
+    loads = step_loads(model, cfg, idx, h_a, h_v, rigid=forced)
     maps = cfg.maps
     z = loads @ maps.Z[idx].T + (maps.z0[idx] if forced else 0.0)
     out = loads @ maps.O[idx].T + (maps.o0[idx] if forced else 0.0)
-    return td.integrator.advance(state, z, dt), z, out
+    return model.integrator.advance(state, z, dt), z, out
 
 
-def periodic_steady_state(td: TimeDomain, speed_rad_s: float, *, step_s: float | None = None,
+def periodic_steady_state(source: Discretization | HoldsModel, speed_rad_s: float, *, step_s: float | None = None,
                           step_deg: float | None = None, start_angle: float = 0.0, newton_tolerance: float = 1e-7,
                           newton_iterations: int = 15, crank: CrankMotion | None = None) -> PeriodicResult:
-    """Periodic response of ``td`` at constant crank ``speed_rad_s``; the step must divide a
-    revolution (as for a constant-speed :class:`CrankMotion`). ``newton_tolerance``: relative
-    change of the state over a revolution at which Newton shooting stops (second-order model).
+    """Periodic response of the model ``source`` (a :class:`tmm_core.discretization.Discretization`
+    or a :class:`tmm_core.TimeDomain`, whose model is taken) at constant crank ``speed_rad_s``
+    [rad/s]; the step must divide a revolution (as for a constant-speed :class:`CrankMotion`).
+    ``newton_tolerance``: relative change of the state over a revolution at which Newton shooting stops (second-order model).
 
     ``crank``: instead of the constant speed, one period of a periodic crank history (a crank
     whose speed fluctuates within the revolution): N + 1 samples whose last is one revolution
     after the first (angle advanced by 2 pi, same speed and acceleration); ``speed_rad_s`` and
     the step arguments are then unused."""
-    if any(link.viscoelastic is not None for link in td.links):
+    model = as_model(source)
+    if any(link.viscoelastic is not None for link in model.links):
         raise InputError("the periodic solver does not carry the viscoelastic (SLS) history states; use time marching")
-    keys = STATE_KEYS.get(td.integrator.name)
+    keys = STATE_KEYS.get(model.integrator.name)
     if keys is None:
-        raise InputError(f"periodic solver: unsupported integrator {td.integrator.name!r}")
+        raise InputError(f"periodic solver: unsupported integrator {model.integrator.name!r}")
     if crank is None:
         crank = CrankMotion.constant_speed(speed_rad_s, step_s=step_s, step_deg=step_deg, revolutions=1.0,
                                            start_angle=start_angle)
@@ -105,29 +110,29 @@ def periodic_steady_state(td: TimeDomain, speed_rad_s: float, *, step_s: float |
             raise InputError("periodic solver: the crank history must span exactly one period (last sample one "
                              "revolution after the first, with the same speed and acceleration)")
     dt = crank.dt
-    cfg = td.configurations(crank.angle[:N], crank.speed[:N], crank.acceleration[:N], dt, maps=True)
+    cfg = configurations(model, crank.angle[:N], crank.speed[:N], crank.acceleration[:N], dt, maps=True)
     if cfg.maps is None:
         raise InputError("periodic solver: the load-to-response maps exceed the memory budget (max_map_bytes)")
-    n = td.n_dof
+    n = model.n_dof
     ns = len(keys) * n
     # The linearized revolutions in the compiled kernels (tmm_core.compiled.periodic) or in numpy
     # (the reference: the numpy backend).
-    compiled = td.compiled
-    monodromy = compiled_periodic.monodromy if compiled else _monodromy
+    compiled = model.compiled
+    monodromy = _compiled_monodromy if compiled else _monodromy
     if compiled:
-        Phi, c = compiled_periodic.linear_shooting(td, cfg, keys, N, dt)
+        Phi, c = compiled_periodic.linear_shooting(model, kernel_data(model, cfg), keys, N, dt)
     else:
         # x_N = Phi x_0 + c: the zero state with the forcing (c) and the unit states without it
         # (Phi; differencing forced unit states with c lost up to 1e-4 in blocks of small entries).
-        forced, state = _state(td, keys, np.zeros((1, ns))), _state(td, keys, np.eye(ns))
+        forced, state = _state(model, keys, np.zeros((1, ns))), _state(model, keys, np.eye(ns))
         for k in range(1, N + 1):
-            forced, _, _ = _batched_step(td, cfg, k % N, forced, dt)
-            state, _, _ = _batched_step(td, cfg, k % N, state, dt, forced=False)
+            forced, _, _ = _batched_step(model, cfg, k % N, forced, dt)
+            state, _, _ = _batched_step(model, cfg, k % N, state, dt, forced=False)
         c = np.concatenate([forced[k][0] for k in keys])
         Phi = np.concatenate([state[k] for k in keys], axis=1).T
     x0 = np.linalg.solve(np.eye(ns) - Phi, c)
     info = {"dt_s": dt, "steps_per_revolution": N, "state_size": ns}
-    if td.axial_force == "dynamic":
+    if model.axial_force == "dynamic":
         # Newton shooting on the nonlinear revolution map, from the linear model's solution. The
         # monodromy (the expensive part) is kept while it converges fast (chord iterations) and
         # recomputed at the current orbit when the residual falls by less than a factor 4. The
@@ -135,38 +140,38 @@ def periodic_steady_state(td: TimeDomain, speed_rad_s: float, *, step_s: float |
         # second-order terms are mild). If the residual then grows (near buckling, residuals of
         # order 1), Newton restarts from the linear solution with the monodromy there: the
         # iterates are those of plain Newton, so no speed it solves is lost.
-        shot = _shoot(td, cfg, keys, x0, N, dt, 1)
-        solved = _newton(td, cfg, keys, N, dt, monodromy, x0, shot, np.eye(ns) - Phi, newton_tolerance,
+        shot = _shoot(model, cfg, keys, x0, N, dt, 1)
+        solved = _newton(model, cfg, keys, N, dt, monodromy, x0, shot, np.eye(ns) - Phi, newton_tolerance,
                          newton_iterations, strict=True)
         info["restarted"] = solved is None
         if solved is None:
-            solved = _newton(td, cfg, keys, N, dt, monodromy, x0, shot, None, newton_tolerance, newton_iterations,
+            solved = _newton(model, cfg, keys, N, dt, monodromy, x0, shot, None, newton_tolerance, newton_iterations,
                              strict=False)
         x0, (xN, trajectory, outs, residual), info["newton_iterations"] = solved
-        Phi = monodromy(td, cfg, keys, trajectory, dt)
+        Phi = monodromy(model, cfg, keys, trajectory, dt)
     else:
         # One revolution from the periodic state, for the outputs and as a check.
-        st = _state(td, keys, x0[None, :])
+        st = _state(model, keys, x0[None, :])
         outs = []
         for k in range(1, N + 1):
-            st, _, out = _batched_step(td, cfg, k % N, st, dt)
+            st, _, out = _batched_step(model, cfg, k % N, st, dt)
             outs.append(out[0])
         xN = np.concatenate([st[k][0] for k in keys])
         residual = float(np.max(np.abs(xN - x0)) / max(np.max(np.abs(x0)), 1e-300))
     multipliers = np.linalg.eigvals(Phi)
     multipliers = multipliers[np.argsort(-np.abs(multipliers))]
     outs = np.array(outs)
-    return PeriodicResult(crank.t[1:N + 1], crank.angle[1:N + 1], td.outputs.torque(outs), td.outputs.split(outs),
+    return PeriodicResult(crank.t[1:N + 1], crank.angle[1:N + 1], model.outputs.torque(outs), model.outputs.split(outs),
                           multipliers, residual, info)
 
 
-def _shoot(td: TimeDomain, cfg, keys, x0, N, dt, it):
+def _shoot(model: Discretization, cfg, keys, x0, N, dt, it):
     """Revolution ``it`` of Newton shooting from ``x0``: ``(xN, trajectory, outputs, residual)``."""
     try:
         # A revolution that leaves the model's range overflows on its way to the error below, which
         # is the report (numpy's warnings went to every sweep worker's stderr).
         with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
-            xN, trajectory, outs = _revolution(td, cfg, keys, x0, N, dt)
+            xN, trajectory, outs = _revolution(model, cfg, keys, x0, N, dt)
     except (TMMError, np.linalg.LinAlgError) as exc:     # e.g. a singular refactorization of a step
         raise ConvergenceError(f"periodic solver: Newton shooting left the range of the model at iteration "
                                f"{it} ({exc}); the response may not be periodic at this speed (march in "
@@ -174,7 +179,7 @@ def _shoot(td: TimeDomain, cfg, keys, x0, N, dt, it):
     return xN, trajectory, outs, float(np.max(np.abs(xN - x0)) / max(np.max(np.abs(x0)), 1e-300))
 
 
-def _newton(td: TimeDomain, cfg, keys, N, dt, monodromy, x0, shot, jacobian, tolerance, iterations, strict):
+def _newton(model: Discretization, cfg, keys, N, dt, monodromy, x0, shot, jacobian, tolerance, iterations, strict):
     """Newton shooting from ``x0`` whose revolution ``shot`` (:func:`_shoot`) is marched, with
     ``jacobian`` (None: the monodromy at ``x0``) kept while the residual falls 4x per iteration.
     Returns ``(x0, shot, revolutions)`` at convergence. ``strict``: None instead of an error, and
@@ -187,11 +192,11 @@ def _newton(td: TimeDomain, cfg, keys, N, dt, monodromy, x0, shot, jacobian, tol
         if it == iterations or (strict and residual > last):
             break
         if jacobian is None or residual > 0.25 * last:
-            jacobian = np.eye(len(x0)) - monodromy(td, cfg, keys, trajectory, dt)
+            jacobian = np.eye(len(x0)) - monodromy(model, cfg, keys, trajectory, dt)
         last = residual
         x0 = x0 + np.linalg.solve(jacobian, xN - x0)
         try:
-            shot = _shoot(td, cfg, keys, x0, N, dt, it + 1)
+            shot = _shoot(model, cfg, keys, x0, N, dt, it + 1)
         except ConvergenceError:
             if strict:
                 return None
@@ -202,69 +207,76 @@ def _newton(td: TimeDomain, cfg, keys, N, dt, monodromy, x0, shot, jacobian, tol
                            f"iterations (last relative residual {residual:.3g})")
 
 
-def _state(td: TimeDomain, keys, X):
+def _state(model: Discretization, keys, X):
     """Integrator state from stacked state vectors ``X`` (..., len(keys) * n_dof)."""
-    n = td.n_dof
+    n = model.n_dof
     st = {k: X[..., j * n:(j + 1) * n].copy() for j, k in enumerate(keys)}
     zero = st["d"] * 0
-    full = td.integrator.initial(st["d"], st.get("v", zero), st.get("a", zero), (st.get("d1", zero), st.get("d2", zero)))
+    full = model.integrator.initial(st["d"], st.get("v", zero), st.get("a", zero),
+                                    (st.get("d1", zero), st.get("d2", zero)))
     full.update(st)
     return full
 
 
-def _revolution(td: TimeDomain, cfg, keys, x0, N, dt):
+def _revolution(model: Discretization, cfg, keys, x0, N, dt):
     """One nonlinear (second-order) revolution from the state vector ``x0``: the final state
     vector, the trajectory ``(idx, z, v, P)`` per step for the linearization, and the outputs."""
-    state = _state(td, keys, x0)
-    _, c_v = td.integrator.coefficients(dt)
-    march = td.begin(dt, *cfg.crank.at(0),
-                     initial={"d": state["d"], "v": state["v"], "a": state["a"],
-                              "previous": (state.get("d1", state["d"]), state.get("d2", state["d"]))})
+    state = _state(model, keys, x0)
+    _, c_v = model.integrator.coefficients(dt)
+    march = begin(model, dt, *cfg.crank.at(0),
+                  initial={"d": state["d"], "v": state["v"], "a": state["a"],
+                           "previous": (state.get("d1", state["d"]), state.get("d2", state["d"]))})
     march.state = state
     indices = np.arange(1, N + 1) % N
     zs, outs, Ps = march.step_many(cfg, indices, record_axial=True)
     # The trajectory for the linearization: displacements, velocities (v = c_v z + h_v, the
     # history from the state before each step) and axial forces per step.
-    if td.compiled:
+    if model.compiled:
         # The same recursion compiled (in Python it took 2/3 of the revolution's time).
-        vs = compiled_periodic.trajectory_velocities(td.integrator, state, zs, dt)
+        vs = compiled_periodic.trajectory_velocities(model.integrator, state, zs, dt)
         trajectory = [(idx, zs[j], vs[j], Ps[j]) for j, idx in enumerate(indices)]
     else:
         trajectory, st = [], state
         for j, idx in enumerate(indices):
-            _, h_v = td.integrator.history(st, dt)
-            st = td.integrator.advance(st, zs[j], dt)
+            _, h_v = model.integrator.history(st, dt)
+            st = model.integrator.advance(st, zs[j], dt)
             trajectory.append((idx, zs[j], c_v * zs[j] + h_v, Ps[j]))
     return np.concatenate([march.state[k] for k in keys]), trajectory, list(outs)
 
 
-def _monodromy(td: TimeDomain, cfg, keys, trajectory, dt):
+def _monodromy(model: Discretization, cfg, keys, trajectory, dt):
     """Monodromy matrix of the second-order step linearized about ``trajectory``: every unit
     state marched through one revolution in one batch, each step a dense solve of the step's
     Jacobian in (displacements, segment axial forces)."""
-    n = td.n_dof
-    seg = td.segments
+    n = model.n_dof
+    seg = model.segments
     n_seg = len(seg.length)
-    _, c_v = td.integrator.coefficients(dt)
+    _, c_v = model.integrator.coefficients(dt)
     # J mixes metres and newtons (condition ~1e13 on the FE rig, ~1e5 with the axial-force
     # unknowns and equations scaled by EA/L): unscaled, the solve loses ~1e-10 per step.
     scale = np.concatenate([np.ones(n), seg.stiffness])
     damping = np.zeros((n_seg, n))                     # d(damping part of P)/d(velocity history)
     damping[np.arange(n_seg), seg.end] += seg.beta * seg.stiffness
     damping[np.arange(n_seg), seg.start] -= seg.beta * seg.stiffness
-    state = _state(td, keys, np.eye(len(keys) * n))
+    state = _state(model, keys, np.eye(len(keys) * n))
     maps = cfg.maps
     for idx, z, v, P in trajectory:
-        h_a, h_v = td.integrator.history(state, dt)
-        dL = td.step_loads(cfg, idx, h_a, h_v, rigid=False)
+        h_a, h_v = model.integrator.history(state, dt)
+        dL = step_loads(model, cfg, idx, h_a, h_v, rigid=False)
         f_z, f_P, f_h, F_z, F_h = linearization(seg, n, c_v, z, v, P, cfg.P0[idx])
         Z, A = maps.Z[idx], maps.A[idx]
         J = np.block([[np.eye(n) - Z @ f_z, -Z @ f_P], [-(A @ f_z + F_z), np.eye(n_seg) - A @ f_P]])
         L = dL + h_v @ f_h.T
         rhs = np.concatenate([L @ Z.T, L @ A.T + h_v @ (damping + F_h).T], axis=1)
         y = np.linalg.solve(J * scale / scale[:, None], rhs.T / scale[:, None]).T
-        state = td.integrator.advance(state, y[:, :n], dt)
+        state = model.integrator.advance(state, y[:, :n], dt)
     return np.concatenate([state[k] for k in keys], axis=1).T
+
+
+def _compiled_monodromy(model: Discretization, cfg, keys, trajectory, dt):
+    """:func:`_monodromy` in the compiled kernels (:func:`tmm_core.compiled.periodic.monodromy`),
+    on the batch's compiled-march arrays (the batch must have its maps)."""
+    return compiled_periodic.monodromy(model, kernel_data(model, cfg), keys, trajectory, dt)
 
 
 def floquet_multipliers(A, period: float, n: int, rtol: float = 1e-10) -> np.ndarray:

@@ -1,6 +1,7 @@
 """Reduced transfer-matrix model: a few link modes plus a static correction (the basis).
 
-The full time domain (:class:`tmm_core.TimeDomain`) solves, at every step, the instantaneous
+The full time domain (:class:`tmm_core.TimeDomain`, its model a
+:class:`tmm_core.discretization.Discretization`) solves, at every step, the instantaneous
 structure with all its nodes. In continuous time it is the constrained system, in each link's
 local frame (node vector ``q`` of ``(u, w, theta)`` per node, see :mod:`tmm_core.matrices`)::
 
@@ -46,6 +47,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.interpolate import CubicSpline
 
+from .discretization import Discretization, HoldsModel, as_model
 from .errors import InputError
 from .ked import rigid_body_loads
 from .mechanism import torque_from_terms
@@ -127,31 +129,31 @@ class ReducedBasis:
         return unit(x), unit(x, 1), unit(x, 2)
 
 
-def unit_responses(td, angles):
-    """Static responses of the instantaneous structures at the crank ``angles`` (linear theory,
-    P = 0, no inertia) to unit local node loads: ``(Z, torque, gauges)`` with ``Z`` (B, n, n) the
+def unit_responses(model: Discretization, angles):
+    """Static responses of the instantaneous structures of ``model`` at the crank ``angles`` [rad]
+    (linear theory, P = 0, no inertia) to unit local node loads: ``(Z, torque, gauges)`` with ``Z`` (B, n, n) the
     flexibility (column j: displacements under a unit load on DOF j), ``torque`` (B, n) the drive
     torque per unit load (reaction part) and ``gauges`` (B, n_g, 2, n) bending/axial strain per
     unit load. Uses the TMM's own factorization (:func:`tmm_core.structure.factorize`)."""
-    mech = td.mech
+    mech = model.mech
     angles = np.atleast_1d(np.asarray(angles, dtype=float))
     motion = mech.motion(angles, 0.0, 0.0)
     joints = {k: v[:, None, :] for k, v in mech.joint_positions(motion).items()}
-    factor = factorize(td.structure, LoadCase(joints, {}, {}, {}, frame="local"), None, check_buckling=False)
-    n = td.n_dof
+    factor = factorize(model.structure, LoadCase(joints, {}, {}, {}, frame="local"), None, check_buckling=False)
+    n = model.n_dof
     unit = {}
-    for link in td.links:
+    for link in model.links:
         n1 = link.n_nodes
         U = np.zeros((n + 1, n1, 3))
-        off = td.offsets[link.name]
+        off = model.offsets[link.name]
         U[off:off + 3 * n1].reshape(n1, 3, n1, 3)[np.arange(n1), :, np.arange(n1), :] = np.eye(3)
         unit[link.name] = U[None]
     sol = solve_factored(factor, unit, frame="local")
     B = len(angles)
-    z = np.concatenate([sol.members[l.name].state[..., 0, :3].reshape(B, n + 1, -1) for l in td.links], axis=-1)
+    z = np.concatenate([sol.members[l.name].state[..., 0, :3].reshape(B, n + 1, -1) for l in model.links], axis=-1)
     joint, arm, _ = mech.drive_torque_terms(motion)
     torque = torque_from_terms(sol.reactions, joint, arm, np.zeros(B))
-    gs = [np.stack(gauge_strains(sol.members[g.link], g), -1) for g in td.gauges]       # (B, n+1, 2) each
+    gs = [np.stack(gauge_strains(sol.members[g.link], g), -1) for g in model.gauges]       # (B, n+1, 2) each
     gauges = np.stack([g[:, :-1] - g[:, -1:] for g in gs], 1) if gs else np.zeros((B, 0, n, 2))
     return (np.swapaxes(z[:, :-1] - z[:, -1:], 1, 2), torque[:, :-1] - torque[:, -1:],
             np.swapaxes(gauges, -1, -2))
@@ -215,13 +217,13 @@ def segment_dofs(seg) -> np.ndarray:
     return np.stack([seg.start, seg.start + 1, seg.start + 2, seg.end, seg.end + 1, seg.end + 2], axis=1)
 
 
-def _load_shapes(td, angles, tol=1e-10):
+def _load_shapes(model: Discretization, angles, tol=1e-10):
     """Orthonormal basis (n, k) of the rigid-body loads over the revolution: samples at unit
     crank speed, unit crank acceleration and at rest (gravity, applied loads)."""
-    mech, samples = td.mech, []
+    mech, samples = model.mech, []
     for speed, accel in ((1.0, 0.0), (0.0, 1.0), (0.0, 0.0)):
         motion = mech.motion(angles, speed, accel)
-        samples.append(td.stack(rigid_body_loads(mech, motion, td.gravity if speed == accel == 0 else None,
+        samples.append(model.stack(rigid_body_loads(mech, motion, model.gravity if speed == accel == 0 else None,
                                                  frame="local")))
     X = np.concatenate(samples, axis=0).T
     U, s, _ = np.linalg.svd(X, full_matrices=False)
@@ -229,13 +231,16 @@ def _load_shapes(td, angles, tol=1e-10):
     return U[:, keep]
 
 
-def build_basis(td, start_angle: float = 0.0, options: ReducedOptions = ReducedOptions()) -> ReducedBasis:
-    """The reduced basis of the mechanism of ``td`` (a :class:`tmm_core.TimeDomain`: its mass
-    model, gauges and node layout) over one revolution from ``start_angle`` [rad]."""
+def build_basis(source: Discretization | HoldsModel, start_angle: float = 0.0,
+                options: ReducedOptions = ReducedOptions()) -> ReducedBasis:
+    """The reduced basis of the model ``source`` (a :class:`tmm_core.discretization.Discretization`
+    or the one a :class:`tmm_core.TimeDomain` holds: its mass model, gauges and node layout) over
+    one revolution from ``start_angle`` [rad]."""
+    model = as_model(source)
     J = options.positions
     angles = start_angle + 2 * np.pi * np.arange(J) / J
-    Z, torque, gmaps = unit_responses(td, angles)
-    m = td.m_vec
+    Z, torque, gmaps = unit_responses(model, angles)
+    m = model.m_vec
     h = np.sqrt(m)
     # Modes at every (positions / mode_positions)-th grid point, compressed to the dominant subspace.
     every = J // options.mode_positions
@@ -246,13 +251,13 @@ def build_basis(td, start_angle: float = 0.0, options: ReducedOptions = ReducedO
         shapes.append(mphi)
     U, _, _ = np.linalg.svd(np.concatenate(shapes, axis=1), full_matrices=False)
     W_modes = h[:, None] * U[:, :options.modes]                  # inertia loads of the mode shapes
-    W_static = _load_shapes(td, angles)
-    if td.axial_force == "dynamic":
+    W_static = _load_shapes(model, angles)
+    if model.axial_force == "dynamic":
         # Second order: the shortening of each segment acts as a pair of axial loads on its nodes.
         # Their static responses let every segment's elongation follow its own shortening, so the
         # axial forces come out in equilibrium (a smooth axial field alone would lock them).
-        seg = td.segments
-        pairs = np.zeros((td.n_dof, len(seg.length)))
+        seg = model.segments
+        pairs = np.zeros((model.n_dof, len(seg.length)))
         pairs[seg.start, np.arange(len(seg.length))] = 1.0
         pairs[seg.end, np.arange(len(seg.length))] = -1.0
         W_static = np.concatenate([W_static, pairs * float(np.linalg.norm(W_static[:, 0]))], axis=1)
@@ -269,8 +274,8 @@ def build_basis(td, start_angle: float = 0.0, options: ReducedOptions = ReducedO
     K = 0.5 * (K + np.swapaxes(K, 1, 2))
     # Gauge strain per unit displacement: the strain-to-load map over the load-to-displacement map
     # (a function of the link's own displacements, the same at every crank position).
-    n_g = len(td.gauges)
-    gauge_maps = np.zeros((n_g, 2, td.n_dof))
+    n_g = len(model.gauges)
+    gauge_maps = np.zeros((n_g, 2, model.n_dof))
     if n_g:
         Zp = np.linalg.pinv(Z[0], rcond=1e-11)
         gauge_maps = gmaps[0] @ Zp

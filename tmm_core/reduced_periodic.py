@@ -27,7 +27,7 @@ part gives the first guess in one linear solve ``(I - Phi) x0 = c``; Newton on `
 (state ``x = (eta, eta')``, 2r) then handles the axial-force term.
 
 The revolutions run in the compiled kernel :mod:`tmm_core.compiled.reduced_periodic` (numba) unless
-the model's backend is 'numpy' (default ``td.backend``); the numpy code here is the
+the model's backend is 'numpy' (default: the backend of the full model); the numpy code here is the
 reference it is tested against. FE rig, r = 23, 360 steps, one thread: a periodic solve about
 0.3 s compiled against 2.8 s in numpy (the set-up of the stage matrices included).
 
@@ -50,6 +50,7 @@ from scipy.linalg import lu_factor, lu_solve
 
 from .compiled import binding as kernel_binding, reduced_periodic as compiled_reduced_periodic
 from .backend import choose_backend
+from .discretization import Discretization, HoldsModel, as_model
 from .errors import ConvergenceError, InputError
 from .ked import CrankMotion
 from .periodic import PeriodicResult
@@ -82,58 +83,57 @@ def stage_points(crank: CrankMotion):
 class ReducedModel:
     """The reduced equations at the stage points of a crank history (one period).
 
-    ``td``: the :class:`tmm_core.TimeDomain` whose physics is reduced (mass model, damping,
-    coupling, axial-force model, gravity, gauges). ``crank``: one period of the crank history
+    ``source``: the model whose physics is reduced (mass model, damping, coupling, axial-force
+    model, gravity, gauges): a :class:`tmm_core.discretization.Discretization`, or the one a
+    :class:`tmm_core.TimeDomain` holds (kept as ``model``). ``crank``: one period of the crank history
     (N + 1 samples, the last one revolution after the first). ``basis``: from
     :func:`tmm_core.reduced.build_basis` (geometry only: it may serve every speed).
     ``backend``: 'compiled' marches revolutions in the compiled kernel
     (:mod:`tmm_core.compiled.reduced_periodic`), 'numpy' in this module's numpy path (the
-    reference); default ``td.backend``. ``stages``: :class:`tmm_core.reduced_stages.StageCoefficients` of ``td`` and
+    reference); default the model's backend. ``stages``: :class:`tmm_core.reduced_stages.StageCoefficients` of the
+    model and
     ``basis`` to combine for this crank history when its stage angles are theirs (else, and by
     default, the stage matrices are built directly)."""
 
-    def __init__(self, td, crank: CrankMotion, basis: ReducedBasis, backend: str | None = None,
-                 stages: StageCoefficients | None = None):
-        if any(link.viscoelastic is not None for link in td.links):
+    def __init__(self, source: Discretization | HoldsModel, crank: CrankMotion, basis: ReducedBasis,
+                 backend: str | None = None, stages: StageCoefficients | None = None):
+        model = as_model(source)
+        if any(link.viscoelastic is not None for link in model.links):
             raise InputError("the reduced model does not carry viscoelastic (standard-linear-solid) links; use "
                              "solver.tmm.model = 'full'")
-        if td.axial_force == "quasi_static":
+        if model.axial_force == "quasi_static":
             raise InputError("the reduced model carries the step's own axial force (axial_force 'dynamic', the "
                              "default) or none (beam_column = false); axial_force 'quasi_static' needs "
                              "solver.tmm.model = 'full'")
-        if td.axial_force == "dynamic" and set(td.dynamic_terms) != {"shortening", "axial_force"}:
+        if model.axial_force == "dynamic" and set(model.dynamic_terms) != {"shortening", "axial_force"}:
             raise InputError("the reduced model carries both second-order terms or neither")
-        self.td, self.basis = td, basis
-        self.backend = td.backend if backend is None else choose_backend(backend)
+        self.model, self.basis = model, basis
+        self.backend = model.backend if backend is None else choose_backend(backend)
         #: Compiled path: chord Newton iterations in the revolutions without the monodromy (see
         #: tmm_core.compiled.reduced_periodic); False refactorizes every iteration, as the numpy path does.
         self.chord = True
         self._kernel_args = self._factors = None
         self.counts = np.zeros(2, dtype=np.int64)   # last compiled revolution: Newton iterations, LUs
-        self.nonlinear = td.axial_force == "dynamic"
+        self.nonlinear = model.axial_force == "dynamic"
         N = len(crank.t) - 1
         self.N, self.h = N, crank.dt
         self.stage_time, th, w, al = stage_points(crank)
         self.stage_angle = th
-        terms = stages.at(td, th, w, al) if stages is not None and stages.matches(th) else \
-            stage_terms(td, basis, th, w, al)
+        terms = stages.at(model, th, w, al) if stages is not None and stages.matches(th) else \
+            stage_terms(model, basis, th, w, al)
         self.T, self.Td, self.Tdd, self.Mr, self.Cr, self.Kr = terms.T, terms.Td, terms.Tdd, terms.Mr, terms.Cr, \
             terms.Kr
         self.f, self.om, self.alpha = terms.f, terms.om, terms.alpha
         self.fr = (terms.f[:, None, :] @ terms.T)[:, 0]
         # Drive torque at the stage points: the reaction part per unit load, the rigid crank's part.
         self.torque_map, self.torque_offset = terms.torque_map, terms.torque_offset
-        seg = td.segments
+        seg = model.segments
         self.k, self.beta, self.G = seg.stiffness, seg.beta, geometric_matrices(seg.length)
         self._segment_maps = None              # built on first use (numpy path only)
         self.A2 = RADAU_A @ RADAU_A
         self.stage_acc = None                  # stage accelerations of the last revolution (guesses)
         # Gauge segments (for the shortening part of the axial strain).
-        seg_offset = np.cumsum([0] + [l.total_segments for l in td.links])
-        names = [l.name for l in td.links]
-        self.gauge_segment = np.array([seg_offset[names.index(g.link)] + int(np.clip(
-            np.searchsorted(td.links[names.index(g.link)].stations, g.position_m, side="right") - 1, 0,
-            td.links[names.index(g.link)].total_segments - 1)) for g in td.gauges], dtype=int)
+        self.gauge_segment = model.gauge_segment
 
     # -- the second-order term -----------------------------------------------------------------
     def second_order(self, P, eta, v, jacobian=True):
@@ -142,7 +142,7 @@ class ReducedModel:
         if self._segment_maps is None:
             # Segment DOFs per unit coordinate at every stage point: bending (w0, theta0, w1,
             # theta1) ``Ed``, their rates ``Edd``, ``G Ed``, elongation ``a`` and its rate ``ad``.
-            seg, T, Td = self.td.segments, self.T, self.Td
+            seg, T, Td = self.model.segments, self.T, self.Td
             wdofs = np.stack([seg.start + 1, seg.start + 2, seg.end + 1, seg.end + 2], axis=1)
             Ed = T[:, wdofs]                                                 # (P, n_seg, 4, r)
             self._segment_maps = (Ed, self.G[None] @ Ed, Td[:, wdofs], T[:, seg.end] - T[:, seg.start],
@@ -238,7 +238,7 @@ class ReducedModel:
             guess = np.zeros((self.N, 3, r))
             guess[0] = np.linalg.solve(self.Mr[0], self.fr[0] - self.Cr[0] @ v - self.Kr[0] @ eta)
         mono = np.eye(2 * r) if jacobian else None
-        outs = np.zeros((self.N, 3, 1 + 2 * len(self.td.gauges))) if outputs else None
+        outs = np.zeros((self.N, 3, 1 + 2 * len(self.model.gauges))) if outputs else None
         h, A, A2 = self.h, RADAU_A, self.A2
         accs = np.empty((self.N, 3, r))
         scale = 0.0             # the largest stage acceleration so far (the Newton tolerance's floor)
@@ -273,7 +273,7 @@ class ReducedModel:
         else:
             guess = self.stage_acc
         x_end, mono, accs = np.empty(2 * r), np.empty((2 * r, 2 * r)), np.empty((self.N, 3, r))
-        outs = np.empty((3 * self.N if outputs else 0, 1 + 2 * len(self.td.gauges)))
+        outs = np.empty((3 * self.N if outputs else 0, 1 + 2 * len(self.model.gauges)))
         if self._factors is None:
             # Every step's last Newton matrix (LU), kept for the next revolution's chord
             # iterations: 8 (3r)^2 N bytes (14 MB at r = 23, 360 steps).
@@ -300,7 +300,7 @@ class ReducedModel:
         ``(seg_w, seg_u, G, k, beta)`` and the output maps (:meth:`output_maps`) with the gauges'
         segments and lengths."""
         if self._kernel_args is None:
-            seg = self.td.segments
+            seg = self.model.segments
             c = np.ascontiguousarray
             stages = (c(self.Mr), c(self.Cr), c(self.Kr), c(self.fr), c(self.T), c(self.Td))
             segments = (np.stack([seg.start + 1, seg.start + 2, seg.end + 1, seg.end + 2], axis=1).astype(np.int64),
@@ -316,11 +316,11 @@ class ReducedModel:
         ``out = O0 + Oe eta + Ov eta' + Oa eta''`` at every stage point, ``O0`` (P, n_out) and
         ``Oe, Ov, Oa`` (P, n_out, r). Torque: the loads are linear in ``(q, q', q'')`` and those
         in ``(eta, eta', eta'')`` (``q' = T eta' + T' eta``, ``q'' = T eta'' + 2 T' eta' + T'' eta``)."""
-        td, cp = self.td, self.td.coupling
-        w, m = self.torque_map, td.m_vec
-        iu = np.arange(0, td.n_dof, 3)
+        model, cp = self.model, self.model.coupling
+        w, m = self.torque_map, model.m_vec
+        iu = np.arange(0, model.n_dof, 3)
         g_acc = -w * m                                  # torque per unit q'' [N m s^2 / m]
-        g_vel = g_acc * td.aM_vec
+        g_vel = g_acc * model.aM_vec
         g_pos = np.zeros_like(w)
         if cp.coriolis:
             cw = w * 2.0 * m * self.om
@@ -333,7 +333,7 @@ class ReducedModel:
             g_pos[:, iu + 1] += cw[:, iu]
             g_pos[:, iu] -= cw[:, iu + 1]
         T, Td, Tdd = self.T, self.Td, self.Tdd
-        n_g = len(td.gauges)
+        n_g = len(model.gauges)
         O0 = np.zeros((len(T), 1 + 2 * n_g))
         Oe, Ov, Oa = (np.zeros((len(T), 1 + 2 * n_g, T.shape[-1])) for _ in range(3))
         # Batched products (matmul per stage point): numpy's einsum of these shapes was 2.5-7x
@@ -349,12 +349,12 @@ class ReducedModel:
 
     def outputs(self, p, eta, v, acc, nonlinear):
         """Drive torque and gauge strains at stage point ``p`` (step ``p // 3``)."""
-        td = self.td
+        model = self.model
         T, Td, Tdd = self.T[p], self.Td[p], self.Tdd[p]
         q, qd, qdd = T @ eta, T @ v + Td @ eta, T @ acc + 2 * Td @ v + Tdd @ eta
-        m = td.m_vec
-        load = self.f[p] - m * (qdd + td.aM_vec * qd)
-        cp, iu = td.coupling, np.arange(0, td.n_dof, 3)
+        m = model.m_vec
+        load = self.f[p] - m * (qdd + model.aM_vec * qd)
+        cp, iu = model.coupling, np.arange(0, model.n_dof, 3)
         if cp.coriolis:
             c = 2.0 * m * self.om[p]
             load[iu] += c[iu] * qd[iu + 1]
@@ -368,16 +368,19 @@ class ReducedModel:
         strains = self.basis.gauge_maps @ q                          # (n_g, 2)
         if nonlinear and len(self.gauge_segment):
             _, _, _, _, delta = self.second_order(np.array([p]), eta[None], v[None], jacobian=False)
-            strains[:, 1] += delta[0, self.gauge_segment] / td.segments.length[self.gauge_segment]
+            strains[:, 1] += delta[0, self.gauge_segment] / model.segments.length[self.gauge_segment]
         return np.concatenate([[self.torque_map[p] @ load + self.torque_offset[p]], strains.ravel()])
 
 
-def periodic_steady_state_reduced(td, speed_rad_s: float | None = None, *, crank: CrankMotion | None = None,
+def periodic_steady_state_reduced(source: Discretization | HoldsModel, speed_rad_s: float | None = None, *,
+                                  crank: CrankMotion | None = None,
                                   start_angle: float = 0.0, options: ReducedOptions = ReducedOptions(),
                                   basis: ReducedBasis | None = None, newton_tolerance: float = 1e-9,
                                   newton_iterations: int = 20, backend: str | None = None,
                                   stages: StageCoefficients | None = None) -> PeriodicResult:
-    """Periodic steady revolution of the reduced model of ``td`` at constant ``speed_rad_s``
+    """Periodic steady revolution of the reduced model of ``source`` (a
+    :class:`tmm_core.discretization.Discretization` or the one a :class:`tmm_core.TimeDomain`
+    holds) at constant ``speed_rad_s`` [rad/s]
     (``options.steps`` steps per revolution) or over one period of a periodic ``crank`` history
     (N + 1 samples; its samples are the steps). Returns a :class:`tmm_core.periodic.PeriodicResult`
     (outputs at the 3 collocation points of each step, 3N samples: the continuous solution, so that
@@ -385,6 +388,7 @@ def periodic_steady_state_reduced(td, speed_rad_s: float | None = None, *, crank
     revolution marched from the periodic state). ``basis``: reuse one (it depends on the
     geometry only); else built from ``options``. ``backend``, ``stages``: see
     :class:`ReducedModel`."""
+    full = as_model(source)
     if crank is None:
         if not speed_rad_s:
             raise InputError("reduced model: give a non-zero crank speed or a crank history")
@@ -395,8 +399,8 @@ def periodic_steady_state_reduced(td, speed_rad_s: float | None = None, *, crank
         if abs(turn - 2 * math.pi) > 1e-9 * 2 * math.pi:
             raise InputError("reduced model: the crank history must span exactly one revolution")
     if basis is None:
-        basis = build_basis(td, float(crank.angle[0]), options)
-    model = ReducedModel(td, crank, basis, backend, stages)
+        basis = build_basis(full, float(crank.angle[0]), options)
+    model = ReducedModel(full, crank, basis, backend, stages)
     r = basis.size
     x_lin, mono, _ = model.revolution(np.zeros(2 * r), False)
     x0 = np.linalg.solve(np.eye(2 * r) - mono, x_lin)
@@ -429,5 +433,5 @@ def periodic_steady_state_reduced(td, speed_rad_s: float | None = None, *, crank
         residual = float(np.max(np.abs(xN - x0)) / max(np.max(np.abs(x0)), 1e-300))
     mult = np.linalg.eigvals(mono)
     mult = mult[np.argsort(-np.abs(mult))]
-    return PeriodicResult(model.stage_time, model.stage_angle, td.outputs.torque(outs), td.outputs.split(outs), mult,
-                          residual, info)
+    return PeriodicResult(model.stage_time, model.stage_angle, full.outputs.torque(outs), full.outputs.split(outs),
+                          mult, residual, info)

@@ -26,6 +26,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from .discretization import Discretization, HoldsModel, as_model
 from .ked import rigid_body_loads
 
 
@@ -49,8 +50,8 @@ class StageTerms(NamedTuple):
     torque_offset: np.ndarray
 
 
-def stage_terms(td, basis, th, w, al) -> StageTerms:
-    """:class:`StageTerms` of the :class:`tmm_core.TimeDomain` ``td`` on ``basis`` at the stage
+def stage_terms(model: Discretization, basis, th, w, al) -> StageTerms:
+    """:class:`StageTerms` of the model ``model`` on ``basis`` at the stage
     angles ``th`` [rad] with crank speed ``w`` [rad/s] and acceleration ``al`` [rad/s^2] (arrays
     like ``th``, or scalars)."""
     b = basis
@@ -63,28 +64,28 @@ def stage_terms(td, basis, th, w, al) -> StageTerms:
     T, T1, T2 = (on_grid(W, b.T) for W in B)
     Td = T1 * w[:, None, None]
     Tdd = T2 * (w**2)[:, None, None] + T1 * al[:, None, None]
-    m = td.m_vec
-    mech = td.mech
+    m = model.m_vec
+    mech = model.mech
     motion = mech.motion(th, w, al)
-    cp = td.coupling
+    cp = model.coupling
     P = len(th)
 
     def per_dof(name):
         """A link rate of ``motion`` (per stage point) on every DOF of the link, (P, n)."""
         return np.concatenate([np.broadcast_to(np.reshape(getattr(motion.link(l.name), name), (-1, 1)),
-                                               (P, 3 * l.n_nodes)) for l in td.links], axis=1)
+                                               (P, 3 * l.n_nodes)) for l in model.links], axis=1)
 
     om = per_dof("omega") if cp.any else None
     alpha = per_dof("alpha") if cp.any else None
-    Kl = td.K_local.toarray()
+    Kl = model.K_local.toarray()
     # Batched matrix products (BLAS per stage point): einsum over (P, n, r) was 20x slower.
     TT = np.swapaxes(T, 1, 2)
-    bn = td.beta_node
-    iu = np.arange(0, td.n_dof, 3)
+    bn = model.beta_node
+    iu = np.arange(0, model.n_dof, 3)
 
     def damp(X, p_om):
         """(D + C_K + G_c) X for X (P, n, r)."""
-        out = (m * td.aM_vec)[None, :, None] * X + bn[None, :, None] * np.matmul(Kl, X)
+        out = (m * model.aM_vec)[None, :, None] * X + bn[None, :, None] * np.matmul(Kl, X)
         if cp.coriolis:
             c = 2.0 * m[None, :] * p_om
             out[:, iu] -= c[:, iu, None] * X[:, iu + 1]
@@ -101,15 +102,15 @@ def stage_terms(td, basis, th, w, al) -> StageTerms:
         KX[:, iu] -= c[:, iu, None] * T[:, iu + 1]
         KX[:, iu + 1] += c[:, iu + 1, None] * T[:, iu]
     Kr = on_grid(B[0], b.K) + TT @ KX
-    f, offset = _loads(td, motion)
+    f, offset = _loads(model, motion)
     return StageTerms(T, Td, Tdd, Mr, Cr, Kr, f, om, alpha, B[0] @ b.torque,
                       np.broadcast_to(np.asarray(offset, dtype=float), th.shape))
 
 
-def _loads(td, motion):
+def _loads(model: Discretization, motion):
     """Rigid-body loads (P, n) in the link frames and the rigid crank's drive torque (P,)."""
-    f = td.stack(rigid_body_loads(td.mech, motion, td.gravity, frame="local"))
-    _, _, offset = td.mech.drive_torque_terms(motion, td.gravity)
+    f = model.stack(rigid_body_loads(model.mech, motion, model.gravity, frame="local"))
+    _, _, offset = model.mech.drive_torque_terms(motion, model.gravity)
     return f, offset
 
 
@@ -137,10 +138,12 @@ class StageCoefficients:
     torque_map: np.ndarray
 
     @classmethod
-    def of(cls, td, basis, th) -> "StageCoefficients":
-        """Coefficients of ``td`` on ``basis`` at the stage angles ``th`` [rad]."""
+    def of(cls, source: Discretization | HoldsModel, basis, th) -> "StageCoefficients":
+        """Coefficients of the model ``source`` (or of the one a :class:`tmm_core.TimeDomain`
+        holds) on ``basis`` at the stage angles ``th`` [rad]."""
         th = np.array(th, dtype=float)
-        rest, fwd, back, acc = (stage_terms(td, basis, th, w, al) for w, al in ((0, 0), (1, 0), (-1, 0), (0, 1)))
+        model = as_model(source)
+        rest, fwd, back, acc = (stage_terms(model, basis, th, w, al) for w, al in ((0, 0), (1, 0), (-1, 0), (0, 1)))
         # The speed-free part is subtracted before the odd and even parts are separated.
         up, down = fwd.Kr - rest.Kr, back.Kr - rest.Kr          # K1 + K2, -K1 + K2
         return cls(th, rest.T, fwd.Td, fwd.Tdd, rest.Mr, rest.Cr, fwd.Cr - rest.Cr, rest.Kr, 0.5 * (up - down),
@@ -152,8 +155,8 @@ class StageCoefficients:
         th = np.asarray(th, dtype=float)
         return th.shape == self.angle.shape and bool(np.all(np.abs(th - self.angle) <= 1e-12))
 
-    def at(self, td, th, w, al) -> StageTerms:
-        """:class:`StageTerms` at crank speed ``w`` and acceleration ``al`` per stage point; the
+    def at(self, model: Discretization, th, w, al) -> StageTerms:
+        """:class:`StageTerms` of ``model`` at crank speed ``w`` and acceleration ``al`` per stage point; the
         rigid-body loads and the crank's drive torque are evaluated at the motion itself."""
         w = np.broadcast_to(np.asarray(w, dtype=float), self.angle.shape)
         al = np.broadcast_to(np.asarray(al, dtype=float), self.angle.shape)
@@ -164,6 +167,6 @@ class StageCoefficients:
         Kr = self.K0 + col(w) * self.K1 + col(w**2) * self.K2 + col(al) * self.K3
         om = None if self.om1 is None else self.om1 * w[:, None]
         alpha = None if self.alpha2 is None else self.alpha2 * (w**2)[:, None] + self.alpha1 * al[:, None]
-        f, offset = _loads(td, td.mech.motion(np.asarray(th, dtype=float), w, al))
+        f, offset = _loads(model, model.mech.motion(np.asarray(th, dtype=float), w, al))
         return StageTerms(self.T, Td, Tdd, self.Mr, Cr, Kr, f, om, alpha, self.torque_map,
                           np.broadcast_to(np.asarray(offset, dtype=float), self.angle.shape))

@@ -168,21 +168,21 @@ def tmm_scaling(rig, segments, revolutions_list, tiny):
     segments per link the sweeps march a quarter revolution (scaled to one).
     Per revolution count: wall time [s], fitted as set-up + cost per revolution."""
     from cosim.scenario import load
-    from tmm_core import CrankMotion, TimeDomain, quasi_static as qs_solve, transient
+    from tmm_core import CrankMotion, TimeDomain, batches, quasi_static as qs_solve
     from .bench_accuracy import scenario_for
     sc = load(rig)
     q = np.radians(np.arange(360.0))
     # A first call loads the compiled kernels (numba's disk cache) and starts the kernels' thread
     # pool (a batch this large runs in parallel), which would fall on the first row.
     qs_solve(sc.mechanism, q, sc.drive.speed_rad_s, beam_column=True, tol=1e-8)
-    default_limit = transient.FACTORS_ABOVE_DOF
+    default_limit = batches.FACTORS_ABOVE_DOF
     for limit in (0, 10**9):                  # and the march's first call on each path
-        transient.FACTORS_ABOVE_DOF = limit
+        batches.FACTORS_ABOVE_DOF = limit
         try:
             TimeDomain(sc.mechanism, integrator="generalized_alpha", gauges=sc.gauges).run(
                 CrankMotion.constant_speed(sc.drive.speed_rad_s, step_deg=1.0, revolutions=0.05), start="quasi_static")
         finally:
-            transient.FACTORS_ABOVE_DOF = default_limit
+            batches.FACTORS_ABOVE_DOF = default_limit
     rows = []
     for n in segments:
         mech = scenario_for(rig, "tmm", {"segments": n}).mechanism
@@ -202,16 +202,15 @@ def tmm_scaling(rig, segments, revolutions_list, tiny):
             if n > limit:
                 continue
             revs = 0.25 if n > 128 and budget is not None else 1.0
-            td = TimeDomain(mech, integrator="generalized_alpha", gauges=sc.gauges)
-            if budget is not None:
-                td.max_map_bytes = budget
-            transient.FACTORS_ABOVE_DOF = default_limit if maps_to is None else maps_to
+            td = TimeDomain(mech, integrator="generalized_alpha", gauges=sc.gauges,
+                            **({} if budget is None else {"max_map_bytes": budget}))
+            batches.FACTORS_ABOVE_DOF = default_limit if maps_to is None else maps_to
             try:
                 tic = time.perf_counter()
                 td.run(CrankMotion.constant_speed(sc.drive.speed_rad_s, step_deg=1.0, revolutions=revs),
                        start="quasi_static", record_displacements=False)
             finally:
-                transient.FACTORS_ABOVE_DOF = default_limit
+                batches.FACTORS_ABOVE_DOF = default_limit
             row[key] = (time.perf_counter() - tic) / revs
             row[key.replace("_revolution_s", "_revolutions_marched")] = revs
         rows.append(row)

@@ -1,6 +1,6 @@
 """Compiled march of the time-domain step on precomputed load-to-response maps (numba).
 
-The numpy path of :class:`tmm_core.TimeDomain` (``solve_step``, ``_loads``, the integrators) is
+The numpy step (:mod:`tmm_core.time_step`: ``step_loads``, ``solve_step``; the integrators) is
 the reference; this module does the same arithmetic in one compiled loop over the steps of a
 march, for configurations whose dense maps are cached (a constant-speed revolution): the step's
 loads (D'Alembert of the configuration, inertia and Kelvin-Voigt history, Coriolis terms), the
@@ -160,7 +160,7 @@ def march(integrator, idx, maps, on_factors, model, settings, state, recorded):
     Records (tuples, unpacked below): ``integrator = (code, params, dt [s], c_a, c_v)``;
     ``maps = (Zx, Ox, Ax, P0, rigid, omega)`` and ``on_factors = (factored, flayout, fstored,
     fwork, Ocx)``, the configuration batch's data
-    (:meth:`tmm_core.time_step.StepSolver.kernel_data`); ``model = (m, aM, beta_node, seg_start,
+    (:func:`tmm_core.time_step.kernel_data`); ``model = (m, aM, beta_node, seg_start,
     seg_end, seg_L, seg_EA, seg_beta, seg_K, gauge_seg)``; ``settings = (coriolis, has_kv,
     dynamic, shortening, own_force, tol_z, tol_P, max_iterations, depth)``; ``state = (d, v, a,
     acc, d1, d2, P)``, updated in place; ``recorded = (out_hist, z_hist, P_hist, iterations)``."""

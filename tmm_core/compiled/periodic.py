@@ -30,7 +30,7 @@ Kernels are compiled on first use and cached on disk (numba ``cache=True``, in t
 layer's keyed folder: an edit of any kernel file starts a fresh cache, :mod:`tmm_core.compiled.cache`).
 
 Owns: the compiled linearized revolutions. Boundaries: the numpy path in tmm_core.periodic is
-the reference; the step's maps and data come from :meth:`tmm_core.TimeDomain.kernel_data`.
+the reference; the step's maps and data come from :func:`tmm_core.time_step.kernel_data`.
 """
 from __future__ import annotations
 
@@ -78,7 +78,7 @@ def push(S, coef, idx, forced, maps, model, flags, c_v, trajectory):
 
     Records (tuples, unpacked below): ``coef = (Hc, Gc, ez)`` (:func:`integrator_coefficients`);
     ``maps = (Zx, Ax, P0, rigid, omega)``; ``model`` the march's model record
-    (:meth:`tmm_core.time_step.StepSolver.kernel_model`); ``flags = (coriolis, has_kv,
+    (:meth:`tmm_core.discretization.Discretization.kernel_model`); ``flags = (coriolis, has_kv,
     dynamic)``; ``trajectory = (zs, vs, Ps)``."""
     Hc, Gc, ez = coef
     Zx, Ax, P0, rigid, omega = maps
@@ -127,7 +127,7 @@ def push(S, coef, idx, forced, maps, model, flags, c_v, trajectory):
                 if cv != 0.0:
                     for r in range(M):
                         h_v[i, r] += cv * S[q, i, r]
-        # Loads (TimeDomain.step_loads without the rigid-body part): inertia history, Coriolis,
+        # Loads (tmm_core.time_step.step_loads without the rigid-body part): inertia history, Coriolis,
         # Kelvin-Voigt history.
         for i in range(n):
             for r in range(M):
@@ -265,15 +265,16 @@ def trajectory_velocities(integrator, state, zs, dt: float) -> np.ndarray:
     return vs
 
 
-def _inputs(td, cfg, dt):
-    """What :func:`push` reads, from the batch's compiled-march arrays: ``(slots, coef, maps,
-    model, (coriolis, has_kv), c_v)``."""
-    if cfg.maps is None:
-        raise ValueError("the compiled periodic solve needs the configurations' load-to-response maps")
-    Zx, _, Ax, P0, rigid, omega = td.kernel_data(cfg)[:6]
-    slots, Hc, Gc, ez = integrator_coefficients(td.integrator, dt)
-    _, c_v = td.integrator.coefficients(dt)
-    return slots, (Hc, Gc, ez), (Zx, Ax, P0, rigid, omega), td.kernel_model(), (td.coupling.coriolis, td.has_kv), c_v
+def _inputs(model, data, dt):
+    """What :func:`push` reads, from the batch's compiled-march arrays ``data``
+    (:func:`tmm_core.time_step.kernel_data` of a batch with its maps) and the ``model``
+    (:class:`tmm_core.discretization.Discretization`): ``(slots, coef, maps, kernel,
+    (coriolis, has_kv), c_v)``."""
+    Zx, _, Ax, P0, rigid, omega = data[:6]
+    slots, Hc, Gc, ez = integrator_coefficients(model.integrator, dt)
+    _, c_v = model.integrator.coefficients(dt)
+    return slots, (Hc, Gc, ez), (Zx, Ax, P0, rigid, omega), model.kernel_model(), (model.coupling.coriolis,
+                                                                                   model.has_kv), c_v
 
 
 def _dependent_keys(slots, keys, Hc, Gc):
@@ -331,27 +332,29 @@ def _expand(X, marched, dependent, C, n):
     return Phi
 
 
-def linear_shooting(td, cfg, keys, N: int, dt: float):
+def linear_shooting(model, data, keys, N: int, dt: float):
     """The linear step's revolution ``x_N = Phi x_0 + c`` (as the first pass of
     :func:`tmm_core.periodic.periodic_steady_state`): ``(Phi, c)`` for the stacked state of
-    ``keys``, the configurations of ``cfg`` being the N steps of the revolution."""
-    slots, coef, maps, model, flags, c_v = _inputs(td, cfg, dt)
-    n = td.n_dof
+    ``keys``, ``data`` being the compiled-march arrays of the N configurations of the revolution
+    (:func:`tmm_core.time_step.kernel_data`, with the maps)."""
+    slots, coef, maps, kernel, flags, c_v = _inputs(model, data, dt)
+    n = model.n_dof
     marched, dependent, C = _dependent_keys(slots, keys, coef[0], coef[1])
     S = _initial_states(slots, keys, n, marched, extra=1)
-    no_trajectory = (np.zeros((0, n)), np.zeros((0, n)), np.zeros((0, len(td.segments.length))))
-    single(push)(S, coef, np.arange(1, N + 1) % N, 1, maps, model, (*flags, False), c_v, no_trajectory)
+    no_trajectory = (np.zeros((0, n)), np.zeros((0, n)), np.zeros((0, len(model.segments.length))))
+    single(push)(S, coef, np.arange(1, N + 1) % N, 1, maps, kernel, (*flags, False), c_v, no_trajectory)
     X = _stacked(S, slots, keys)
     return _expand(X[:, 1:], marched, dependent, C, n), X[:, 0].copy()
 
 
-def monodromy(td, cfg, keys, trajectory, dt: float) -> np.ndarray:
+def monodromy(model, data, keys, trajectory, dt: float) -> np.ndarray:
     """Monodromy matrix of the second-order step linearized about ``trajectory`` (a list of
-    ``(idx, z, v, P)`` per step, as :func:`tmm_core.periodic._revolution` returns it)."""
-    slots, coef, maps, model, flags, c_v = _inputs(td, cfg, dt)
+    ``(idx, z, v, P)`` per step, as :func:`tmm_core.periodic._revolution` returns it); ``data`` as
+    :func:`linear_shooting`."""
+    slots, coef, maps, kernel, flags, c_v = _inputs(model, data, dt)
     idx = np.array([t[0] for t in trajectory], dtype=np.int64)
     linearized_about = tuple(np.ascontiguousarray(np.array([t[i] for t in trajectory]), dtype=float) for i in (1, 2, 3))
     marched, dependent, C = _dependent_keys(slots, keys, coef[0], coef[1])
-    S = _initial_states(slots, keys, td.n_dof, marched)
-    single(push)(S, coef, idx, 0, maps, model, (*flags, True), c_v, linearized_about)
-    return _expand(_stacked(S, slots, keys), marched, dependent, C, td.n_dof)
+    S = _initial_states(slots, keys, model.n_dof, marched)
+    single(push)(S, coef, idx, 0, maps, kernel, (*flags, True), c_v, linearized_about)
+    return _expand(_stacked(S, slots, keys), marched, dependent, C, model.n_dof)
