@@ -37,7 +37,6 @@ PUBLIC = {
     "statics": ("solve_static", "StaticSolution", "external_resultant"),
     # kineto-elastodynamics: quasi-static and time domain
     "ked": ("Coupling", "CrankMotion", "KEDResult", "rigid_body_loads", "quasi_static"),
-    "discretization": ("Discretization", "discretize"),
     "transient": ("TimeDomain", "time_domain"),
     # periodic steady state
     "periodic": ("periodic_steady_state", "PeriodicResult", "floquet_multipliers"),
@@ -65,7 +64,6 @@ __all__ = [
     "Structure", "Member", "Joint", "LoadCase", "solve_static", "StaticSolution", "external_resultant",
     # kineto-elastodynamics: quasi-static and time domain
     "Coupling", "CrankMotion", "KEDResult", "rigid_body_loads", "quasi_static", "TimeDomain", "time_domain",
-    "Discretization", "discretize",
     # periodic steady state
     "periodic_steady_state", "PeriodicResult", "floquet_multipliers",
     # natural frequencies
@@ -114,5 +112,4 @@ if TYPE_CHECKING:      # for type checkers and IDEs, which do not run __getattr_
     from .sections import Material, Section
     from .statics import StaticSolution, external_resultant, solve_static
     from .structure import Joint, LoadCase, Member, Structure
-    from .discretization import Discretization, discretize
     from .transient import TimeDomain, time_domain
