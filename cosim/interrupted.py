@@ -10,7 +10,7 @@ import math
 
 import numpy as np
 
-from .metrics import revolutions_completed
+from tmm_core.revolution import revolutions_completed
 
 
 def trim_samples(obj, t_end: float) -> None:

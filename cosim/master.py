@@ -61,7 +61,9 @@ from .engines import make_engine
 from .engines.base import DriveInput, EngineError, EngineRun, concatenate, constant_speed_profile
 from .interface_signals import (ReflectedInertia, crank_extrapolation, crank_interpolation, extrapolate,
                                 linear_interpolation)
-from .metrics import SteadyWatch, energy_balance, revolutions_completed, speed_fluctuation
+from tmm_core.revolution import revolutions_completed
+
+from .metrics import SteadyWatch, energy_balance, speed_fluctuation
 from .drives import make_drive
 from .motor import MotorState, MotorTrace
 from .scenario import CouplingSettings, Scenario

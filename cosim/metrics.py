@@ -1,11 +1,9 @@
 """Post-processing of engine runs: revolution windows by crank angle and the steady-state check.
 
-A revolution is measured on the crank angle the engine itself reports (cumulative, either
-direction), not on the clock, so that the same definition holds at a prescribed speed and under
-a motor whose speed fluctuates. The *revolution change* of a run is the largest difference
-between its last revolution and the one before, at equal crank angle, relative to the last
-revolution's peak-to-peak, over the drive torque and every gauge's bending strain. A run is
-*steady* when that change is below the tolerance (default 0.5 %).
+A revolution is measured on the crank angle the engine itself reports (the window and the
+revolution change are :mod:`tmm_core.revolution`'s, the one definition the time domain's own
+steady check uses too). The *revolution change* of a run is that of its drive torque and every
+gauge's bending strain. A run is *steady* when that change is below the tolerance (default 0.5 %).
 
 Also the post-processing of motor-driven runs: the crank's revolutions in time, the speed
 fluctuation per revolution and the energy balance of a channel.
@@ -19,59 +17,9 @@ import math
 import numpy as np
 
 from tmm_core import InputError
+from tmm_core.revolution import phase, revolution_change, revolutions_completed
 
 STEADY_TOLERANCE = 5e-3     # last two revolutions agree to 0.5 % of their peak-to-peak
-
-
-def _phase(angle) -> np.ndarray:
-    """Crank angle travelled back from the last sample [rad] (<= 0, increasing with time)."""
-    a = np.asarray(angle, dtype=float)
-    direction = 1.0 if a[-1] >= a[0] else -1.0
-    return direction * (a - a[-1])
-
-
-def revolutions_completed(angle) -> float:
-    """Crank revolutions travelled by the samples (``angle`` [rad], cumulative)."""
-    a = np.asarray(angle, dtype=float)
-    return float(abs(a[-1] - a[0]) / (2 * math.pi)) if len(a) > 1 else 0.0
-
-
-def last_revolution(angle) -> np.ndarray:
-    """Boolean mask of the samples in the last crank revolution: those whose crank angle lies
-    less than one revolution back from the last sample's (``angle`` [rad], cumulative). This is
-    the one definition of the last revolution's window (the extremes, the scores, the figures and
-    the steady-state comparison all use it)."""
-    if len(angle) == 0:
-        return np.zeros(0, dtype=bool)
-    return _phase(angle) > -2 * math.pi * (1 - 1e-12)
-
-
-def revolution_change(angle, signals) -> float:
-    """Largest change between the last and the previous revolution of the ``signals`` (arrays
-    over the same samples as ``angle`` [rad]), at equal crank angle, relative to each signal's
-    peak-to-peak over the last revolution (:func:`last_revolution`); NaN with less than two
-    revolutions. The crank angle must increase monotonically in the direction of rotation."""
-    a = np.asarray(angle, dtype=float)
-    if revolutions_completed(a) < 2 * (1 - 1e-9):
-        return float("nan")
-    ph = _phase(a)
-    last = last_revolution(a)
-    # The previous revolution at the last one's crank angles is interpolated over *all* samples:
-    # the angle one revolution before the window's first (last) sample lies between a sample of
-    # the revolution before the previous one and one of the previous (of the previous and one of
-    # the last). Interpolating in the previous revolution's samples alone clamps those queries to
-    # its end values, which in a motor run (samples uniform in time, not in angle, so none falls
-    # on the window's edge) differ by a sample's worth of the signal's slope.
-    query = ph[last] - 2 * math.pi
-    worst = 0.0
-    for x in signals:
-        x = np.asarray(x, dtype=float)
-        xl, xp = x[last], np.interp(query, ph, x)
-        span = float(np.ptp(xl))
-        if span <= 0.0 or not np.isfinite(span):
-            continue
-        worst = max(worst, float(np.max(np.abs(xl - xp))) / span)
-    return worst
 
 
 def run_change(run) -> float:
@@ -118,7 +66,7 @@ def revolution_trend(angle, signals, tolerance: float = STEADY_TOLERANCE,
     n = min(int(math.floor(revolutions_completed(a) + 1e-9)), int(revolutions))
     if n < 3:
         return None
-    ph = _phase(a)
+    ph = phase(a)
     two_pi = 2 * math.pi * (1 - 1e-12)
     best = None
     for x in signals:

@@ -40,7 +40,7 @@ from pathlib import Path
 import numpy as np
 
 from .files import clear_link
-from .metrics import last_revolution
+from tmm_core.revolution import last_revolution
 from .report import load_summary
 
 log = logging.getLogger(__name__)

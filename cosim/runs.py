@@ -54,7 +54,9 @@ from .files import write_atomic
 from .interrupted import mark_interrupted
 from .interrupts import Interrupts
 from .master import CoSimulation, InputError
-from .metrics import last_revolution, revolutions_completed, steadiness
+from tmm_core.revolution import last_revolution, revolutions_completed
+
+from .metrics import steadiness
 from .physics_flags import attach_flags, questionable
 from .recording.animation import write_gif
 from .recording.batch import check_linkage_rate
@@ -114,7 +116,7 @@ class RunResult:
 
 def last_revolution_stats(run, period: float | None = None, t0: float = 0.0) -> dict:
     """Gauge and torque extremes over the engine's last crank revolution [microstrain, N m]
-    (by crank angle, :func:`cosim.metrics.last_revolution`)."""
+    (by crank angle, :func:`tmm_core.revolution.last_revolution`)."""
     if len(run.t) == 0:
         return {}
     mask = last_revolution(run.crank_angle)

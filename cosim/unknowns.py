@@ -35,20 +35,17 @@ Owns: the fast model run of bands and identification (the declared unknowns are 
 """
 from __future__ import annotations
 
-import math
 import time
 from dataclasses import dataclass
 
 import numpy as np
 
 from tmm_core import CrankMotion, TMMError
-from tmm_core.batches import configurations
-from tmm_core.discretization import Discretization, HoldsModel, as_model
 from tmm_core.free_wheel import free_wheel
-from tmm_core.march import begin
 from tmm_core.pin_moments import JointLoadedFourBar, JointMoment
 from tmm_core.reduced import ReducedOptions
 from tmm_core.reduced_periodic import periodic_steady_state_reduced
+from tmm_core.revolution import march_to_steady
 
 from .run_guards import estimate_cost
 from .scenario import ScenarioError, from_dict
@@ -80,30 +77,6 @@ def _joint_laws(model: dict):
         laws.append(JointMoment(j, moment=model.get(f"model.joint_moment.{j}", 0.0),
                                 stiffness=model.get(f"model.joint_stiffness.{j}", 0.0), friction=f))
     return [law for law in laws if law.active]
-
-
-def steady_march(source: Discretization | HoldsModel, crank, tolerance: float, max_revolutions: int) -> tuple:
-    """March the time-domain model ``source`` (a :class:`tmm_core.discretization.Discretization`
-    or the one a :class:`tmm_core.TimeDomain` holds) through the periodic crank history ``crank``
-    (one period, N + 1 samples) from the quasi-static state, re-using one revolution of
-    configurations, until two revolutions agree to ``tolerance`` of their peak-to-peak:
-    ``(outputs of the last revolution (N, n_out), revolutions, change)``."""
-    model = as_model(source)
-    N = len(crank.t) - 1
-    cfg = configurations(model, crank.angle[:N], crank.speed[:N], crank.acceleration[:N], crank.dt)
-    march = begin(model, crank.dt, crank.angle[0], crank.speed[0], crank.acceleration[0], start="quasi_static")
-    idx = np.arange(1, N + 1) % N
-    prev, change = None, math.inf
-    for rev in range(1, max_revolutions + 1):
-        _, outs = march.step_many(cfg, idx, record_z=False)
-        if not np.all(np.isfinite(outs)):
-            raise FloatingPointError("the march became non-finite")
-        if prev is not None:
-            change = float(np.max(np.max(np.abs(outs - prev), 0) / np.maximum(np.ptp(outs, 0), 1e-300)))
-            if change < tolerance:
-                return outs, rev, change
-        prev = outs
-    return outs, max_revolutions, change
 
 
 def fast_model(sc, settings: Settings = Settings()):
@@ -164,7 +137,7 @@ def solve(sc, model: dict | None = None, settings: Settings = Settings()) -> dic
             outs = np.column_stack([p.drive_torque] + [np.column_stack(p.gauges[g.name]) for g in sc.gauges])
             revs, change = 1, p.residual
         else:
-            outs, revs, change = steady_march(discretized, crank, settings.tolerance, settings.max_revolutions)
+            outs, revs, change = march_to_steady(discretized, crank, settings.tolerance, settings.max_revolutions)
             angles = crank.angle[1:]
     except (TMMError, FloatingPointError, np.linalg.LinAlgError) as exc:
         out.update(error=f"{type(exc).__name__}: {exc}", wall_time_s=time.perf_counter() - tic)

@@ -28,7 +28,7 @@ import numpy as np
 
 from cosim.engines import make_engine
 from cosim.master import run_prescribed
-from cosim.metrics import last_revolution
+from tmm_core.revolution import last_revolution
 from cosim.runlog import run_folder, write_csv, write_json
 from cosim.scenario import load
 from tmm_core import Coupling, CrankMotion, TimeDomain

@@ -287,7 +287,8 @@ def cmd_tmm(args):
 def march(rpm, zeta, spec, revolutions=40):
     """The TMM marched from its quasi-static start: peaks per revolution, the last change and
     the trend (cosim.metrics.revolution_trend) over the last revolutions."""
-    from cosim.metrics import revolution_change, revolution_trend
+    from cosim.metrics import revolution_trend
+    from tmm_core.revolution import revolution_change
     from tmm_core import CrankMotion
     td, speed, step = time_domain(rpm, zeta, spec)
     t0 = time.time()

@@ -24,7 +24,8 @@ pytest.importorskip("exudyn")
 import cosim.scenario as cs  # noqa: E402
 from cosim.engines import make_engine  # noqa: E402
 from cosim.master import run_prescribed  # noqa: E402
-from cosim.metrics import last_revolution, run_change  # noqa: E402
+from cosim.metrics import run_change  # noqa: E402
+from tmm_core.revolution import last_revolution  # noqa: E402
 from tmm_core import quasi_static  # noqa: E402
 
 SCENARIOS = ("watt_sixbar_600rpm", "shin_multiloop_motion")

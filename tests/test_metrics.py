@@ -7,7 +7,8 @@ import warnings
 import numpy as np
 import pytest
 
-from cosim.metrics import SteadyWatch, last_revolution, revolution_change, speed_fluctuation
+from cosim.metrics import SteadyWatch, speed_fluctuation
+from tmm_core.revolution import last_revolution, revolution_change
 
 OMEGA = 373 * math.pi / 30          # mean crank speed [rad/s]
 PERIOD = 2 * math.pi / OMEGA        # [s]

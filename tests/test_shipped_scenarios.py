@@ -23,7 +23,8 @@ import pytest
 from cosim.engines import make_engine
 from cosim.master import run_prescribed
 from cosim.master import CoSimulation
-from cosim.metrics import last_revolution, run_change
+from cosim.metrics import run_change
+from tmm_core.revolution import last_revolution
 from cosim.scenario import load, scenario_names
 
 # scenario: (gauge, +peak [microstrain] of the reference, its - peak, tolerance as a fraction of p-p)

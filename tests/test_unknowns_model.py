@@ -8,11 +8,12 @@ import numpy as np
 import pytest
 
 from cosim.scenario import load
-from cosim.unknowns import Settings, declared, read, solve, steady_march, variant
+from cosim.unknowns import Settings, declared, read, solve, variant
 from tmm_core import CrankMotion, InputError, TimeDomain
 from tmm_core.free_wheel import free_wheel
 from tmm_core.periodic import periodic_steady_state
 from tmm_core.pin_moments import JOINTS, JointLoadedFourBar, JointMoment, mean_relative_angle
+from tmm_core.revolution import march_to_steady
 
 FAST = Settings(step_deg=1.0)
 
@@ -99,7 +100,7 @@ def test_the_periodic_solver_takes_a_periodic_crank_history(rig95):
         np.testing.assert_allclose(hist.gauges[g][0], ref.gauges[g][0], rtol=1e-10, atol=1e-14)
     crank, _ = free_wheel(sc.mechanism, w, 0.02, 120)
     p = periodic_steady_state(_td(sc), 0.0, crank=crank)
-    outs, revs, change = steady_march(_td(sc), crank, 1e-9, 200)
+    outs, revs, change = march_to_steady(_td(sc).model, crank, 1e-9, 200)
     for i, g in enumerate(p.gauges):
         np.testing.assert_allclose(p.gauges[g][0], outs[:, 1 + 2 * i], rtol=0, atol=1e-6 * np.ptp(outs[:, 1 + 2 * i]))
     with pytest.raises(InputError, match="exactly one period"):

@@ -29,6 +29,7 @@ from .ked import Coupling, CrankMotion, KEDResult
 from .march import begin, quasi_static_start, rest_acceleration
 from .mechanism import FourBarMechanism
 from .post import Gauge
+from .revolution import Revolution, aligned_change
 from . import time_step
 
 # The size limits of the step data keep their old names here (cosim's run guard reads the budget).
@@ -189,7 +190,7 @@ def march_history(model: Discretization, crank: CrankMotion, options: RunOptions
         # revolution (the steady-state check) or at the end of a chunk; one by one with a callback.
         if N is not None:
             if cfg is None:
-                cfg = configurations(model, crank.angle[:N], crank.speed[:N], crank.acceleration[:N], dt)
+                cfg = Revolution.build(model, crank.angle[:N], crank.speed[:N], crank.acceleration[:N], dt).batch
             end = min(n_steps, (k // N + 1) * N)
             indices = np.arange(k, end) % N
         else:
@@ -212,10 +213,7 @@ def march_history(model: Discretization, crank: CrankMotion, options: RunOptions
         k = end
         last = k - 1
         if N is not None and last >= N and k % N == 0 and k // N >= options.min_revolutions:
-            rev = outputs[k - N:k]
-            prev = outputs[k - 2 * N:k - N]
-            ptp = np.maximum(np.ptp(rev, axis=0), 1e-300)
-            change = float(np.max(np.max(np.abs(rev - prev), axis=0) / ptp))
+            change = aligned_change(outputs[k - N:k], outputs[k - 2 * N:k - N])
             if options.steady_tol is not None and change < options.steady_tol:
                 steady, done = True, k
                 break

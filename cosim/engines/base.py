@@ -30,7 +30,7 @@ from typing import Callable, Protocol
 
 import numpy as np
 
-from ..metrics import last_revolution
+from tmm_core.revolution import last_revolution
 from ..scenario import Scenario
 
 CrankProfile = Callable[[np.ndarray], tuple]   # t [s] -> (angle [rad], speed [rad/s], acceleration [rad/s^2])
@@ -141,7 +141,7 @@ class EngineRun:
 
     def last_revolution(self, period: float | None = None) -> np.ndarray:
         """Boolean mask of the samples in the last crank revolution, by crank angle
-        (:func:`cosim.metrics.last_revolution`, the one definition of that window). ``period``
+        (:func:`tmm_core.revolution.last_revolution`, the one definition of that window). ``period``
         [s] is accepted from older callers and not used: under a motor a revolution is not a
         fixed time."""
         return last_revolution(self.crank_angle)

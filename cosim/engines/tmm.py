@@ -14,11 +14,10 @@ calls tmm_core's public step API.
 """
 from __future__ import annotations
 
-import math
-from typing import Any, NamedTuple
+from typing import NamedTuple
 
 import numpy as np
-
+from tmm_core.revolution import Revolution
 
 from ..scenario import Scenario
 from .base import DriveInput, EngineError, EngineOutput, steps_in
@@ -28,14 +27,6 @@ from .base import DriveInput, EngineError, EngineOutput, steps_in
 # revolution of the FE rig at its 0.5 deg default is 720 steps; 256 keeps the work wasted at the
 # end of a run (a steady stop) to a fraction of a revolution.
 LOOKAHEAD_STEPS = 256
-
-
-class Revolution(NamedTuple):
-    """One revolution of factorized configurations at the scenario's constant speed."""
-    steps: int
-    speed: float            # [rad/s]
-    angles: np.ndarray      # crank angle of each configuration [rad]
-    batch: Any              # tmm_core.configuration_batch.ConfigurationBatch
 
 
 class LookAhead(NamedTuple):
@@ -99,14 +90,13 @@ class TMMEngine:
         self.t0, self.k = t0, 0
         self._angle0, self._speed0 = angle, speed
         self.march = self.td.begin(self._dt, angle, speed, 0.0, start=s.start)
-        self.cache = None        # a Revolution at the scenario's speed
+        self.cache = None        # a tmm_core.revolution.Revolution at the scenario's speed
         N = scenario.revolution_period_s / self._dt if set_speed else 0.0
         if set_speed and abs(N - round(N)) < 1e-6 and round(N) >= 4:
             N = int(round(N))
             j = np.arange(N)
             angles = angle + set_speed * self._dt * j
-            self.cache = Revolution(N, set_speed, angles,
-                                    self.td.configurations(angles, np.full(N, set_speed), np.zeros(N), self._dt))
+            self.cache = Revolution.build(self.td.model, angles, np.full(N, set_speed), np.zeros(N), self._dt)
         self.links = self.td.links                          # elastic links (their DOFs)
         self.drawn = scenario.mechanism.links()             # every link, rigid ones too
         self._frames = {}     # id(configuration batch) -> per link (rigid node positions, cos, sin)
@@ -129,10 +119,7 @@ class TMMEngine:
         """Index into the cached revolution of each step ``ks`` whose crank state matches it, else -1."""
         if self.cache is None:
             return np.full(len(ks), -1, dtype=np.int64)
-        N, w, angles, _ = self.cache
-        idx = np.asarray(ks, dtype=np.int64) % N
-        d = (angle - angles[idx] + math.pi) % (2 * math.pi) - math.pi
-        return np.where((np.abs(d) < 1e-9) & (speed == w) & (accel == 0.0), idx, -1)
+        return self.cache.indices(ks, angle, speed, accel)
 
     def node_stations(self) -> dict:
         """Local x [m] of the nodes this engine reports, per link."""

@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from ..files import clear_link
-from ..metrics import last_revolution
+from tmm_core.revolution import last_revolution
 from . import linkage as drawing
 from .layout import STRAIGHT_COLOR, engine_color
 

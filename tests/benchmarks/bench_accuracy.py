@@ -20,7 +20,7 @@ default of n segments (elements) and a step h:
 * ``quick``: the default and its coarser neighbours only, {(n, h), (n/2, h), (n, 2h)} ({2h, h}).
 
 Each run ends when its last two revolutions agree within the scenario's ``output.steady_tolerance``
-(drive torque and bending waveforms, as ``cosim.metrics.revolution_change``), checked at revolution
+(drive torque and bending waveforms, as ``tmm_core.revolution.revolution_change``), checked at revolution
 boundaries so the check costs nothing per step, or after ``max_revolutions``.
 """
 from __future__ import annotations
@@ -159,7 +159,7 @@ def run_setting(rig: str, engine: str, setting: dict, max_revolutions: float, ca
     between the last two revolutions (NaN below two), "capped": stopped at ``cap_s``}."""
     from cosim.engines import EngineError, make_engine
     from cosim.master import CoSimulation
-    from cosim.metrics import revolution_change
+    from tmm_core.revolution import revolution_change
     sc = scenario_for(rig, engine, setting)
     eng = make_engine(engine)
     setup = [0.0]

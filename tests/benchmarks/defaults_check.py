@@ -20,7 +20,8 @@ from pathlib import Path
 
 from cosim.engines import make_engine
 from cosim.master import run_prescribed
-from cosim.metrics import last_revolution, run_change
+from cosim.metrics import run_change
+from tmm_core.revolution import last_revolution
 from cosim.runlog import write_json
 from cosim.scenario import load, scenario_names
 
@@ -59,7 +60,7 @@ def _run(sc, engine: str):
                                        revolutions=sc.output.max_revolutions, start_angle=sc.drive.start_angle_rad)
     # Three revolutions at least: the core may call a run steady after two (revolutions 1 and 2
     # agree), whose samples span one step less than two revolutions, too short for the bench's
-    # revolution-to-revolution check (cosim.metrics.revolution_change) that the caller applies.
+    # revolution-to-revolution check (tmm_core.revolution.revolution_change) that the caller applies.
     r = td.run(crank, start=s.start, steady_tol=sc.output.steady_tolerance, record_displacements=False,
                min_revolutions=3)
     return type("Run", (), {"crank_angle": r.crank_angle, "gauges": r.gauges, "drive_torque": r.drive_torque,

@@ -39,7 +39,8 @@ def refined_peaks(name: str, engine: str, gauge: str, count: float, step: float)
     with its count times ``count`` and its step times ``step``, run until steady."""
     from cosim.engines import make_engine
     from cosim.master import run_prescribed
-    from cosim.metrics import last_revolution, run_change
+    from cosim.metrics import run_change
+    from tmm_core.revolution import last_revolution
     setting = scaled(default_setting(name, engine), count=count, step=step)
     sc = scenario_for(name, engine, setting)
     run = run_prescribed(make_engine(engine), sc)
