@@ -17,11 +17,18 @@ printed beside the number pinned now, so a change of engine version or scenario 
 
     python -m tests.benchmarks.pinned_references                       # everything
     python -m tests.benchmarks.pinned_references --only crank_rocker_95rpm,flexible_crank
+    python -m tests.benchmarks.pinned_references --only tmm_refined    # one table
     python -m tests.benchmarks.pinned_references --json logs/pinned.json
+
+``PINNED`` names the test constant each ``--only`` name regenerates (a table's name also selects
+all its scenarios); the sibling scripts (frequency_references, kinematics_references,
+elastica_references) follow the same form, and tests/test_pinned_references.py checks that every
+constant they name exists.
 """
 from __future__ import annotations
 
 import argparse
+import importlib
 import json
 import math
 import sys
@@ -32,6 +39,33 @@ import numpy as np
 from tests.benchmarks.bench_accuracy import default_setting, scaled, scenario_for
 
 WEAK_DRIVE, FLEXIBLE_CRANK = "crank_rocker_373rpm_weak_drive", "crank_rocker_373rpm_flexible_crank"
+SHIPPED = "tests.test_shipped_scenarios"
+#: ``--only`` name -> (test module, module-level constant) that it regenerates.
+PINNED = {"exudyn_refined": (SHIPPED, "EXUDYN_REFINED"), "tmm_refined": (SHIPPED, "TMM_REFINED"),
+          "weak_drive": (SHIPPED, "WEAK_DRIVE_FLUCTUATION"), "flexible_crank": (SHIPPED, "FLEXIBLE_CRANK_FIRST_HZ")}
+
+
+def pinned(registry: dict, name: str):
+    """The pinned value (a test module's constant) that ``registry[name]`` names."""
+    module, constant = registry[name]
+    return getattr(importlib.import_module(module), constant)
+
+
+def selection(argv, registry: dict, prog: str, doc: str):
+    """Parsed ``--only`` / ``--json`` arguments and a predicate: is a name wanted?"""
+    ap = argparse.ArgumentParser(prog=prog, description=doc, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--only", default="", help=f"comma-separated names: {', '.join(registry)}")
+    ap.add_argument("--json", type=Path, help="also write the results to this file")
+    args = ap.parse_args(argv)
+    only = set(filter(None, args.only.split(",")))
+    return args, (lambda *names: not only or bool(only & set(names)))
+
+
+def write_json(path: Path | None, out: dict) -> None:
+    """Write the results to ``path`` (if given), creating its folder."""
+    if path:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(json.dumps(out, indent=1, default=float))
 
 
 def refined_peaks(name: str, engine: str, gauge: str, count: float, step: float) -> dict:
@@ -74,18 +108,11 @@ def flexible_crank_frequency() -> dict:
 
 
 def main(argv=None) -> dict:
-    from tests.test_shipped_scenarios import EXUDYN_REFINED, TMM_REFINED
-    ap = argparse.ArgumentParser(prog="python -m tests.benchmarks.pinned_references", description=__doc__,
-                                 formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--only", default="", help="comma-separated scenario names, 'weak_drive', 'flexible_crank'")
-    ap.add_argument("--json", type=Path, help="also write the results to this file")
-    args = ap.parse_args(argv)
-    only = set(filter(None, args.only.split(",")))
-    wanted = (lambda key: not only or key in only)
+    args, wanted = selection(argv, PINNED, "python -m tests.benchmarks.pinned_references", __doc__)
     out = {}
-    for table, engine, count, step in ((EXUDYN_REFINED, "exudyn", 2, 0.5), (TMM_REFINED, "tmm", 2, 0.25)):
-        for name, (gauge, hi, lo, _tol) in table.items():
-            if wanted(name):
+    for key, engine, count, step in (("exudyn_refined", "exudyn", 2, 0.5), ("tmm_refined", "tmm", 2, 0.25)):
+        for name, (gauge, hi, lo, _tol) in pinned(PINNED, key).items():
+            if wanted(key, name):
                 out[name] = refined_peaks(name, engine, gauge, count, step)
                 print(f"{name} ({engine}, {out[name]['setting']}): {gauge} {out[name]['plus']:+.2f} / "
                       f"{out[name]['minus']:+.2f} microstrain, steady {out[name]['steady']} "
@@ -93,14 +120,13 @@ def main(argv=None) -> dict:
     if wanted("weak_drive"):
         out["weak_drive"] = weak_drive_fluctuation()
         print(f"{WEAK_DRIVE}: speed fluctuation per revolution "
-              f"{', '.join(f'{f:.4f}' for f in out['weak_drive']['fluctuation_per_revolution'])} (pinned 0.5839)")
+              f"{', '.join(f'{f:.4f}' for f in out['weak_drive']['fluctuation_per_revolution'])} "
+              f"(pinned {pinned(PINNED, 'weak_drive'):.4f})")
     if wanted("flexible_crank"):
         out["flexible_crank"] = flexible_crank_frequency()
         print(f"{FLEXIBLE_CRANK}: first natural frequency at crank angle 0 "
-              f"{out['flexible_crank']['first_frequency_Hz']:.2f} Hz (pinned 67.19)")
-    if args.json:
-        args.json.parent.mkdir(parents=True, exist_ok=True)
-        args.json.write_text(json.dumps(out, indent=1))
+              f"{out['flexible_crank']['first_frequency_Hz']:.2f} Hz (pinned {pinned(PINNED, 'flexible_crank'):.2f})")
+    write_json(args.json, out)
     return out
 
 
