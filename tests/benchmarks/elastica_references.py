@@ -33,7 +33,7 @@ PINNED = {"stepped_beam_elastica": ("tests.test_statics", "STEPPED_BEAM_ELASTICA
           "stepped_beam_linear": ("tests.test_statics", "STEPPED_BEAM_LINEAR_TIP_MM")}
 E, WEIGHT = 207e9, 76.5e3          # Pa, N/m^3
 LENGTH, STEP_AT = 0.5, 0.25        # m: the beam, where its section steps down
-SPRINGS = ((0.15, 2000.0), (0.40, 2000.0))   # (position [m], stiffness [N/m])
+SPRINGS = {0.15: 2000.0, 0.40: 2000.0}       # position [m]: stiffness [N/m]
 TIP_LOAD = 15.0                    # N, downward
 
 
@@ -58,10 +58,10 @@ def shoot(unknowns, linear: bool) -> np.ndarray:
     """The state at the tip from the pin's rotation [rad] and the force (nx, ny) [N] there."""
     th0, nx0, ny0 = unknowns
     z = np.array([0.0, 0.0, th0, nx0, ny0, 0.0])
-    knots = sorted({0.0, STEP_AT, LENGTH, *(s for s, _ in SPRINGS)})
+    knots = sorted({0.0, STEP_AT, LENGTH, *SPRINGS})
     for a, b in zip(knots[:-1], knots[1:]):
-        if a in dict(SPRINGS):
-            z[4] += dict(SPRINGS)[a] * z[1]      # the spring's force -k y no longer lies beyond s
+        if a in SPRINGS:
+            z[4] += SPRINGS[a] * z[1]            # the spring's force -k y no longer lies beyond s
         z = solve_ivp(rod(linear), (a, b), z, method="DOP853", rtol=1e-12, atol=1e-15).y[:, -1]
     return z
 

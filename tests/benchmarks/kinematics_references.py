@@ -40,7 +40,6 @@ PINNED = {"table_2_1": ("tests.test_linkage", "TABLE_2_1_REDERIVED"),
 TABLE_2_1_LENGTHS_IN = {"crank": 5.0, "coupler": 15.0, "follower": 12.0, "l78": 15.0, "l39": 10.0, "l910": 10.0,
                         "arm": 5.0}
 STEP = 1e-3                                               # rad of crank angle
-WEIGHTS_1 = np.array([1.0, -8.0, 0.0, 8.0, -1.0]) / 12    # five-point first derivative (times 1/h)
 WEIGHTS_2 = np.array([-1.0, 16.0, -30.0, 16.0, -1.0]) / 12  # five-point second derivative (times 1/h^2)
 
 
