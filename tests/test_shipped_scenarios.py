@@ -38,7 +38,8 @@ EXUDYN_REFINED = {
     "shin_multiloop_motion": ("coupler_at_3", 1545.19, -1670.25, 0.02),
     # Light-damping variants (issue 34, docs/light_damping.md): exudyn from rest at its default 16
     # elements / 0.2 deg (32 / 0.1 deg moved the bending peaks by 0.2 % at 381 rpm, 2 %; the
-    # refined run at these dampings is not done yet).
+    # refined run at these dampings is not done yet), 30 and 50 revolutions
+    # (pinned_references.FROM_REST_REVOLUTIONS regenerates them so).
     "crank_rocker_373rpm_damping_1pct": ("rocker_mid", 1630.3, -2357.3, 0.02),
     "crank_rocker_373rpm_damping_0p5pct": ("rocker_mid", 1573.5, -2314.6, 0.02),
 }
