@@ -15,9 +15,10 @@ references (issue 36: every pinned number has a script that regenerates it).
 * the flexible-crank variant's first natural frequency at crank angle 0, from exudyn's
   constrained eigenvalue analysis.
 
-Not part of the test run: the refined exudyn runs take minutes each (the 373 rpm rig and the
-Bahgat-Willmert four-bar the longest; an hour or more for all on two cores). Each result is
-printed beside the number pinned now, so a change of engine version or scenario shows at once::
+Not part of the test run: on 2026-11-28 the refined exudyn runs took 5-45 s each, the
+light-damping variants 50 and 105 s, Wang's refined TMM runs 90 s together (about 7 minutes for
+all; a loaded machine takes several times longer). Each result is printed beside the number
+pinned now, so a change of engine version or scenario shows at once::
 
     python -m tests.benchmarks.pinned_references                       # everything
     python -m tests.benchmarks.pinned_references --only crank_rocker_95rpm,flexible_crank
