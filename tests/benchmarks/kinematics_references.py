@@ -73,7 +73,7 @@ class Table21:
 
     def joints(self, q, theta) -> dict:
         """Every joint's position [in] at link coordinates ``q`` and crank angle ``theta`` [rad]."""
-        P, (phc, phf, s, ph78, ph39, _) = self.P, q
+        P, (phc, phf, s, _, ph39, _) = self.P, q
         n = unit(phf + math.pi / 2)
         j = {"2": P["1"] + self.crank * unit(theta), "4": P["6"] + self.Lf * unit(phf),
              "5": P["6"] + 0.5 * self.Lf * unit(phf), "5b": P["6"] + s * unit(phf)}
