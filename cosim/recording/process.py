@@ -194,6 +194,8 @@ class RecorderProcess(Recorder):
         if not self._handed_over:
             self.hand_over()
         self._closed = True
+        with self._starting:        # a start in progress on the timer's thread finishes first: its
+            pass                    # child is assigned before its pipe thread starts
         if self._proc is None:
             self.incomplete = (f"the recording writer could not be started ({self._not_started}); "
                                f"{self.save_path} is not written")
