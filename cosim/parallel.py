@@ -15,8 +15,11 @@ from contextlib import contextmanager
 
 
 @contextmanager
-def executor(workers: int | None = None, scheduler: str | None = None):
-    """``with executor(workers, scheduler) as ex: ex.submit(fn, *args)``."""
+def executor(workers: int | None = None, scheduler: str | None = None, jobs: int | None = None):
+    """``with executor(workers, scheduler) as ex: ex.submit(fn, *args)``. ``jobs``: the number of
+    jobs the caller will submit, in an order where neighbours belong together (a sweep's speeds):
+    the local pool then hands them to its workers in contiguous blocks (:class:`BlockPool`), so
+    that a worker can start each job from its previous one's result. Dask ignores it."""
     if scheduler:
         from distributed import Client
         client = Client(scheduler)
@@ -24,19 +27,41 @@ def executor(workers: int | None = None, scheduler: str | None = None):
             yield client.get_executor()
         finally:
             client.close()
-    else:
-        pool = ProcessPoolExecutor(max_workers=workers or os.cpu_count() or 1, initializer=start_worker,
-                                   initargs=(os.getpid(),))
-        try:
-            yield pool
-        except BaseException:
-            # Interrupted or failed: the jobs still running are of no use, and a long one (an
-            # identification start) would hold the exit for a minute.
+        return
+    count = workers or os.cpu_count() or 1
+    pools = [_local_pool(1) for _ in range(count)] if jobs else [_local_pool(count)]
+    try:
+        yield BlockPool(pools, jobs) if jobs else pools[0]
+    except BaseException:
+        # Interrupted or failed: the jobs still running are of no use, and a long one (an
+        # identification start) would hold the exit for a minute.
+        for pool in pools:
             terminate_workers(pool)           # first: shutdown() forgets the pool's processes
             pool.shutdown(wait=False, cancel_futures=True)
-            raise
-        finally:
+        raise
+    finally:
+        for pool in pools:
             pool.shutdown(cancel_futures=True)
+
+
+def _local_pool(workers: int) -> ProcessPoolExecutor:
+    return ProcessPoolExecutor(max_workers=workers, initializer=start_worker, initargs=(os.getpid(),))
+
+
+class BlockPool:
+    """Local worker processes, each with its own single-process pool, that take ``jobs``
+    submissions in contiguous blocks: the k-th job goes to worker ``k * workers // jobs``, and a
+    worker runs its jobs in submission order (a sweep's worker continues from speed to speed).
+    The blocks are as even as the count allows; a worker whose block is dearer (near buckling)
+    finishes later, the price of continuation."""
+
+    def __init__(self, pools: list, jobs: int):
+        self.pools, self.jobs, self.submitted = pools, max(int(jobs), 1), 0
+
+    def submit(self, fn, *args):
+        worker = min(self.submitted * len(self.pools) // self.jobs, len(self.pools) - 1)
+        self.submitted += 1
+        return self.pools[worker].submit(fn, *args)
 
 
 def terminate_workers(pool: ProcessPoolExecutor) -> None:
