@@ -38,7 +38,7 @@ import numpy as np
 from scipy.integrate import solve_ivp
 
 from .compiled import periodic as compiled_periodic
-from .anderson import AndersonOptions, anderson, block_weights
+from .anderson import AndersonOptions, FixedPoint, anderson, block_weights
 from .errors import ConvergenceError, InputError, TMMError
 from .batches import configurations
 from .discretization import Discretization, HoldsModel, as_model
@@ -108,9 +108,9 @@ def periodic_steady_state(source: Discretization | HoldsModel, speed_rad_s: floa
     integrator state at the start angle, e.g. the previous speed's orbit in a sweep). The
     second-order model then iterates Anderson-accelerated revolutions from it
     (:mod:`tmm_core.anderson`) instead of the linear model's shooting pass (a 217-column
-    linearized revolution) and the Newton monodromies, and falls back to Newton shooting from
-    their best iterate when they stall (near an unstable orbit), then to the linear model's
-    start; the tolerance is the same. The multipliers are those of the full monodromy at the
+    linearized revolution) and the Newton monodromies; when they stall it solves as without a
+    guess, and where that finds no orbit, by Newton shooting from their best iterate (the
+    branch carried on, often through unstable orbits near a fold); the tolerance is the same. The multipliers are those of the full monodromy at the
     converged orbit. The linear model ignores the guess (its solve is direct)."""
     model = as_model(source)
     if any(link.viscoelastic is not None for link in model.links):
@@ -126,14 +126,18 @@ def periodic_steady_state(source: Discretization | HoldsModel, speed_rad_s: floa
     ns = len(keys) * model.n_dof
     info = {"dt_s": dt, "steps_per_revolution": N, "state_size": ns}
     revolution = _Revolution(model, cfg, keys, N, dt)
-    solved = None
+    solved = fp = None
     if model.axial_force == "dynamic" and initial_state is not None:
-        solved = _from_guess(revolution, initial_state, shooting.tolerance, shooting.iterations, info)
+        fp = _from_guess(revolution, initial_state, shooting.tolerance, info)
+        solved = (fp.x, fp.image, fp.revolutions) if fp.converged else None
     if solved is None:
         x0, Phi = _linear_solution(revolution)
     if model.axial_force == "dynamic":
         if solved is None:
-            solved = _from_linear(revolution, x0, Phi, shooting.tolerance, shooting.iterations, info)
+            try:
+                solved = _from_linear(revolution, x0, Phi, shooting.tolerance, shooting.iterations, info)
+            except ConvergenceError as exc:
+                solved = _past_linear_start(revolution, fp, shooting, info, exc)
         x0, (xN, trajectory, outs, residual), info["newton_iterations"] = solved
         Phi = revolution.monodromy(model, cfg, keys, trajectory, dt)
     else:
@@ -225,11 +229,9 @@ def _from_linear(rev: _Revolution, x0, Phi, tolerance, iterations, info):
     return solved
 
 
-def _from_guess(rev: _Revolution, guess, tolerance, iterations, info):
-    """Anderson-accelerated revolutions from ``guess`` (:func:`tmm_core.anderson.anderson`), then,
-    if they stall, Newton shooting from their best iterate with the monodromy there. Returns
-    ``(x0, shot, revolutions)``, or None when neither converged (the caller then starts from the
-    linear model, as without a guess)."""
+def _from_guess(rev: _Revolution, guess, tolerance, info) -> FixedPoint:
+    """Anderson-accelerated revolutions from ``guess`` (:func:`tmm_core.anderson.anderson`): the
+    fixed point, converged or the best iterate of a stall."""
     keys = rev.keys
 
     def revolve(x):
@@ -239,16 +241,26 @@ def _from_guess(rev: _Revolution, guess, tolerance, iterations, info):
     x0 = np.asarray(guess, dtype=float)
     fp = anderson(revolve, x0, block_weights(x0, len(keys)), AndersonOptions(tolerance))
     info["anderson_revolutions"] = fp.revolutions
-    if fp.converged:
-        info["start"] = "guess"
-        return fp.x, fp.image, fp.revolutions
-    if fp.image is None:
-        return None
+    info["start"] = "guess" if fp.converged else "linear"
+    return fp
+
+
+def _past_linear_start(rev: _Revolution, fp: FixedPoint | None, shooting: ShootingOptions, info, error):
+    """Where the linear start finds no orbit (``error``), Newton shooting from the best iterate of
+    the stalled Anderson revolutions ``fp``: the branch continued from the previous speed, often an
+    unstable orbit near a fold. Tried only after the linear start, so that where that finds an
+    orbit the answer is the one a solve without a guess gives (near a fold a stable and an
+    unstable orbit coexist: at 400 rpm on the FE rig, 10 rpm from the previous speed, Newton from
+    the guess converged to the unstable one). Raises ``error`` when it does not converge either."""
+    if fp is None or fp.image is None:
+        raise error
     try:
-        solved = _newton(rev, fp.x, fp.image, None, tolerance, iterations, strict=True)
+        solved = _newton(rev, fp.x, fp.image, None, shooting.tolerance, shooting.iterations, strict=True)
     except ConvergenceError:
         solved = None
-    info["start"] = "guess, Newton" if solved is not None else "linear"
+    if solved is None:
+        raise error
+    info["start"] = "guess, Newton"
     return solved
 
 

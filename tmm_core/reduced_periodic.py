@@ -411,14 +411,27 @@ def periodic_steady_state_reduced(source: Discretization | HoldsModel, speed_rad
     r = basis.size
     info = {"model": "reduced", "size": r, "modes": basis.n_modes, "static": basis.n_static, "steps_per_revolution":
             model.N, "dt_s": model.h}
-    solved = None
+    solved = fp = None
     if model.nonlinear and initial_state is not None:
-        solved = _reduced_from_guess(model, initial_state, newton_tolerance, newton_iterations, info)
+        fp, solved = _reduced_from_guess(model, np.asarray(initial_state, dtype=float), newton_tolerance, info)
     if solved is None:
         x_lin, mono, _ = model.revolution(np.zeros(2 * r), False)
         x0 = np.linalg.solve(np.eye(2 * r) - mono, x_lin)
         if model.nonlinear:
-            solved = _reduced_newton(model, x0, mono, newton_tolerance, newton_iterations)
+            try:
+                solved = _reduced_newton(model, x0, mono, newton_tolerance, newton_iterations)
+            except ConvergenceError as exc:
+                # Where the linear start finds no orbit, Newton from the stalled guess's best
+                # iterate: the branch carried on (tried second, so that where the linear start
+                # finds an orbit the answer is a solve's without a guess; see
+                # tmm_core.periodic._past_linear_start).
+                if fp is None or fp.residual == np.inf:
+                    raise
+                try:
+                    solved = _reduced_newton(model, fp.x, None, newton_tolerance, newton_iterations)
+                except ConvergenceError:
+                    raise exc from None
+                info["start"] = "guess, Newton"
             info["newton_iterations"] = solved[-1]
         else:
             xN, _, outs = model.revolution(x0, False, outputs=True, jacobian=False)
@@ -435,7 +448,7 @@ def _reduced_newton(model: ReducedModel, x0, jac, tolerance, iterations):
     """Newton shooting from ``x0`` with the Jacobian ``jac`` (the monodromy; None: computed at
     ``x0``); the monodromy (the dear part: a multi-column solve per step) is kept while the
     residual falls by a factor 4 per iteration (chord steps) and recomputed otherwise. Returns
-    ``(x0, x_N, monodromy, outputs, iterations)``."""
+    ``(x0, x_N, monodromy at x0, outputs, iterations)``."""
     n = len(x0)
     fresh, last, mono = False, math.inf, jac
     for it in range(1, iterations + 1):
@@ -446,6 +459,11 @@ def _reduced_newton(model: ReducedModel, x0, jac, tolerance, iterations):
             raise ConvergenceError("reduced model: Newton shooting left the range of the model")
         residual = float(np.max(np.abs(xN - x0)) / max(np.max(np.abs(x0)), 1e-300))
         if residual < tolerance:
+            if m_new is None:
+                # The chord Jacobian is an earlier iterate's (or the linear model's): its
+                # eigenvalues missed the converged orbit's largest multiplier by up to 0.13 near
+                # buckling (FE rig, 410 rpm). The multipliers are the converged orbit's.
+                _, mono, _ = model.revolution(x0, True, jacobian=True)
             return x0, xN, mono, outs, it
         if residual > CHORD_RATE * last:
             fresh = False
@@ -455,32 +473,28 @@ def _reduced_newton(model: ReducedModel, x0, jac, tolerance, iterations):
                            f"iterations (last relative residual {residual:.3g})")
 
 
-def _reduced_from_guess(model: ReducedModel, guess, tolerance, iterations, info):
+def _reduced_from_guess(model: ReducedModel, guess, tolerance, info):
     """Anderson-accelerated revolutions from ``guess``, then one revolution with the monodromy and
-    the outputs from the converged state; Newton shooting from the best iterate when they stall.
-    Returns :func:`_reduced_newton`'s tuple, or None when the guess leads nowhere (the caller then
-    starts from the linear pass, as without a guess)."""
+    the outputs from the converged state. Returns ``(fixed point, solved)``: ``solved`` as
+    :func:`_reduced_newton` returns it, or None when the revolutions stalled (the fixed point is
+    then their best iterate)."""
 
     def revolve(x):
         x_end, _, _ = model.revolution(x, True, jacobian=False)
         return x_end, None
 
-    x0 = np.asarray(guess, dtype=float)
-    fp = anderson(revolve, x0, block_weights(x0, 2), AndersonOptions(tolerance))
-    info["anderson_revolutions"] = fp.revolutions
-    if fp.residual == np.inf:
-        return None
+    fp = anderson(revolve, guess, block_weights(guess, 2), AndersonOptions(tolerance))
+    info["anderson_revolutions"], info["start"] = fp.revolutions, "linear"
+    if not fp.converged:
+        return fp, None
     try:
-        if fp.converged:
-            # The outputs and the monodromy at the converged orbit (this revolution's residual is the
-            # reported one; Newton goes on from here in the rare case it is above the tolerance).
-            xN, mono, outs = model.revolution(fp.x, True, outputs=True, jacobian=True)
-            residual = float(np.max(np.abs(xN - fp.x)) / max(np.max(np.abs(fp.x)), 1e-300))
-            if residual < tolerance:
-                info["start"], info["newton_iterations"] = "guess", 0
-                return fp.x, xN, mono, outs, 0
-        solved = _reduced_newton(model, fp.x, None, tolerance, iterations)
+        # The outputs and the monodromy at the converged orbit (this revolution's residual is the
+        # reported one).
+        xN, mono, outs = model.revolution(fp.x, True, outputs=True, jacobian=True)
     except ConvergenceError:
-        return None
-    info["start"], info["newton_iterations"] = "guess, Newton", solved[-1]
-    return solved
+        return fp, None
+    residual = float(np.max(np.abs(xN - fp.x)) / max(np.max(np.abs(fp.x)), 1e-300))
+    if residual >= tolerance:
+        return fp, None
+    info["start"], info["newton_iterations"] = "guess", 0
+    return fp, (fp.x, xN, mono, outs, 0)
