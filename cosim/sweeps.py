@@ -150,6 +150,13 @@ def _reduced_parts(sc, model, options, many: bool):
 #: ``{key: [(rpm, state), ...]}`` (the last two), the start of the next speed's solve in a sweep's
 #: worker (its speeds come in a contiguous ascending block: cosim.parallel.BlockPool).
 _ORBITS: dict = {}
+#: The TMM models whose sweep continues from speed to speed. Not the reduced model: from the
+#: previous orbit it needs as many revolutions as from its linear start (six to eight; the stiff
+#: static-correction coordinates' state changes irregularly with speed, docs/theory.md,
+#: 'Continuation in speed'), and the contiguous blocks continuation needs balance the workers
+#: worse than single points (81-point FE-rig sweep on 2 workers: 19.6 s with continuation, 16.8 s
+#: without).
+CONTINUED_MODELS = ("full",)
 #: A solved orbit starts another speed's solve only within this fraction of that speed: farther,
 #: the orbits differ by more than Anderson's revolutions repair faster than the linear start.
 CONTINUATION_REACH = 0.1
@@ -171,12 +178,13 @@ def predicted_state(history: list, rpm: float) -> np.ndarray | None:
 def periodic_solution(sc, many: bool = False):
     """The scenario's periodic steady state (``tmm_core.periodic.periodic_steady_state``) with its
     TMM settings at its drive speed. ``many``: this process solves many speeds of the scenario (a
-    sweep's worker): the reduced model keeps its speed-free stage matrices, and each solve starts
-    from the orbits this process solved last (:func:`predicted_state`; continuation in speed)."""
+    sweep's worker): the reduced model keeps its speed-free stage matrices, and the full model's
+    solve starts from the orbits this process solved last (:func:`predicted_state`; continuation
+    in speed, :data:`CONTINUED_MODELS`)."""
     s = sc.tmm
     model = sc.time_domain().model
     key = _speed_free_key(sc, s.model)
-    history = _ORBITS.get(key, []) if many else []
+    history = _ORBITS.get(key, []) if many and s.model in CONTINUED_MODELS else []
     guess = predicted_state(history, sc.drive.speed_rpm)
     if s.model == "reduced":
         # solver.tmm.model = "reduced": link modes plus a static correction (tmm_core.reduced).
@@ -397,7 +405,8 @@ def run_sweep(scenario: str, rpm, engines=("tmm",), revolutions: float | None = 
         # continue from speed to speed.
         many = len(rpms) >= MANY_SPEEDS * (workers or os.cpu_count() or 1)
         futures = _first_point(sc, rpms, tuple(engines), revs, method, many and not scheduler)
-        with executor(workers, scheduler, len(rpms) - len(futures)) as ex:
+        blocks = len(rpms) - len(futures) if many and sc.tmm.model in CONTINUED_MODELS else None
+        with executor(workers, scheduler, blocks) as ex:
             futures.update({ex.submit(sweep_point, sc.raw, str(sc.path or sc.name), float(r), tuple(engines), revs,
                                       method, many): float(r) for r in rpms[len(futures):]})
             saved = -math.inf

@@ -58,19 +58,33 @@ def test_the_secant_predictor_is_exact_for_states_linear_in_speed_and_keeps_its_
     assert predicted_state([(100.0, x(100.0))], 300.0) is None and predicted_state([], 300.0) is None
 
 
-def test_the_block_pool_hands_contiguous_blocks_to_its_workers():
-    class Recorder:
+def test_the_block_pool_runs_contiguous_blocks_last_first_and_answers_each_job():
+    """Seven jobs in three blocks: runs of consecutive jobs (3, 3, 1), handed to the pool once the
+    last job is submitted, the last block first; each job's future gets its own result or error."""
+    from concurrent.futures import Future
+
+    class Immediate:
         def __init__(self):
-            self.jobs = []
+            self.blocks = []
 
-        def submit(self, fn, *args):
-            self.jobs.append(args[0])
+        def submit(self, fn, calls):
+            self.blocks.append([args[0] for _, args in calls])
+            future = Future()
+            future.set_result(fn(calls))
+            return future
 
-    pools = [Recorder(), Recorder()]
-    pool = BlockPool(pools, 7)
-    for k in range(7):
-        pool.submit(None, k)
-    assert pools[0].jobs == [0, 1, 2, 3] and pools[1].jobs == [4, 5, 6]
+    def square(k):
+        if k == 4:
+            raise ValueError("no four")
+        return k * k
+
+    pool = Immediate()
+    blocks = BlockPool(pool, 7, 3)
+    futures = [blocks.submit(square, k) for k in range(7)]
+    assert pool.blocks == [[6], [3, 4, 5], [0, 1, 2]]
+    assert [f.result() for k, f in enumerate(futures) if k != 4] == [0, 1, 4, 9, 25, 36]
+    with pytest.raises(ValueError, match="no four"):
+        futures[4].result()
 
 
 def _light(tmp_path, extra=""):
