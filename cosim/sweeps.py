@@ -155,6 +155,9 @@ _ORBITS: dict = {}
 #: static-correction coordinates' state changes irregularly with speed, docs/theory.md,
 #: 'Continuation in speed'), and the contiguous blocks continuation needs balance the workers
 #: worse than single points (81-point FE-rig sweep on 2 workers: 19.6 s with continuation, 16.8 s
+#: without). Nor its warm-up in the main process (:func:`warm_up`): on as many workers as cores
+#: the workers' own kernel loading and stage coefficients run side by side, in the time the main
+#: process takes for one copy, so it saved CPU but no time (median of 3: 18.3 s with it, 16.6 s
 #: without).
 CONTINUED_MODELS = ("full",)
 #: A solved orbit starts another speed's solve only within this fraction of that speed: farther,
@@ -404,8 +407,9 @@ def run_sweep(scenario: str, rpm, engines=("tmm",), revolutions: float | None = 
         # Enough speeds per worker to repay the reduced model's speed-free stage matrices and to
         # continue from speed to speed.
         many = len(rpms) >= MANY_SPEEDS * (workers or os.cpu_count() or 1)
-        futures = _first_point(sc, rpms, tuple(engines), revs, method, many and not scheduler)
-        blocks = len(rpms) - len(futures) if many and sc.tmm.model in CONTINUED_MODELS else None
+        continued = many and sc.tmm.model in CONTINUED_MODELS
+        futures = _first_point(sc, rpms, tuple(engines), revs, method, continued and not scheduler)
+        blocks = len(rpms) - len(futures) if continued else None
         with executor(workers, scheduler, blocks) as ex:
             futures.update({ex.submit(sweep_point, sc.raw, str(sc.path or sc.name), float(r), tuple(engines), revs,
                                       method, many): float(r) for r in rpms[len(futures):]})

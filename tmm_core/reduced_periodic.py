@@ -65,6 +65,9 @@ RADAU_A = np.array([[(88 - 7 * _S6) / 360, (296 - 169 * _S6) / 1800, (-2 + 3 * _
                     [(296 + 169 * _S6) / 1800, (88 + 7 * _S6) / 360, (-2 - 3 * _S6) / 225],
                     [(16 - _S6) / 36, (16 + _S6) / 36, 1.0 / 9.0]])
 CHORD_RATE = 0.25      # keep the monodromy while the shooting residual falls at least this fast
+#: Newton shooting computes the monodromy in a revolution whose start had a residual below this
+#: multiple of the tolerance (the revolution likely to converge; its Jacobian costs ~20 % of it).
+JACOBIAN_NEAR = 1e4
 RADAU_C = np.array([(4 - _S6) / 10, (4 + _S6) / 10, 1.0])
 
 
@@ -452,7 +455,11 @@ def _reduced_newton(model: ReducedModel, x0, jac, tolerance, iterations):
     n = len(x0)
     fresh, last, mono = False, math.inf, jac
     for it in range(1, iterations + 1):
-        xN, m_new, outs = model.revolution(x0, True, outputs=True, jacobian=jac is None or (not fresh and it > 1))
+        # The monodromy also once the residual is near the tolerance: the revolution that converges
+        # then carries the converged orbit's (its multipliers), not an extra one after it.
+        near = last < JACOBIAN_NEAR * tolerance
+        xN, m_new, outs = model.revolution(x0, True, outputs=True,
+                                           jacobian=jac is None or near or (not fresh and it > 1))
         if m_new is not None:
             jac, mono, fresh = m_new, m_new, True
         if not np.all(np.isfinite(xN)):
