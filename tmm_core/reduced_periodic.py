@@ -65,9 +65,6 @@ RADAU_A = np.array([[(88 - 7 * _S6) / 360, (296 - 169 * _S6) / 1800, (-2 + 3 * _
                     [(296 + 169 * _S6) / 1800, (88 + 7 * _S6) / 360, (-2 - 3 * _S6) / 225],
                     [(16 - _S6) / 36, (16 + _S6) / 36, 1.0 / 9.0]])
 CHORD_RATE = 0.25      # keep the monodromy while the shooting residual falls at least this fast
-#: Newton shooting computes the monodromy in a revolution whose start had a residual below this
-#: multiple of the tolerance (the revolution likely to converge; its Jacobian costs ~20 % of it).
-JACOBIAN_NEAR = 1e4
 RADAU_C = np.array([(4 - _S6) / 10, (4 + _S6) / 10, 1.0])
 
 
@@ -453,11 +450,12 @@ def _reduced_newton(model: ReducedModel, x0, jac, tolerance, iterations):
     residual falls by a factor 4 per iteration (chord steps) and recomputed otherwise. Returns
     ``(x0, x_N, monodromy at x0, outputs, iterations)``."""
     n = len(x0)
-    fresh, last, mono = False, math.inf, jac
+    fresh, last, before, mono = False, math.inf, math.inf, jac
     for it in range(1, iterations + 1):
-        # The monodromy also once the residual is near the tolerance: the revolution that converges
-        # then carries the converged orbit's (its multipliers), not an extra one after it.
-        near = last < JACOBIAN_NEAR * tolerance
+        # The monodromy also in the revolution predicted to converge (the last two residuals' rate
+        # carried on): that revolution then carries the converged orbit's monodromy (its
+        # multipliers) without an extra one after it.
+        near = last * min(last / before, 1.0) < tolerance
         xN, m_new, outs = model.revolution(x0, True, outputs=True,
                                            jacobian=jac is None or near or (not fresh and it > 1))
         if m_new is not None:
@@ -474,7 +472,7 @@ def _reduced_newton(model: ReducedModel, x0, jac, tolerance, iterations):
             return x0, xN, mono, outs, it
         if residual > CHORD_RATE * last:
             fresh = False
-        last = residual
+        before, last = last, residual
         x0 = x0 + np.linalg.solve(np.eye(n) - jac, xN - x0)
     raise ConvergenceError(f"reduced model: Newton shooting did not converge in {iterations} "
                            f"iterations (last relative residual {residual:.3g})")
