@@ -1,8 +1,11 @@
 """Speed sweeps: peak strain against crank speed, per engine and gauge.
 
-Every point is an independent prescribed-speed run of the scenario at one speed (``drive.speed``
-replaced, steps given as crank angles scale with it), from which the last revolution's peaks are
-kept. Points run in parallel through a ``concurrent.futures`` executor: a process pool on the
+Every point is a prescribed-speed run of the scenario at one speed (``drive.speed`` replaced,
+steps given as crank angles scale with it), from which the last revolution's peaks are kept. A
+full-model periodic sweep of many speeds continues from speed to speed: its first speed is
+solved here before the workers fork, and the others run in contiguous blocks, each solve
+starting from the previous orbits (:data:`CONTINUED_MODELS`; the answers are an independent
+solve's to its tolerance). Points run in parallel through a ``concurrent.futures`` executor: a process pool on the
 local cores, or, given a scheduler address, a Dask distributed cluster (``Client.get_executor``),
 so a sweep that outgrows one machine needs an address, not new code.
 
