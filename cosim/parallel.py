@@ -6,17 +6,29 @@ Owns: one executor interface (local processes or Dask). Boundaries: no job logic
 """
 from __future__ import annotations
 
+import functools
+import math
 import os
 import signal
 import threading
 import time
-from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures import Future, ProcessPoolExecutor
 from contextlib import contextmanager
 
 
+#: A local pool given its job count splits the jobs into this many blocks per worker: each block
+#: continues over ~20 speeds of an 81-point sweep on 2 workers (a block's first speed starts
+#: cold, 2-3x dearer), and the worker that finishes first takes the next block, so the blocks
+#: near buckling (2-3x dearer per point) do not leave one worker running alone for long.
+BLOCKS_PER_WORKER = 2
+
+
 @contextmanager
-def executor(workers: int | None = None, scheduler: str | None = None):
-    """``with executor(workers, scheduler) as ex: ex.submit(fn, *args)``."""
+def executor(workers: int | None = None, scheduler: str | None = None, jobs: int | None = None):
+    """``with executor(workers, scheduler) as ex: ex.submit(fn, *args)``. ``jobs``: the number of
+    jobs the caller will submit, in an order where neighbours belong together (a sweep's speeds):
+    the local pool then runs them in contiguous blocks (:class:`BlockPool`), so that a worker can
+    start each job from its previous one's result. Dask ignores it."""
     if scheduler:
         from distributed import Client
         client = Client(scheduler)
@@ -24,19 +36,71 @@ def executor(workers: int | None = None, scheduler: str | None = None):
             yield client.get_executor()
         finally:
             client.close()
-    else:
-        pool = ProcessPoolExecutor(max_workers=workers or os.cpu_count() or 1, initializer=start_worker,
-                                   initargs=(os.getpid(),))
+        return
+    count = workers or os.cpu_count() or 1
+    pool = ProcessPoolExecutor(max_workers=count, initializer=start_worker, initargs=(os.getpid(),))
+    try:
+        yield BlockPool(pool, jobs, count * BLOCKS_PER_WORKER) if jobs else pool
+    except BaseException:
+        # Interrupted or failed: the jobs still running are of no use, and a long one (an
+        # identification start) would hold the exit for a minute.
+        terminate_workers(pool)           # first: shutdown() forgets the pool's processes
+        pool.shutdown(wait=False, cancel_futures=True)
+        raise
+    finally:
+        pool.shutdown(cancel_futures=True)
+
+
+class BlockPool:
+    """A process pool that runs ``jobs`` submissions in contiguous blocks: the submissions are
+    split in submission order into ``blocks`` runs of consecutive jobs, each run in one worker
+    process in order (a sweep's worker continues from speed to speed), and once the last job is
+    submitted the blocks go to the pool last block first (a sweep's dearest speeds, near
+    buckling, start first and the cheap ones fill the workers' remaining time). Each job still
+    has its own future, set when its block finishes."""
+
+    def __init__(self, pool: ProcessPoolExecutor, jobs: int, blocks: int):
+        self.pool, self.jobs = pool, max(int(jobs), 1)
+        self.size = math.ceil(self.jobs / max(int(blocks), 1))
+        self.pending: list = []
+
+    def submit(self, fn, *args) -> Future:
+        future = Future()
+        self.pending.append((future, fn, args))
+        if len(self.pending) == self.jobs:
+            runs = [self.pending[k:k + self.size] for k in range(0, self.jobs, self.size)]
+            for run in reversed(runs):
+                block = self.pool.submit(run_block, [(fn, args) for _, fn, args in run])
+                block.add_done_callback(functools.partial(_settle, [f for f, _, _ in run]))
+        return future
+
+
+def run_block(calls: list) -> list:
+    """``[(fn, args), ...]`` run in order in this worker: ``[(True, result) or (False, error)]``
+    (one job's error does not stop the block)."""
+    out = []
+    for fn, args in calls:
         try:
-            yield pool
-        except BaseException:
-            # Interrupted or failed: the jobs still running are of no use, and a long one (an
-            # identification start) would hold the exit for a minute.
-            terminate_workers(pool)           # first: shutdown() forgets the pool's processes
-            pool.shutdown(wait=False, cancel_futures=True)
-            raise
-        finally:
-            pool.shutdown(cancel_futures=True)
+            out.append((True, fn(*args)))
+        except Exception as exc:          # reported on that job's future
+            out.append((False, exc))
+    return out
+
+
+def _settle(futures: list, block: Future) -> None:
+    """Each job's future from its block's: result or error per job; the block's own error (a
+    worker that died) or cancellation on every job of it."""
+    if block.cancelled():
+        for f in futures:
+            f.cancel()
+        return
+    error = block.exception()
+    for k, f in enumerate(futures):
+        if error is not None:
+            f.set_exception(error)
+            continue
+        ok, value = block.result()[k]
+        f.set_result(value) if ok else f.set_exception(value)
 
 
 def terminate_workers(pool: ProcessPoolExecutor) -> None:

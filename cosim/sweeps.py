@@ -1,8 +1,11 @@
 """Speed sweeps: peak strain against crank speed, per engine and gauge.
 
-Every point is an independent prescribed-speed run of the scenario at one speed (``drive.speed``
-replaced, steps given as crank angles scale with it), from which the last revolution's peaks are
-kept. Points run in parallel through a ``concurrent.futures`` executor: a process pool on the
+Every point is a prescribed-speed run of the scenario at one speed (``drive.speed`` replaced,
+steps given as crank angles scale with it), from which the last revolution's peaks are kept. A
+full-model periodic sweep of many speeds continues from speed to speed: its first speed is
+solved here before the workers fork, and the others run in contiguous blocks, each solve
+starting from the previous orbits (:data:`CONTINUED_MODELS`; the answers are an independent
+solve's to its tolerance). Points run in parallel through a ``concurrent.futures`` executor: a process pool on the
 local cores, or, given a scheduler address, a Dask distributed cluster (``Client.get_executor``),
 so a sweep that outgrows one machine needs an address, not new code.
 
@@ -22,10 +25,11 @@ import math
 import os
 import re
 import time
-from concurrent.futures import as_completed
+from concurrent.futures import Future, as_completed
 from pathlib import Path
 
 import numpy as np
+from threadpoolctl import threadpool_limits
 
 from tmm_core import TMMError
 from tmm_core.ked import CrankMotion
@@ -33,6 +37,7 @@ from tmm_core.periodic import periodic_steady_state
 from tmm_core.reduced import ReducedOptions, build_basis
 from tmm_core.reduced_periodic import periodic_steady_state_reduced, stage_points
 from tmm_core.reduced_stages import StageCoefficients
+from tmm_core.compiled import statics as compiled_statics
 
 from .engines import ENGINES
 from .figures import peaks_by_speed
@@ -119,12 +124,17 @@ MANY_SPEEDS = 10           # speeds per worker from which a sweep keeps the stag
 SAVE_EVERY_S = 1.0
 
 
+def _speed_free_key(sc, *extra) -> tuple:
+    """The scenario without its drive speed (and ``extra``), as a dictionary key."""
+    raw = {k: v for k, v in sc.raw.items() if k != "drive"}
+    raw["drive"] = {k: v for k, v in sc.raw.get("drive", {}).items() if k != "speed"}
+    return (json.dumps(raw, sort_keys=True, default=str), sc.drive.start_angle_rad, *extra)
+
+
 def _reduced_parts(sc, model, options, many: bool):
     """``(basis, stage coefficients or None)`` of the scenario's time-domain ``model``
     (:class:`tmm_core.discretization.Discretization`) for the reduced model."""
-    raw = {k: v for k, v in sc.raw.items() if k != "drive"}
-    raw["drive"] = {k: v for k, v in sc.raw.get("drive", {}).items() if k != "speed"}
-    key = (json.dumps(raw, sort_keys=True, default=str), sc.drive.start_angle_rad, repr(options))
+    key = _speed_free_key(sc, repr(options))
     if key not in _REDUCED:
         if len(_REDUCED) >= 2:
             _REDUCED.clear()
@@ -139,20 +149,79 @@ def _reduced_parts(sc, model, options, many: bool):
     return parts[0], parts[1]
 
 
+#: The periodic orbits this process solved last, by scenario without its speed and TMM model:
+#: ``{key: [(rpm, state), ...]}`` (the last two), the start of the next speed's solve in a sweep's
+#: worker (its speeds come in a contiguous ascending block: cosim.parallel.BlockPool).
+_ORBITS: dict = {}
+#: The TMM models whose sweep continues from speed to speed. Not the reduced model: from the
+#: previous orbit it needs as many revolutions as from its linear start (six to eight; the stiff
+#: static-correction coordinates' state changes irregularly with speed, docs/theory.md,
+#: 'Continuation in speed'), and the contiguous blocks continuation needs balance the workers
+#: worse than single points (81-point FE-rig sweep on 2 workers: 19.6 s with continuation, 16.8 s
+#: without). Nor its warm-up in the main process (:func:`warm_up`): on as many workers as cores
+#: the workers' own kernel loading and stage coefficients run side by side, in the time the main
+#: process takes for one copy, so it saved CPU but no time (median of 3: 18.3 s with it, 16.6 s
+#: without).
+CONTINUED_MODELS = ("full",)
+#: A solved orbit starts another speed's solve only within this fraction of that speed: farther,
+#: the orbits differ by more than Anderson's revolutions repair faster than the linear start.
+CONTINUATION_REACH = 0.1
+
+
+def predicted_state(history: list, rpm: float) -> np.ndarray | None:
+    """The periodic state at ``rpm`` predicted from solved orbits ``[(rpm, state), ...]`` (the
+    last two): the secant through them in speed, or the last one alone; None when the last is
+    farther than :data:`CONTINUATION_REACH` of ``rpm``."""
+    if not history or abs(rpm - history[-1][0]) > CONTINUATION_REACH * rpm:
+        return None
+    (r1, x1) = history[-1]
+    if len(history) < 2 or history[-2][0] == r1 or len(history[-2][1]) != len(x1):
+        return x1
+    (r0, x0) = history[-2]
+    return x1 + (rpm - r1) / (r1 - r0) * (x1 - x0)
+
+
 def periodic_solution(sc, many: bool = False):
     """The scenario's periodic steady state (``tmm_core.periodic.periodic_steady_state``) with its
     TMM settings at its drive speed. ``many``: this process solves many speeds of the scenario (a
-    sweep's worker): the reduced model keeps its speed-free stage matrices."""
+    sweep's worker): the reduced model keeps its speed-free stage matrices, and the full model's
+    solve starts from the orbits this process solved last (:func:`predicted_state`; continuation
+    in speed, :data:`CONTINUED_MODELS`)."""
     s = sc.tmm
     model = sc.time_domain().model
+    key = _speed_free_key(sc, s.model)
+    history = _ORBITS.get(key, []) if many and s.model in CONTINUED_MODELS else []
+    guess = predicted_state(history, sc.drive.speed_rpm)
     if s.model == "reduced":
         # solver.tmm.model = "reduced": link modes plus a static correction (tmm_core.reduced).
         options = ReducedOptions(modes=s.modes)
         basis, stages = _reduced_parts(sc, model, options, many)
-        return periodic_steady_state_reduced(model, sc.drive.speed_rad_s, start_angle=sc.drive.start_angle_rad,
-                                             options=options, basis=basis, stages=stages)
-    return periodic_steady_state(model, sc.drive.speed_rad_s, step_s=sc.engine_step_s("tmm"),
-                                 start_angle=sc.drive.start_angle_rad)
+        p = periodic_steady_state_reduced(model, sc.drive.speed_rad_s, start_angle=sc.drive.start_angle_rad,
+                                          options=options, basis=basis, stages=stages, initial_state=guess)
+    else:
+        p = periodic_steady_state(model, sc.drive.speed_rad_s, step_s=sc.engine_step_s("tmm"),
+                                  start_angle=sc.drive.start_angle_rad, initial_state=guess)
+    if many:
+        if len(_ORBITS) >= 2 and key not in _ORBITS:
+            _ORBITS.clear()
+        _ORBITS[key] = (history + [(sc.drive.speed_rpm, p.state)])[-2:]
+    return p
+
+
+def warm_up(raw: dict, path: str, rpm: float, engines: tuple, revolutions: float) -> dict:
+    """The sweep's first point solved in the parent before the workers start (with ``many``): it
+    loads the compiled kernels from their disk cache and builds the speed-free data (the reduced
+    model's basis and stage coefficients) once, and the workers, forked after it, inherit both
+    and its orbit instead of each paying ~0.7 s of kernel loading and ~0.65 s of stage
+    coefficients. One thread (BLAS and the compiled statics): a forked child must not inherit
+    a thread pool's state."""
+    threads = compiled_statics.THREADS
+    compiled_statics.THREADS = 1
+    try:
+        with threadpool_limits(1, user_api="blas"):
+            return sweep_point(raw, path, rpm, engines, revolutions, "periodic", True)
+    finally:
+        compiled_statics.THREADS = threads
 
 
 def periodic_point_histories(sc, n_grid: int = 360) -> dict:
@@ -183,6 +252,7 @@ def periodic_point(sc, many: bool = False) -> dict:
     d = {"status": "completed", "error": None, "method": "periodic", "model": p.info.get("model", "full"),
          "floquet_max": float(np.abs(p.multipliers[0])),
          "parametric_resonance": bool(np.abs(p.multipliers[0]) > 1.0), "residual": p.residual,
+         "start": p.info.get("start", "linear"),
          "drive_torque_max_Nm": float(p.drive_torque.max()), "drive_torque_min_Nm": float(p.drive_torque.min()),
          "gauges": {}}
     for g, (b, a) in p.gauges.items():
@@ -337,11 +407,15 @@ def run_sweep(scenario: str, rpm, engines=("tmm",), revolutions: float | None = 
     rows, points = [], []
     tic = time.perf_counter()
     try:
-        with executor(workers, scheduler) as ex:
-            # Enough speeds per worker to repay the reduced model's speed-free stage matrices.
-            many = len(rpms) >= MANY_SPEEDS * (workers or os.cpu_count() or 1)
-            futures = {ex.submit(sweep_point, sc.raw, str(sc.path or sc.name), float(r), tuple(engines), revs,
-                                 method, many): float(r) for r in rpms}
+        # Enough speeds per worker to repay the reduced model's speed-free stage matrices and to
+        # continue from speed to speed.
+        many = len(rpms) >= MANY_SPEEDS * (workers or os.cpu_count() or 1)
+        continued = many and sc.tmm.model in CONTINUED_MODELS
+        futures = _first_point(sc, rpms, tuple(engines), revs, method, continued and not scheduler)
+        blocks = len(rpms) - len(futures) if continued else None
+        with executor(workers, scheduler, blocks) as ex:
+            futures.update({ex.submit(sweep_point, sc.raw, str(sc.path or sc.name), float(r), tuple(engines), revs,
+                                      method, many): float(r) for r in rpms[len(futures):]})
             saved = -math.inf
             for fut in as_completed(futures):
                 try:
@@ -381,6 +455,16 @@ def run_sweep(scenario: str, rpm, engines=("tmm",), revolutions: float | None = 
         _record(folder / "sweep.rrd", sc.name, summary["points"], fmap, (float(rpms.min()), float(rpms.max())),
                 record_peaks)
     return folder, summary
+
+
+def _first_point(sc, rpms, engines: tuple, revolutions, method: str, warm: bool) -> dict:
+    """``{future: rpm}`` of the sweep's first speed solved in this process as the workers' warm-up
+    (:func:`warm_up`; a periodic TMM-only sweep of many speeds on local workers), else empty."""
+    if not (warm and method == "periodic" and engines == ("tmm",)):
+        return {}
+    future = Future()
+    future.set_result(warm_up(sc.raw, str(sc.path or sc.name), float(rpms[0]), engines, revolutions))
+    return {future: float(rpms[0])}
 
 
 def _after_points(sc, folder: Path, summary: dict, points: list, rpms, resonance: bool, progress: bool,

@@ -39,7 +39,7 @@ PUBLIC = {
     "ked": ("Coupling", "CrankMotion", "KEDResult", "rigid_body_loads", "quasi_static"),
     "transient": ("TimeDomain", "time_domain"),
     # periodic steady state
-    "periodic": ("periodic_steady_state", "PeriodicResult", "floquet_multipliers"),
+    "periodic": ("periodic_steady_state", "PeriodicResult", "ShootingOptions", "floquet_multipliers"),
     # natural frequencies
     "frequencies": ("fourbar_frequencies", "frequency_model", "natural_frequencies"),
     # the reduced model
@@ -65,7 +65,7 @@ __all__ = [
     # kineto-elastodynamics: quasi-static and time domain
     "Coupling", "CrankMotion", "KEDResult", "rigid_body_loads", "quasi_static", "TimeDomain", "time_domain",
     # periodic steady state
-    "periodic_steady_state", "PeriodicResult", "floquet_multipliers",
+    "periodic_steady_state", "PeriodicResult", "ShootingOptions", "floquet_multipliers",
     # natural frequencies
     "fourbar_frequencies", "frequency_model", "natural_frequencies",
     # the reduced model
@@ -104,7 +104,7 @@ if TYPE_CHECKING:      # for type checkers and IDEs, which do not run __getattr_
     from .linkage import LinkageMechanism, as_linkage
     from .materials import Damping, StandardLinearSolid
     from .mechanism import FourBarMechanism, Link, PointMass, SliderCrankMechanism
-    from .periodic import PeriodicResult, floquet_multipliers, periodic_steady_state
+    from .periodic import PeriodicResult, ShootingOptions, floquet_multipliers, periodic_steady_state
     from .post import (Gauge, bending_axial_strain, distortion, gauge_strains, soderberg, state_at,
                        static_safety_factor, surface_strains, surface_stresses)
     from .reduced import ReducedBasis, ReducedOptions, build_basis

@@ -38,6 +38,7 @@ import numpy as np
 from scipy.integrate import solve_ivp
 
 from .compiled import periodic as compiled_periodic
+from .anderson import AndersonOptions, FixedPoint, anderson, block_weights
 from .errors import ConvergenceError, InputError, TMMError
 from .batches import configurations
 from .discretization import Discretization, HoldsModel, as_model
@@ -54,7 +55,9 @@ class PeriodicResult:
     """One steady revolution: ``angle`` [rad] and outputs at the N steps (the first sample is the
     state after one step), drive torque [N m], gauges ``{name: (bending, axial)}``, the Floquet
     ``multipliers`` (descending modulus) and ``residual`` (relative change of the state over a
-    revolution marched from the periodic state: the solve's own check)."""
+    revolution marched from the periodic state: the solve's own check) and the periodic ``state``
+    at the start angle (the solver's stacked state vector, mixed units: m, m/s, m/s^2; a nearby
+    speed's solve takes as ``initial_state``)."""
 
     t: np.ndarray
     angle: np.ndarray
@@ -63,6 +66,7 @@ class PeriodicResult:
     multipliers: np.ndarray
     residual: float
     info: dict
+    state: np.ndarray | None = None
 
 
 def _batched_step(model: Discretization, cfg, idx, state, dt, forced: bool = True):
@@ -76,79 +80,66 @@ def _batched_step(model: Discretization, cfg, idx, state, dt, forced: bool = Tru
     return model.integrator.advance(state, z, dt), z, out
 
 
+@dataclass(frozen=True)
+class ShootingOptions:
+    """Newton shooting of the second-order model: ``tolerance``, the relative change of the state
+    over a revolution at which it stops (also the Anderson revolutions' from a guess), and the most
+    Newton ``iterations``."""
+
+    tolerance: float = 1e-7
+    iterations: int = 15
+
+
 def periodic_steady_state(source: Discretization | HoldsModel, speed_rad_s: float, *, step_s: float | None = None,
-                          step_deg: float | None = None, start_angle: float = 0.0, newton_tolerance: float = 1e-7,
-                          newton_iterations: int = 15, crank: CrankMotion | None = None) -> PeriodicResult:
+                          step_deg: float | None = None, start_angle: float = 0.0,
+                          shooting: ShootingOptions = ShootingOptions(), crank: CrankMotion | None = None,
+                          initial_state: np.ndarray | None = None) -> PeriodicResult:
     """Periodic response of the model ``source`` (a :class:`tmm_core.discretization.Discretization`
     or a :class:`tmm_core.TimeDomain`, whose model is taken) at constant crank ``speed_rad_s``
     [rad/s]; the step must divide a revolution (as for a constant-speed :class:`CrankMotion`).
-    ``newton_tolerance``: relative change of the state over a revolution at which Newton shooting stops (second-order model).
+    ``shooting``: Newton shooting's tolerance and iterations (:class:`ShootingOptions`; second-order model).
 
     ``crank``: instead of the constant speed, one period of a periodic crank history (a crank
     whose speed fluctuates within the revolution): N + 1 samples whose last is one revolution
     after the first (angle advanced by 2 pi, same speed and acceleration); ``speed_rad_s`` and
-    the step arguments are then unused."""
+    the step arguments are then unused.
+
+    ``initial_state``: a guess of the periodic state (as :attr:`PeriodicResult.state`: the stacked
+    integrator state at the start angle, e.g. the previous speed's orbit in a sweep). The
+    second-order model then iterates Anderson-accelerated revolutions from it
+    (:mod:`tmm_core.anderson`) instead of the linear model's shooting pass (a 217-column
+    linearized revolution) and the Newton monodromies; when they stall it solves as without a
+    guess, and where that finds no orbit, by Newton shooting from their best iterate (the
+    branch carried on, often through unstable orbits near a fold); the tolerance is the same. The multipliers are those of the full monodromy at the
+    converged orbit. The linear model ignores the guess (its solve is direct)."""
     model = as_model(source)
     if any(link.viscoelastic is not None for link in model.links):
         raise InputError("the periodic solver does not carry the viscoelastic (SLS) history states; use time marching")
     keys = STATE_KEYS.get(model.integrator.name)
     if keys is None:
         raise InputError(f"periodic solver: unsupported integrator {model.integrator.name!r}")
-    if crank is None:
-        crank = CrankMotion.constant_speed(speed_rad_s, step_s=step_s, step_deg=step_deg, revolutions=1.0,
-                                           start_angle=start_angle)
-        N = crank.steps_per_revolution()
-        if N is None:
-            raise InputError("the step must divide a revolution into a whole number of steps")
-    else:
-        N = len(crank.t) - 1
-        turn = abs(crank.angle[N] - crank.angle[0])
-        if (abs(turn - 2 * math.pi) > 1e-9 * 2 * math.pi or
-                not np.isclose(crank.speed[N], crank.speed[0], rtol=1e-6, atol=1e-9) or
-                not np.isclose(crank.acceleration[N], crank.acceleration[0], rtol=1e-6,
-                               atol=1e-6 * max(1.0, float(np.max(np.abs(crank.acceleration)))))):
-            raise InputError("periodic solver: the crank history must span exactly one period (last sample one "
-                             "revolution after the first, with the same speed and acceleration)")
+    crank, N = _one_period(crank, speed_rad_s, step_s, step_deg, start_angle)
     dt = crank.dt
     cfg = configurations(model, crank.angle[:N], crank.speed[:N], crank.acceleration[:N], dt, maps=True)
     if cfg.maps is None:
         raise InputError("periodic solver: the load-to-response maps exceed the memory budget (max_map_bytes)")
-    n = model.n_dof
-    ns = len(keys) * n
-    # The linearized revolutions in the compiled kernels (tmm_core.compiled.periodic) or in numpy
-    # (the reference: the numpy backend).
-    compiled = model.compiled
-    monodromy = _compiled_monodromy if compiled else _monodromy
-    if compiled:
-        Phi, c = compiled_periodic.linear_shooting(model, kernel_data(model, cfg), keys, N, dt)
-    else:
-        # x_N = Phi x_0 + c: the zero state with the forcing (c) and the unit states without it
-        # (Phi; differencing forced unit states with c lost up to 1e-4 in blocks of small entries).
-        forced, state = _state(model, keys, np.zeros((1, ns))), _state(model, keys, np.eye(ns))
-        for k in range(1, N + 1):
-            forced, _, _ = _batched_step(model, cfg, k % N, forced, dt)
-            state, _, _ = _batched_step(model, cfg, k % N, state, dt, forced=False)
-        c = np.concatenate([forced[k][0] for k in keys])
-        Phi = np.concatenate([state[k] for k in keys], axis=1).T
-    x0 = np.linalg.solve(np.eye(ns) - Phi, c)
+    ns = len(keys) * model.n_dof
     info = {"dt_s": dt, "steps_per_revolution": N, "state_size": ns}
+    revolution = _Revolution(model, cfg, keys, N, dt)
+    solved = fp = None
+    if model.axial_force == "dynamic" and initial_state is not None:
+        fp = _from_guess(revolution, initial_state, shooting.tolerance, info)
+        solved = (fp.x, fp.image, fp.revolutions) if fp.converged else None
+    if solved is None:
+        x0, Phi = _linear_solution(revolution)
     if model.axial_force == "dynamic":
-        # Newton shooting on the nonlinear revolution map, from the linear model's solution. The
-        # monodromy (the expensive part) is kept while it converges fast (chord iterations) and
-        # recomputed at the current orbit when the residual falls by less than a factor 4. The
-        # first Jacobian is the linear model's I - Phi (known: saves a monodromy where the
-        # second-order terms are mild). If the residual then grows (near buckling, residuals of
-        # order 1), Newton restarts from the linear solution with the monodromy there: the
-        # iterates are those of plain Newton, so no speed it solves is lost.
-        shot = _shoot(model, cfg, keys, x0, N, dt, 1)
-        solved = _newton(model, cfg, keys, N, dt, monodromy, x0, shot, np.eye(ns) - Phi, newton_tolerance,
-                         newton_iterations, strict=True)
-        info["restarted"] = solved is None
         if solved is None:
-            solved = _newton(model, cfg, keys, N, dt, monodromy, x0, shot, None, newton_tolerance, newton_iterations,
-                             strict=False)
+            try:
+                solved = _from_linear(revolution, x0, Phi, shooting.tolerance, shooting.iterations, info)
+            except ConvergenceError as exc:
+                solved = _past_linear_start(revolution, fp, shooting, info, exc)
         x0, (xN, trajectory, outs, residual), info["newton_iterations"] = solved
-        Phi = monodromy(model, cfg, keys, trajectory, dt)
+        Phi = revolution.monodromy(model, cfg, keys, trajectory, dt)
     else:
         # One revolution from the periodic state, for the outputs and as a check.
         st = _state(model, keys, x0[None, :])
@@ -162,7 +153,115 @@ def periodic_steady_state(source: Discretization | HoldsModel, speed_rad_s: floa
     multipliers = multipliers[np.argsort(-np.abs(multipliers))]
     outs = np.array(outs)
     return PeriodicResult(crank.t[1:N + 1], crank.angle[1:N + 1], model.outputs.torque(outs), model.outputs.split(outs),
-                          multipliers, residual, info)
+                          multipliers, residual, info, x0)
+
+
+@dataclass(frozen=True)
+class _Revolution:
+    """What every revolution of one periodic solve marches: the model, its configurations over the
+    revolution (``cfg``, with maps), the state's arrays (``keys``), N steps of ``dt`` [s]."""
+
+    model: Discretization
+    cfg: object
+    keys: tuple
+    N: int
+    dt: float
+
+    @property
+    def monodromy(self):
+        """The linearized revolution (compiled kernels or the numpy reference)."""
+        return _compiled_monodromy if self.model.compiled else _monodromy
+
+
+def _one_period(crank, speed_rad_s, step_s, step_deg, start_angle):
+    """``(crank, N)``: the constant-speed revolution at ``speed_rad_s`` [rad/s] with the given step
+    [s or deg], or the given periodic ``crank`` history checked to span one period."""
+    if crank is None:
+        crank = CrankMotion.constant_speed(speed_rad_s, step_s=step_s, step_deg=step_deg, revolutions=1.0,
+                                           start_angle=start_angle)
+        N = crank.steps_per_revolution()
+        if N is None:
+            raise InputError("the step must divide a revolution into a whole number of steps")
+        return crank, N
+    N = len(crank.t) - 1
+    turn = abs(crank.angle[N] - crank.angle[0])
+    if (abs(turn - 2 * math.pi) > 1e-9 * 2 * math.pi or
+            not np.isclose(crank.speed[N], crank.speed[0], rtol=1e-6, atol=1e-9) or
+            not np.isclose(crank.acceleration[N], crank.acceleration[0], rtol=1e-6,
+                           atol=1e-6 * max(1.0, float(np.max(np.abs(crank.acceleration)))))):
+        raise InputError("periodic solver: the crank history must span exactly one period (last sample one "
+                         "revolution after the first, with the same speed and acceleration)")
+    return crank, N
+
+
+def _linear_solution(rev: _Revolution):
+    """The linear step's periodic state and monodromy ``(x0, Phi)``: ``x_N = Phi x_0 + c`` over a
+    revolution, ``(I - Phi) x_0 = c``."""
+    model, cfg, keys, N, dt = rev.model, rev.cfg, rev.keys, rev.N, rev.dt
+    ns = len(keys) * model.n_dof
+    if model.compiled:
+        Phi, c = compiled_periodic.linear_shooting(model, kernel_data(model, cfg), keys, N, dt)
+    else:
+        # x_N = Phi x_0 + c: the zero state with the forcing (c) and the unit states without it
+        # (Phi; differencing forced unit states with c lost up to 1e-4 in blocks of small entries).
+        forced, state = _state(model, keys, np.zeros((1, ns))), _state(model, keys, np.eye(ns))
+        for k in range(1, N + 1):
+            forced, _, _ = _batched_step(model, cfg, k % N, forced, dt)
+            state, _, _ = _batched_step(model, cfg, k % N, state, dt, forced=False)
+        c = np.concatenate([forced[k][0] for k in keys])
+        Phi = np.concatenate([state[k] for k in keys], axis=1).T
+    return np.linalg.solve(np.eye(ns) - Phi, c), Phi
+
+
+def _from_linear(rev: _Revolution, x0, Phi, tolerance, iterations, info):
+    """Newton shooting on the nonlinear revolution map from the linear model's solution ``x0``.
+    The monodromy (the expensive part) is kept while it converges fast (chord iterations) and
+    recomputed at the current orbit when the residual falls by less than a factor 4. The first
+    Jacobian is the linear model's I - Phi (known: saves a monodromy where the second-order terms
+    are mild). If the residual then grows (near buckling, residuals of order 1), Newton restarts
+    from the linear solution with the monodromy there: the iterates are those of plain Newton, so
+    no speed it solves is lost. Returns ``(x0, shot, revolutions)``."""
+    shot = _shoot(rev.model, rev.cfg, rev.keys, x0, rev.N, rev.dt, 1)
+    solved = _newton(rev, x0, shot, np.eye(len(x0)) - Phi, tolerance, iterations, strict=True)
+    info["restarted"] = solved is None
+    if solved is None:
+        solved = _newton(rev, x0, shot, None, tolerance, iterations, strict=False)
+    return solved
+
+
+def _from_guess(rev: _Revolution, guess, tolerance, info) -> FixedPoint:
+    """Anderson-accelerated revolutions from ``guess`` (:func:`tmm_core.anderson.anderson`): the
+    fixed point, converged or the best iterate of a stall."""
+    keys = rev.keys
+
+    def revolve(x):
+        shot = _shoot(rev.model, rev.cfg, keys, x, rev.N, rev.dt, 1)
+        return shot[0], shot
+
+    x0 = np.asarray(guess, dtype=float)
+    fp = anderson(revolve, x0, block_weights(x0, len(keys)), AndersonOptions(tolerance))
+    info["anderson_revolutions"] = fp.revolutions
+    info["start"] = "guess" if fp.converged else "linear"
+    return fp
+
+
+def _past_linear_start(rev: _Revolution, fp: FixedPoint | None, shooting: ShootingOptions, info, error):
+    """Where the linear start finds no orbit (``error``), Newton shooting from the best iterate of
+    the stalled Anderson revolutions ``fp``: the branch continued from the previous speed, often an
+    unstable orbit near a fold. Tried only after the linear start, so that where that finds an
+    orbit the answer is the one a solve without a guess gives (near a fold a stable and an
+    unstable orbit coexist: at 400 rpm on the FE rig, 10 rpm from the previous speed, Newton from
+    the guess converged to the unstable one). Raises ``error`` when it does not converge either."""
+    if fp is None or fp.image is None:
+        raise error
+    try:
+        solved = _newton(rev, fp.x, fp.image, None, shooting.tolerance, shooting.iterations, strict=True)
+    except ConvergenceError:
+        solved = None
+    if solved is None:
+        raise error
+    info["start"] = "guess, Newton"
+    return solved
 
 
 def _shoot(model: Discretization, cfg, keys, x0, N, dt, it):
@@ -179,11 +278,12 @@ def _shoot(model: Discretization, cfg, keys, x0, N, dt, it):
     return xN, trajectory, outs, float(np.max(np.abs(xN - x0)) / max(np.max(np.abs(x0)), 1e-300))
 
 
-def _newton(model: Discretization, cfg, keys, N, dt, monodromy, x0, shot, jacobian, tolerance, iterations, strict):
+def _newton(rev: _Revolution, x0, shot, jacobian, tolerance, iterations, strict):
     """Newton shooting from ``x0`` whose revolution ``shot`` (:func:`_shoot`) is marched, with
     ``jacobian`` (None: the monodromy at ``x0``) kept while the residual falls 4x per iteration.
     Returns ``(x0, shot, revolutions)`` at convergence. ``strict``: None instead of an error, and
     as soon as the residual grows."""
+    model, cfg, keys, N, dt = rev.model, rev.cfg, rev.keys, rev.N, rev.dt
     last = math.inf
     for it in range(1, iterations + 1):
         xN, trajectory, _, residual = shot
@@ -192,7 +292,7 @@ def _newton(model: Discretization, cfg, keys, N, dt, monodromy, x0, shot, jacobi
         if it == iterations or (strict and residual > last):
             break
         if jacobian is None or residual > 0.25 * last:
-            jacobian = np.eye(len(x0)) - monodromy(model, cfg, keys, trajectory, dt)
+            jacobian = np.eye(len(x0)) - rev.monodromy(model, cfg, keys, trajectory, dt)
         last = residual
         x0 = x0 + np.linalg.solve(jacobian, xN - x0)
         try:

@@ -51,6 +51,7 @@ from scipy.linalg import lu_factor, lu_solve
 from .compiled import binding as kernel_binding, reduced_periodic as compiled_reduced_periodic
 from .backend import choose_backend
 from .discretization import Discretization, HoldsModel, as_model
+from .anderson import AndersonOptions, anderson, block_weights
 from .errors import ConvergenceError, InputError
 from .ked import CrankMotion
 from .periodic import PeriodicResult
@@ -377,7 +378,8 @@ def periodic_steady_state_reduced(source: Discretization | HoldsModel, speed_rad
                                   start_angle: float = 0.0, options: ReducedOptions = ReducedOptions(),
                                   basis: ReducedBasis | None = None, newton_tolerance: float = 1e-9,
                                   newton_iterations: int = 20, backend: str | None = None,
-                                  stages: StageCoefficients | None = None) -> PeriodicResult:
+                                  stages: StageCoefficients | None = None,
+                                  initial_state: np.ndarray | None = None) -> PeriodicResult:
     """Periodic steady revolution of the reduced model of ``source`` (a
     :class:`tmm_core.discretization.Discretization` or the one a :class:`tmm_core.TimeDomain`
     holds) at constant ``speed_rad_s`` [rad/s]
@@ -385,9 +387,14 @@ def periodic_steady_state_reduced(source: Discretization | HoldsModel, speed_rad
     (N + 1 samples; its samples are the steps). Returns a :class:`tmm_core.periodic.PeriodicResult`
     (outputs at the 3 collocation points of each step, 3N samples: the continuous solution, so that
     sampling does not clip sharp peaks; Floquet multipliers of the reduced model, the residual of a
-    revolution marched from the periodic state). ``basis``: reuse one (it depends on the
-    geometry only); else built from ``options``. ``backend``, ``stages``: see
-    :class:`ReducedModel`."""
+    revolution marched from the periodic state, the periodic ``state`` ``(eta, eta')``). ``basis``:
+    reuse one (it depends on the geometry only); else built from ``options``. ``backend``,
+    ``stages``: see :class:`ReducedModel`. ``initial_state``: a guess of the periodic state
+    ``(eta, eta')`` (2r; e.g. a nearby speed's with the same basis): the nonlinear model then
+    iterates Anderson-accelerated revolutions from it (:mod:`tmm_core.anderson`) instead of the
+    linear pass, falling back to Newton shooting from their best iterate when they stall; the
+    tolerance is the same, and the multipliers are those of the full (2r x 2r) monodromy at the
+    converged orbit."""
     full = as_model(source)
     if crank is None:
         if not speed_rad_s:
@@ -402,36 +409,97 @@ def periodic_steady_state_reduced(source: Discretization | HoldsModel, speed_rad
         basis = build_basis(full, float(crank.angle[0]), options)
     model = ReducedModel(full, crank, basis, backend, stages)
     r = basis.size
-    x_lin, mono, _ = model.revolution(np.zeros(2 * r), False)
-    x0 = np.linalg.solve(np.eye(2 * r) - mono, x_lin)
     info = {"model": "reduced", "size": r, "modes": basis.n_modes, "static": basis.n_static, "steps_per_revolution":
             model.N, "dt_s": model.h}
-    it, outs = 0, None
-    if model.nonlinear:
-        # Newton shooting; the monodromy (the dear part: a multi-column solve per step) is kept while
-        # the residual falls by a factor 4 per iteration (chord steps) and recomputed otherwise.
-        jac, fresh, last = mono, False, math.inf
-        for it in range(1, newton_iterations + 1):
-            xN, m_new, outs = model.revolution(x0, True, outputs=True, jacobian=not fresh and it > 1)
-            if m_new is not None:
-                jac, mono, fresh = m_new, m_new, True
-            if not np.all(np.isfinite(xN)):
-                raise ConvergenceError("reduced model: Newton shooting left the range of the model")
-            residual = float(np.max(np.abs(xN - x0)) / max(np.max(np.abs(x0)), 1e-300))
-            if residual < newton_tolerance:
-                break
-            if residual > CHORD_RATE * last:
-                fresh = False
-            last = residual
-            x0 = x0 + np.linalg.solve(np.eye(2 * r) - jac, xN - x0)
+    solved = fp = None
+    if model.nonlinear and initial_state is not None:
+        fp, solved = _reduced_from_guess(model, np.asarray(initial_state, dtype=float), newton_tolerance, info)
+    if solved is None:
+        x_lin, mono, _ = model.revolution(np.zeros(2 * r), False)
+        x0 = np.linalg.solve(np.eye(2 * r) - mono, x_lin)
+        if model.nonlinear:
+            try:
+                solved = _reduced_newton(model, x0, mono, newton_tolerance, newton_iterations)
+            except ConvergenceError as exc:
+                # Where the linear start finds no orbit, Newton from the stalled guess's best
+                # iterate: the branch carried on (tried second, so that where the linear start
+                # finds an orbit the answer is a solve's without a guess; see
+                # tmm_core.periodic._past_linear_start).
+                if fp is None or fp.residual == np.inf:
+                    raise
+                try:
+                    solved = _reduced_newton(model, fp.x, None, newton_tolerance, newton_iterations)
+                except ConvergenceError:
+                    raise exc from None
+                info["start"] = "guess, Newton"
+            info["newton_iterations"] = solved[-1]
         else:
-            raise ConvergenceError(f"reduced model: Newton shooting did not converge in {newton_iterations} "
-                                   f"iterations (last relative residual {residual:.3g})")
-        info["newton_iterations"] = it
-    else:
-        xN, _, outs = model.revolution(x0, False, outputs=True, jacobian=False)
-        residual = float(np.max(np.abs(xN - x0)) / max(np.max(np.abs(x0)), 1e-300))
+            xN, _, outs = model.revolution(x0, False, outputs=True, jacobian=False)
+            solved = (x0, xN, mono, outs, 0)
+    x0, xN, mono, outs, _ = solved
+    residual = float(np.max(np.abs(xN - x0)) / max(np.max(np.abs(x0)), 1e-300))
     mult = np.linalg.eigvals(mono)
     mult = mult[np.argsort(-np.abs(mult))]
     return PeriodicResult(model.stage_time, model.stage_angle, full.outputs.torque(outs), full.outputs.split(outs),
-                          mult, residual, info)
+                          mult, residual, info, x0)
+
+
+def _reduced_newton(model: ReducedModel, x0, jac, tolerance, iterations):
+    """Newton shooting from ``x0`` with the Jacobian ``jac`` (the monodromy; None: computed at
+    ``x0``); the monodromy (the dear part: a multi-column solve per step) is kept while the
+    residual falls by a factor 4 per iteration (chord steps) and recomputed otherwise. Returns
+    ``(x0, x_N, monodromy at x0, outputs, iterations)``."""
+    n = len(x0)
+    fresh, last, before, mono = False, math.inf, math.inf, jac
+    for it in range(1, iterations + 1):
+        # The monodromy also in the revolution predicted to converge (the last two residuals' rate
+        # carried on): that revolution then carries the converged orbit's monodromy (its
+        # multipliers) without an extra one after it.
+        near = last * min(last / before, 1.0) < tolerance
+        xN, m_new, outs = model.revolution(x0, True, outputs=True,
+                                           jacobian=jac is None or near or (not fresh and it > 1))
+        if m_new is not None:
+            jac, mono, fresh = m_new, m_new, True
+        if not np.all(np.isfinite(xN)):
+            raise ConvergenceError("reduced model: Newton shooting left the range of the model")
+        residual = float(np.max(np.abs(xN - x0)) / max(np.max(np.abs(x0)), 1e-300))
+        if residual < tolerance:
+            if m_new is None:
+                # The chord Jacobian is an earlier iterate's (or the linear model's): its
+                # eigenvalues missed the converged orbit's largest multiplier by up to 0.13 near
+                # buckling (FE rig, 410 rpm). The multipliers are the converged orbit's.
+                _, mono, _ = model.revolution(x0, True, jacobian=True)
+            return x0, xN, mono, outs, it
+        if residual > CHORD_RATE * last:
+            fresh = False
+        before, last = last, residual
+        x0 = x0 + np.linalg.solve(np.eye(n) - jac, xN - x0)
+    raise ConvergenceError(f"reduced model: Newton shooting did not converge in {iterations} "
+                           f"iterations (last relative residual {residual:.3g})")
+
+
+def _reduced_from_guess(model: ReducedModel, guess, tolerance, info):
+    """Anderson-accelerated revolutions from ``guess``, then one revolution with the monodromy and
+    the outputs from the converged state. Returns ``(fixed point, solved)``: ``solved`` as
+    :func:`_reduced_newton` returns it, or None when the revolutions stalled (the fixed point is
+    then their best iterate)."""
+
+    def revolve(x):
+        x_end, _, _ = model.revolution(x, True, jacobian=False)
+        return x_end, None
+
+    fp = anderson(revolve, guess, block_weights(guess, 2), AndersonOptions(tolerance))
+    info["anderson_revolutions"], info["start"] = fp.revolutions, "linear"
+    if not fp.converged:
+        return fp, None
+    try:
+        # The outputs and the monodromy at the converged orbit (this revolution's residual is the
+        # reported one).
+        xN, mono, outs = model.revolution(fp.x, True, outputs=True, jacobian=True)
+    except ConvergenceError:
+        return fp, None
+    residual = float(np.max(np.abs(xN - fp.x)) / max(np.max(np.abs(fp.x)), 1e-300))
+    if residual >= tolerance:
+        return fp, None
+    info["start"], info["newton_iterations"] = "guess", 0
+    return fp, (fp.x, xN, mono, outs, 0)
