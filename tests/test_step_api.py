@@ -11,7 +11,7 @@ from cosim.engines.base import DriveInput, constant_speed_profile
 from cosim.master import PRESCRIBED_MACRO_DEG, CoSimulation, macro_step_for
 from cosim.scenario import load
 from tmm_core.configuration_batch import ConfigurationBatch, OutputLayout, StepMaps
-from tmm_core.time_step import anderson_coefficients
+from tmm_core.anderson import anderson_coefficients
 
 FE = "crank_rocker_241rpm"
 

@@ -19,6 +19,7 @@ the caller's.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Callable
 
@@ -52,6 +53,32 @@ class FixedPoint:
     residual: float
     revolutions: int
     converged: bool
+
+
+def anderson_coefficients(dR, r):
+    """Least-squares coefficients ``gamma`` of ``dR gamma = r`` (dR: (n, h), h <= ANDERSON_DEPTH)
+    by modified Gram-Schmidt QR; a column whose remaining norm is below 1e-12 of the largest
+    column's (a rank-deficient history) gets a zero coefficient. The same arithmetic as the
+    compiled march's (:mod:`tmm_core.compiled.march`), which it is checked against. The one
+    least-squares step of Anderson mixing: the second-order step's and the revolutions' (below)."""
+    h = dR.shape[1]
+    Q = np.array(dR, dtype=float)
+    R = np.zeros((h, h))
+    gamma = np.zeros(h)
+    # A diverging iteration can overflow here: the coefficients are then not finite and the
+    # caller restarts the mixing (as the compiled march does); no warnings.
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+        big = float(np.max(np.sqrt(np.sum(Q * Q, axis=0))))
+        for c in range(h):
+            for p in range(c):
+                R[p, c] = Q[:, p] @ Q[:, c]
+                Q[:, c] -= R[p, c] * Q[:, p]
+            R[c, c] = math.sqrt(float(Q[:, c] @ Q[:, c]))
+            Q[:, c] = Q[:, c] / R[c, c] if R[c, c] > 1e-12 * big else 0.0
+        for c in range(h - 1, -1, -1):
+            if R[c, c] > 1e-12 * big:
+                gamma[c] = (Q[:, c] @ r - R[c, c + 1:] @ gamma[c + 1:]) / R[c, c]
+    return gamma
 
 
 def residual_of(x: np.ndarray, x_end: np.ndarray) -> float:
@@ -104,7 +131,7 @@ def _mixed(xs: list, fs: list, weights: np.ndarray) -> np.ndarray:
     G = np.stack([(f - x) * weights for x, f in zip(xs, fs)], axis=1)      # weighted residuals
     dG = np.diff(G, axis=1)
     dF = np.diff(np.stack(fs, axis=1), axis=1)
-    gamma, *_ = np.linalg.lstsq(dG, G[:, -1], rcond=1e-12)
+    gamma = anderson_coefficients(dG, G[:, -1])
     return f_last - dF @ gamma
 
 

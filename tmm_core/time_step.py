@@ -18,6 +18,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from .anderson import anderson_coefficients
 from .batches import configurations
 from .compiled import time_step as compiled_time_step
 from .discretization import Discretization
@@ -241,26 +242,3 @@ def kernel_data(model: Discretization, cfg):
     return data
 
 
-def anderson_coefficients(dR, r):
-    """Least-squares coefficients ``gamma`` of ``dR gamma = r`` (dR: (n, h), h <= ANDERSON_DEPTH)
-    by modified Gram-Schmidt QR; a column whose remaining norm is below 1e-12 of the largest
-    column's (a rank-deficient history) gets a zero coefficient. The same arithmetic as the
-    compiled march's (:mod:`tmm_core.compiled.march`), which it is checked against."""
-    h = dR.shape[1]
-    Q = np.array(dR, dtype=float)
-    R = np.zeros((h, h))
-    gamma = np.zeros(h)
-    # A diverging iteration can overflow here: the coefficients are then not finite and the
-    # caller restarts the mixing (as the compiled march does); no warnings.
-    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
-        big = float(np.max(np.sqrt(np.sum(Q * Q, axis=0))))
-        for c in range(h):
-            for p in range(c):
-                R[p, c] = Q[:, p] @ Q[:, c]
-                Q[:, c] -= R[p, c] * Q[:, p]
-            R[c, c] = math.sqrt(float(Q[:, c] @ Q[:, c]))
-            Q[:, c] = Q[:, c] / R[c, c] if R[c, c] > 1e-12 * big else 0.0
-        for c in range(h - 1, -1, -1):
-            if R[c, c] > 1e-12 * big:
-                gamma[c] = (Q[:, c] @ r - R[c, c + 1:] @ gamma[c + 1:]) / R[c, c]
-    return gamma

@@ -105,7 +105,7 @@ def anderson_coefficients(dR, h, r, gamma, Q, R):
     Gram-Schmidt QR (h <= 4 columns; ``dR`` and ``Q`` hold a history column per row, so that the
     inner loops run over contiguous memory). A column whose remaining norm is below 1e-12 of the
     largest column's (a rank-deficient history) gets a zero coefficient. The numpy path uses the
-    same arithmetic (:func:`tmm_core.time_step.anderson_coefficients`): a LAPACK least-squares
+    same arithmetic (:func:`tmm_core.anderson.anderson_coefficients`): a LAPACK least-squares
     call cost more than the rest of a step here."""
     nx = dR.shape[1]
     big = 0.0
