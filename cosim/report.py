@@ -266,9 +266,11 @@ def sweep_table(summary: dict) -> str:
                 lines.append(f"{_fmt(p.get('rpm')):>7} {engine:<8} {g:<14} {str(e.get('status')):<10} "
                              f"{_fmt(st.get('bending_max_ue')):>9} {_fmt(st.get('bending_min_ue')):>9} "
                              f"{_fmt(e.get('floquet_max'), 3):>8}" + (f"  {e['error']}" if e.get("error") else "")
-                             + ("  not steady" if e.get("steady") is False else ""))
+                             + ("  not steady" if e.get("steady") is False else "")
+                             + (f"  unstable orbit ({e['orbit']})" if e.get("orbit") not in (None, "stable") else ""))
     if summary.get("parametric_resonance_rpm"):
         lines.append(f"parametric resonance (|Floquet multiplier| > 1) at {summary['parametric_resonance_rpm']} rpm")
+    lines += unstable_orbit_lines(summary.get("unstable_orbits"))
     if summary.get("points_without_solution"):
         lines.append(f"no solution at {summary['points_without_solution']} rpm")
     lines += unsolved_lines(summary.get("unsolved_points"))
@@ -279,6 +281,18 @@ def sweep_table(summary: dict) -> str:
         lines.append(f"resonance candidate: mode {c['mode']} x harmonic {c['harmonic']} at "
                      f"{c['rpm'][0]:.0f}-{c['rpm'][1]:.0f} rpm")
     return "\n".join(lines)
+
+
+def unstable_orbit_lines(orbits: list | None) -> list:
+    """A sweep's unstable periodic orbits (``summary["unstable_orbits"]``), grouped by kind: the
+    speeds with their largest |Floquet multiplier|, and what the kind means (the summary's own
+    text, from :data:`tmm_core.periodic.ORBIT_KINDS`)."""
+    lines = []
+    for kind in sorted({o["kind"] for o in orbits or []}):
+        same = [o for o in orbits if o["kind"] == kind]
+        at = ", ".join(f"{o['rpm']:g} rpm (|mu| = {o['mu_max']:.3g})" for o in same)
+        lines.append(f"unstable orbit, {kind}: {at}" + (f"; {same[0]['meaning']}" if same[0].get("meaning") else ""))
+    return lines
 
 
 def unsolved_count(summary: dict) -> str:

@@ -118,12 +118,18 @@ def plot_sweep(folder, name: str, points: list, fmap: dict | None, marks_rpm=(),
         ax.axvline(r, color="0.85", lw=3, zorder=0)
     for r in not_steady_rpm:
         ax.axvline(r, color="mistyrose", lw=3, zorder=0)
+    # Solved orbits a march would leave (|Floquet multiplier| > 1): their peaks are not what a
+    # run at that speed settles to.
+    unstable = [p["rpm"] for p in done if ((p["engines"].get("tmm") or {}).get("orbit") or "stable") != "stable"]
+    for r in unstable:
+        ax.axvline(r, color="thistle", lw=3, zorder=0)
     for r in marks_rpm:
         ax.axvline(r, color="k", lw=0.8, ls=":")
     ax.set_xlabel("crank speed [rpm]")
     ax.set_ylabel("peak bending strain [µε]")
     notes = (["grey: no solution, e.g. buckling"] if failed else []) + \
-        (["pink: not steady, peaks of a transient"] if len(not_steady_rpm) else [])
+        (["pink: not steady, peaks of a transient"] if len(not_steady_rpm) else []) + \
+        (["violet: unstable orbit, |mu| > 1"] if unstable else [])
     ax.set_title(f"{name}: steady-state peak strain vs speed" + (f" ({'; '.join(notes)})" if notes else ""))
     ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0)
     ax.grid(alpha=0.3)

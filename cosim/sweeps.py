@@ -33,7 +33,7 @@ from threadpoolctl import threadpool_limits
 
 from tmm_core import TMMError
 from tmm_core.ked import CrankMotion
-from tmm_core.periodic import periodic_steady_state
+from tmm_core.periodic import ORBIT_KINDS, orbit_stability, periodic_steady_state
 from tmm_core.reduced import ReducedOptions, build_basis
 from tmm_core.reduced_periodic import periodic_steady_state_reduced, stage_points
 from tmm_core.reduced_stages import StageCoefficients
@@ -249,9 +249,10 @@ def periodic_point(sc, many: bool = False) -> dict:
         p = periodic_solution(sc, many)
     except TMMError as exc:
         return {"status": "failed", "error": f"{type(exc).__name__}: {exc}"}
+    orbit = orbit_stability(p.multipliers)
     d = {"status": "completed", "error": None, "method": "periodic", "model": p.info.get("model", "full"),
-         "floquet_max": float(np.abs(p.multipliers[0])),
-         "parametric_resonance": bool(np.abs(p.multipliers[0]) > 1.0), "residual": p.residual,
+         "floquet_max": orbit["mu_max"], "parametric_resonance": not orbit["stable"],
+         "orbit": "stable" if orbit["stable"] else orbit["kind"], "residual": p.residual,
          "start": p.info.get("start", "linear"),
          "drive_torque_max_Nm": float(p.drive_torque.max()), "drive_torque_min_Nm": float(p.drive_torque.min()),
          "gauges": {}}
@@ -488,6 +489,7 @@ def _after_points(sc, folder: Path, summary: dict, points: list, rpms, resonance
             summary["resonance_candidates"] = campbell(fmap, float(rpms.min()), float(rpms.max()))
     summary["parametric_resonance_rpm"] = sorted(p["rpm"] for p in points if p["rpm"] is not None and
                                                  (p["engines"].get("tmm") or {}).get("parametric_resonance"))
+    summary["unstable_orbits"] = unstable_orbits(points)
     summary["records_peaks"] = record_peaks
     if points:
         summary["figures"] = [str(x.name) for x in plot_sweep(folder, sc.name, summary["points"], fmap,
@@ -495,6 +497,19 @@ def _after_points(sc, folder: Path, summary: dict, points: list, rpms, resonance
                                                                 record_peaks=record_peaks,
                                                                 not_steady_rpm=summary.get("points_not_steady", ()))]
     return fmap
+
+
+def unstable_orbits(points: list) -> list:
+    """The TMM's unstable periodic orbits of a sweep, by speed: ``[{"rpm", "mu_max", "kind",
+    "meaning"}]`` (``kind`` a key of :data:`tmm_core.periodic.ORBIT_KINDS`, ``meaning`` its text):
+    solved orbits that a march would leave, not points without a solution."""
+    out = []
+    for p in points:
+        tmm = p["engines"].get("tmm") or {}
+        if p["rpm"] is not None and tmm.get("orbit") not in (None, "stable"):
+            out.append({"rpm": p["rpm"], "mu_max": tmm["floquet_max"], "kind": tmm["orbit"],
+                        "meaning": ORBIT_KINDS.get(tmm["orbit"], "")})
+    return sorted(out, key=lambda o: o["rpm"])
 
 
 def _save(folder: Path, summary: dict, points: list, rows: list) -> None:

@@ -6,7 +6,7 @@ import pytest
 
 from cosim.scenario import load
 from tmm_core import CrankMotion, TimeDomain
-from tmm_core.periodic import mathieu_multipliers, periodic_steady_state
+from tmm_core.periodic import ORBIT_KINDS, mathieu_multipliers, orbit_stability, periodic_steady_state
 
 
 def _on_angle(angle, values, N):
@@ -152,3 +152,22 @@ def test_compiled_periodic_solution_matches_numpy():
             assert np.max(np.abs(fa - re)) < 1e-10 * np.ptp(re)
     assert np.max(np.abs(fast.drive_torque - ref.drive_torque)) < 1e-10 * np.ptp(ref.drive_torque)
     assert abs(abs(fast.multipliers[0]) - abs(ref.multipliers[0])) < 1e-10
+
+
+@pytest.mark.parametrize("delta, epsilon, kind", [
+    (0.25, 0.2, "period doubling"),     # first Mathieu tongue: subharmonic, multipliers real < -1
+    (1.0, 0.6, "saddle"),               # second tongue: harmonic, multipliers real > +1
+    (0.5, 0.1, None),                   # between the tongues: stable
+])
+def test_an_unstable_orbit_is_classified_by_its_leading_multiplier(delta, epsilon, kind):
+    # Independent of the classification: the Mathieu chart's odd tongues (delta = (2k+1)^2/4) are
+    # the period-doubling instabilities, its even ones (delta = k^2) the harmonic ones.
+    s = orbit_stability(mathieu_multipliers(delta, epsilon))
+    assert s["kind"] == kind and s["stable"] == (kind is None)
+    assert s["mu_max"] == pytest.approx(float(np.max(np.abs(mathieu_multipliers(delta, epsilon)))))
+
+
+def test_a_complex_pair_outside_the_unit_circle_is_a_torus():
+    pair = 1.2 * np.exp(0.7j)
+    s = orbit_stability([0.5, pair, np.conj(pair)])
+    assert s["kind"] == "torus" and s["mu_max"] == pytest.approx(1.2) and set(ORBIT_KINDS) >= {s["kind"]}

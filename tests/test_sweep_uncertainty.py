@@ -313,3 +313,18 @@ def test_the_fe_rig_past_buckling_is_a_sweep_with_unsolved_points(tmp_path):
     assert (u["count"], u["of"], u["rpm"]) == (1, 2, [440.0])
     assert "periodic" in u["reasons"][0]["error"]
     assert "finding" in u["note"] and "buckling load" in u["note"]
+
+
+def test_a_sweep_lists_its_unstable_orbits_by_kind_apart_from_unsolved_points():
+    from cosim.report import unstable_orbit_lines
+    from cosim.sweeps import unstable_orbits
+
+    def point(rpm, orbit, mu):
+        return {"rpm": rpm, "engines": {"tmm": {"status": "completed", "orbit": orbit, "floquet_max": mu}}}
+    points = [point(400.0, "stable", 0.9), point(410.0, "period doubling", 1.25), point(415.0, "saddle", 1.07),
+              {"rpm": 420.0, "engines": {"tmm": {"status": "failed", "error": "no orbit"}}}]
+    orbits = unstable_orbits(points)
+    assert [(o["rpm"], o["kind"]) for o in orbits] == [(410.0, "period doubling"), (415.0, "saddle")]
+    lines = unstable_orbit_lines(orbits)
+    assert lines[0].startswith("unstable orbit, period doubling: 410 rpm (|mu| = 1.25); a real multiplier below -1")
+    assert lines[1].startswith("unstable orbit, saddle: 415 rpm (|mu| = 1.07)")

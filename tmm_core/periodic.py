@@ -399,3 +399,36 @@ def mathieu_multipliers(delta: float, epsilon: float, damping: float = 0.0) -> n
     def A(t):
         return np.array([[0.0, 1.0], [-(delta + epsilon * math.cos(t)), -2.0 * damping]])
     return floquet_multipliers(A, 2 * math.pi, 2)
+
+
+#: The leading Floquet multiplier counts as real when its imaginary part is below this fraction
+#: of its modulus (a real multiplier of a real monodromy matrix has round-off imaginary parts).
+REAL_MULTIPLIER_RTOL = 1e-6
+#: What an unstable periodic orbit's leading multiplier says (Floquet theory of a periodic orbit
+#: continued in a parameter, here the crank speed).
+ORBIT_KINDS = {
+    "saddle": "a real multiplier above +1: the orbit lies on the unstable branch of a fold (saddle-node) or of a "
+              "symmetry-breaking bifurcation, and a march at this speed leaves it",
+    "period doubling": "a real multiplier below -1: a march at this speed leaves the orbit with a deviation that "
+                       "alternates from one revolution to the next (period doubling)",
+    "torus": "a complex pair outside the unit circle (Neimark-Sacker): a march at this speed leaves the orbit with a "
+             "deviation modulated at a frequency of its own (quasi-periodic at first)",
+}
+
+
+def orbit_stability(multipliers) -> dict:
+    """Stability of a periodic orbit from its Floquet ``multipliers`` (any order): ``{"stable":
+    all |mu| <= 1, "mu_max": the largest |mu|, "multiplier": (real, imaginary) of that multiplier,
+    "kind": None for a stable orbit, else a key of :data:`ORBIT_KINDS`}``. A multiplier on the unit
+    circle counts as stable (the boundary of the stability chart)."""
+    mu = np.asarray(multipliers, dtype=complex)
+    lead = complex(mu[int(np.argmax(np.abs(mu)))])
+    modulus = abs(lead)
+    stable = bool(modulus <= 1.0)
+    kind = None
+    if not stable:
+        if abs(lead.imag) > REAL_MULTIPLIER_RTOL * modulus:
+            kind = "torus"
+        else:
+            kind = "saddle" if lead.real > 0 else "period doubling"
+    return {"stable": stable, "mu_max": float(modulus), "multiplier": (lead.real, lead.imag), "kind": kind}

@@ -85,6 +85,9 @@ def sweep_recording(path, name: str, points: list, fmap=None, rpm_range=None, re
         series = [Series("tmm largest |Floquet multiplier|", f[:, 0], f[:, 1], engine_color("tmm")),
                   Series("|mu| = 1: parametric resonance above", f[[0, -1], 0], [1.0, 1.0], (214, 39, 40),
                          width=1.0, dots=False)]
+        unstable = f[f[:, 1] > 1.0]
+        if len(unstable):        # solved orbits a march would leave, drawn apart from the stable ones
+            series.append(Series("tmm unstable orbits", unstable[:, 0], unstable[:, 1], (148, 103, 189), width=0))
         views.append(log_chart(rec, Chart("/floquet", "largest Floquet multiplier vs crank speed",
                                           "crank speed [rpm]", "|mu|", series,
                                           y_range=(0.0, max(1.2, float(np.nanmax(f[:, 1])) * 1.1)))))
