@@ -71,7 +71,7 @@ def estimate_cost(sc: Scenario, engines, duration_s: float, macro_step_s: float)
 
 def tmm_setup_bytes(sc: Scenario, segments: int, n_links: int) -> float:
     """Memory the transfer-matrix engine's set-up allocates for a revolution of stored
-    configurations [bytes] that its memory budget (``tmm_core.transient.MAX_STEP_DATA_BYTES``)
+    configurations [bytes] that its memory budget (``tmm_core.discretization.MAX_STEP_DATA_BYTES``)
     does not bound: per configuration the outputs (drive torque, two strains a gauge) as affine
     functionals of the joint forces and every gauge's 6 states
     (``tmm_core.step_data.output_functionals``, ``(1 + 2G) x (joint forces + 6G + 1)`` doubles) and
@@ -93,9 +93,9 @@ def _tmm_step_s(sc: Scenario, segments: int, macro_per_step: float) -> float:
     qualifies and a revolution's stored factorizations fit the time domain's memory budget (the
     engine's own test, :meth:`tmm_core.TimeDomain.configurations`), else the numpy path."""
     try:
-        from tmm_core import backend, transient
+        from tmm_core import backend, discretization
         from tmm_core.compiled import statics as compiled_statics
-        budget = transient.MAX_STEP_DATA_BYTES
+        budget = discretization.MAX_STEP_DATA_BYTES
         per_revolution = sc.revolution_period_s / sc.engine_step_s("tmm")
         structure = sc.mechanism.structure()
         compiled = (backend.choose_backend(None) == "compiled" and compiled_statics.supported(structure)

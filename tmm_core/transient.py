@@ -22,7 +22,7 @@ from typing import Callable, Mapping, Sequence
 
 import numpy as np
 
-from .batches import FACTORS_ABOVE_DOF, MAP_MAX_DOF, configurations
+from .batches import configurations
 from .discretization import DYNAMIC_TERMS, MAX_STEP_DATA_BYTES, Discretization, discretize
 from .errors import ConvergenceError, InputError, require_positive
 from .ked import Coupling, CrankMotion, KEDResult
@@ -33,8 +33,7 @@ from .revolution import Revolution, aligned_change
 from . import time_step
 
 # The size limits of the step data keep their old names here (cosim's run guard reads the budget).
-__all__ = ["TimeDomain", "time_domain", "RunOptions", "march_history", "MAX_STEP_DATA_BYTES", "MAP_MAX_DOF",
-           "FACTORS_ABOVE_DOF"]
+__all__ = ["TimeDomain", "time_domain", "RunOptions", "march_history"]
 
 #: The model's fields and views that read through the facade (``td.n_dof`` is ``td.model.n_dof``).
 MODEL_NAMES = frozenset(f for f in Discretization.__dataclass_fields__) | {
