@@ -48,18 +48,19 @@ def grashof_class(crank: float, coupler: float, rocker: float, ground: float, rt
     return kind + (" (change point)" if abs(excess) <= rtol * l else "")
 
 
-def limit_crank_angle(geometry: FourBarGeometry, reach: float) -> float:
-    """Crank angle [rad, 0..2 pi) at which the rocker pin C lies ``reach`` [m] from the crank
-    pivot with crank and coupler in line: ``reach = crank + coupler`` (extended) or ``coupler -
-    crank`` (folded, the crank pointing away from C).
+def limit_crank_angle(geometry: FourBarGeometry, folded: bool) -> float:
+    """Crank angle [rad, 0..2 pi) of a limit position, where crank and coupler are in line and
+    the rocker pin C lies ``reach`` [m] from the crank pivot: ``crank + coupler`` at the extended
+    limit, ``coupler - crank`` at the ``folded`` one (the crank pointing away from C).
 
     The triangle A-C-D (sides ``reach``, rocker, ground) gives the angle of A->C from the ground
     line up to its sign; of the two mirror positions the one on the geometry's assembly branch is
     taken, i.e. the one where the bench's kinematics puts C at ``reach`` from A."""
     g = geometry
+    reach = g.coupler - g.crank if folded else g.crank + g.coupler
     cos_angle = (reach ** 2 + g.ground ** 2 - g.rocker ** 2) / (2 * reach * g.ground)
     angle = math.acos(min(1.0, max(-1.0, cos_angle)))
-    turn = 0.0 if reach >= g.crank + g.coupler - 1e-12 * g.coupler else math.pi    # folded: crank opposite A->C
+    turn = math.pi if folded else 0.0          # folded: the crank points opposite A->C
     candidates = np.mod(np.array([angle, -angle]) + turn, TWO_PI)
     m = fourbar_motion(g, candidates)
     miss = np.abs(np.hypot(*(m.C - m.A).T) - reach)
@@ -92,8 +93,8 @@ def limit_positions(geometry: FourBarGeometry) -> dict:
              "rocker_angle_folded_rad", "oscillation_rad", "time_ratio")
     if kind == "double-crank":
         return out | dict.fromkeys(names)
-    extended = limit_crank_angle(g, g.crank + g.coupler)
-    folded = limit_crank_angle(g, g.coupler - g.crank)
+    extended = limit_crank_angle(g, folded=False)
+    folded = limit_crank_angle(g, folded=True)
     rocker = wrap_angle(fourbar_motion(g, np.array([extended, folded])).rocker.angle - g.ground_angle).tolist()
     arc = (folded - extended) % TWO_PI
     return out | dict(zip(names, (extended, folded, rocker[0], rocker[1], abs(float(wrap_angle(rocker[0] - rocker[1]))),
