@@ -145,6 +145,11 @@ def _verbosity_arguments(parser, top: bool = False) -> None:
                         help="no progress bars; only warnings and errors on stderr")
 
 
+def quiet(args) -> bool:
+    """``-q`` given on ``cosim`` itself or on the subcommand."""
+    return bool(getattr(args, "quiet", False) or getattr(args, "quiet_top", False))
+
+
 def _executor_arguments(parser, jobs: str) -> None:
     """The options of :func:`cosim.parallel.executor`: local processes or a Dask cluster."""
     parser.add_argument("--workers", type=int, help="local worker processes (default: the number of cores)")
@@ -344,8 +349,7 @@ def main(argv: list[str] | None = None) -> int:
         args = parser.parse_args(argv)
     except KeyboardInterrupt:          # Ctrl-C while the subcommands' modules load: no traceback
         return exit_status()
-    setup_logging(getattr(args, "verbose", 0) + getattr(args, "verbose_top", 0),
-                  bool(getattr(args, "quiet", False) or getattr(args, "quiet_top", False)))
+    setup_logging(getattr(args, "verbose", 0) + getattr(args, "verbose_top", 0), quiet(args))
     log = logging.getLogger("cosim.cli")
     log.debug("cosim %s, options %s", __version__, vars(args))
     try:

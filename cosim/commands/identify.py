@@ -6,6 +6,7 @@ Boundaries: the identification itself is :mod:`cosim.identify`.
 """
 from __future__ import annotations
 
+from ..cli import quiet
 from ..identify import identify
 from ..report import identification_table
 from . import options
@@ -22,7 +23,7 @@ def main(args) -> int:
     rel, absolute = parse_sigma(args.sigma)
     folder, result = identify(args.scenarios, validation, names, args.records, args.out, starts=args.starts,
                               workers=args.workers, scheduler=args.scheduler, sigma_relative=rel,
-                              sigma_absolute_ue=absolute, progress=not options.quiet(args), max_hours=max_hours)
+                              sigma_absolute_ue=absolute, progress=not quiet(args), max_hours=max_hours)
     print(identification_table(result))
     print(f"\nwritten to {folder}")
     return 0 if result["status"] == "completed" else 1

@@ -56,11 +56,6 @@ def max_hours(args) -> float:
     return MAX_HOURS if getattr(args, "max_hours", None) is None else args.max_hours
 
 
-def quiet(args) -> bool:
-    """``-q`` given on ``cosim`` itself or on the subcommand."""
-    return bool(getattr(args, "quiet", False) or getattr(args, "quiet_top", False))
-
-
 def viewer(args):
     """(ViewerOptions or None, --save path or None) of the recording flags (cosim.recording.options)."""
     return viewer_from_args(args)

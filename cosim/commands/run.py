@@ -8,7 +8,7 @@ from __future__ import annotations
 import logging
 import sys
 
-from ..cli import build_parser, setup_logging
+from ..cli import build_parser, quiet, setup_logging
 from ..recording.sinks import copy_to_stdout
 from ..report import comparison_table, status_notice
 from ..runs import RunOptions, run_scenario
@@ -66,7 +66,7 @@ def _run_options(args, sc, viewer, save, answer) -> RunOptions:
                       connect_url=None if viewer is None else viewer.url, save_path=save,
                       viewer_timeout_s=5.0 if viewer is None else viewer.timeout_s,
                       serve_address="127.0.0.1" if viewer is None else viewer.bind, exaggeration=args.exaggeration,
-                      linkage_fps=args.linkage_fps, animation=args.animation, progress=not options.quiet(args),
+                      linkage_fps=args.linkage_fps, animation=args.animation, progress=not quiet(args),
                       records=args.records, max_hours=options.max_hours(args), on_results=answer)
 
 

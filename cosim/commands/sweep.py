@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import sys
 
+from ..cli import quiet
 from ..report import sweep_table, unsolved_count
 from ..sweeps import parse_rpm, run_sweep
 from . import options
@@ -19,7 +20,7 @@ def main(args) -> int:
     options.positive(args, ("--revolutions", "--workers"))
     viewer, save = options.viewer(args)
     folder, summary = run_sweep(args.scenario, rpm, options.engines(args.engines), args.revolutions, args.workers,
-                                args.scheduler, args.out, record=viewer is not None, progress=not options.quiet(args),
+                                args.scheduler, args.out, record=viewer is not None, progress=not quiet(args),
                                 method=args.method, resonance=args.campbell, records_dir=args.records,
                                 model=args.model, max_hours=options.max_hours(args))
     out = sys.stderr if viewer is not None and viewer.stdout else sys.stdout     # --stdout: the .rrd

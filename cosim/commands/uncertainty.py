@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import sys
 
+from ..cli import quiet
 from ..report import uncertainty_table
 from ..uncertainty import run_uncertainty
 from . import options
@@ -18,7 +19,7 @@ def main(args) -> int:
     options.refuse_structure(args.scenario, "uncertainty")
     viewer, save = options.viewer(args)
     folder, summary = run_uncertainty(args.scenario, args.samples, args.seed, args.workers, args.scheduler,
-                                      args.out, record=viewer is not None, progress=not options.quiet(args),
+                                      args.out, record=viewer is not None, progress=not quiet(args),
                                       records_dir=args.records, trajectories=args.trajectories,
                                       max_hours=options.max_hours(args))
     out = sys.stderr if viewer is not None and viewer.stdout else sys.stdout     # --stdout: the .rrd
