@@ -51,29 +51,8 @@ PUBLIC = {
 }
 MODULE_OF = {name: module for module, names in PUBLIC.items() for name in names}
 
-__all__ = [
-    # errors
-    "TMMError", "InputError", "ConvergenceError", "BucklingError", "AssemblyError", "SingularStructureError",
-    # materials, sections, links and mechanisms
-    "Material", "Section", "Damping", "StandardLinearSolid", "Link", "PointMass",
-    "FourBarMechanism", "SliderCrankMechanism", "LinkageMechanism", "as_linkage",
-    # rigid-body kinematics
-    "FourBarGeometry", "FourBarMotion", "SliderCrankGeometry", "SliderCrankMotion", "LinkMotion",
-    "fourbar_motion", "slider_crank_motion",
-    # the instantaneous structure and its statics
-    "Structure", "Member", "Joint", "LoadCase", "solve_static", "StaticSolution", "external_resultant",
-    # kineto-elastodynamics: quasi-static and time domain
-    "Coupling", "CrankMotion", "KEDResult", "rigid_body_loads", "quasi_static", "TimeDomain", "time_domain",
-    # periodic steady state
-    "periodic_steady_state", "PeriodicResult", "ShootingOptions", "floquet_multipliers",
-    # natural frequencies
-    "fourbar_frequencies", "frequency_model", "natural_frequencies",
-    # the reduced model
-    "ReducedBasis", "ReducedOptions", "build_basis", "periodic_steady_state_reduced",
-    # strains, stresses and safety factors
-    "Gauge", "gauge_strains", "bending_axial_strain", "surface_strains", "surface_stresses", "state_at",
-    "distortion", "soderberg", "static_safety_factor",
-]
+#: The public names, in the order of :data:`PUBLIC` (written out there, once).
+__all__ = [name for names in PUBLIC.values() for name in names]
 
 
 def __getattr__(name: str):
