@@ -25,10 +25,10 @@ CYCLES: dict = {}
 
 #: Functions over the limits for now: "module.function" -> reason.
 LONG_FUNCTIONS = {
-    "tmm_core.compiled.march.march": "the compiled march of the time step (8 records): the step loop with its axial iteration; issue 33 item 4 (one step)",
+    "tmm_core.compiled.march.march": "the compiled march of the time step (8 records): the step loop around the second-order iteration with Anderson mixing, its scratch arrays allocated once per march (the integrator and history loads are shared helpers)",
     "tmm_core.compiled.riccati.factor_configuration": "compiled factorization of one configuration (7 records), one loop over the chain; issue 33",
     "tmm_core.compiled.step_data.solve_loads_many": "compiled load solve of many load sets (6 records), one sweep; issue 33",
-    "tmm_core.compiled.periodic.push": "compiled linearized step (9 records); issue 33 item 4 (one step)",
+    "tmm_core.compiled.periodic.push": "compiled linearized step (9 records): the Jacobian of the second-order iteration assembled from its sparse segment blocks (the integrator and history loads are shared helpers)",
     "tmm_core.compiled.reduced_periodic.revolution": "reduced model's Radau IIA revolution (10 records); issue 33 item 4",
     "tmm_core.compiled.structure.solve_range": "compiled static solve and beam-column iteration (10 records); issue 33",
     "tmm_core.compiled.structure.solve_loads": "compiled load solve of one load set (6 records), one sweep; issue 33",
@@ -63,7 +63,10 @@ PAIRS = (
      "tests/test_kernels.py::test_compiled_march_on_stored_factorizations_equals_numpy_over_a_revolution"),
     ("compiled.march.march (binding.march)", "time_step.solve_step, step_loads (numpy step), integrators",
      "tests/test_kernels.py::test_compiled_march_equals_numpy_for_every_integrator_and_the_quasi_static_axial_force"),
-    ("compiled.periodic.push, velocities (binding.single)", "periodic (batched numpy linearized step)",
+    ("compiled.integrators.history, advance and compiled.time_step.history_loads (binding.step_parts; the march's "
+     "and the linearized revolutions' shared step parts)", "integrators (every integrator), time_step.step_loads",
+     "tests/test_kernels.py::test_compiled_march_equals_numpy_for_every_integrator_and_the_quasi_static_axial_force"),
+    ("compiled.periodic.push, velocities (binding.linearized)", "periodic (batched numpy linearized step)",
      "tests/test_periodic.py::test_compiled_linearized_revolutions_match_numpy"),
     ("compiled.reduced_periodic.revolution (binding.reduced_revolution)", "reduced_periodic.ReducedModel (numpy)",
      "tests/test_reduced.py::test_compiled_revolution_matches_the_numpy_reference"),
@@ -223,7 +226,7 @@ def test_every_compiled_entry_point_has_its_reference_and_equality_test():
         path, name = test.split("::")
         assert f"def {name}(" in (ROOT / path).read_text(encoding="utf-8"), test
     named = " ".join(compiled for compiled, _, _ in PAIRS)
-    for stage in ("static_solve", "factored", "march", "single", "reduced_revolution"):
+    for stage in ("static_solve", "factored", "step_parts", "march", "linearized", "reduced_revolution"):
         assert f"binding.{stage}" in named, stage
     # Each compiled module mirrors the numpy module of the same name (dense: the small dense
     # algebra the references leave to numpy and scipy).

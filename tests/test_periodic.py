@@ -83,7 +83,7 @@ def test_compiled_linearized_revolutions_match_numpy(integrator):
     with the numpy reference (batched steps; per-step dense solves of the step's Jacobian) to
     1e-10 in every block of the matrices (measured <= 1.2e-11), and the compiled trajectory
     velocities with the integrator's own recursion."""
-    from tmm_core.compiled import periodic as kp
+    from tmm_core.compiled import binding, periodic as kp
     from tmm_core.periodic import _batched_step, _monodromy, _revolution, _state
     from tmm_core.time_step import kernel_data
     model, cfg, keys, N, dt = _rig(241.0, integrator)
@@ -94,7 +94,7 @@ def test_compiled_linearized_revolutions_match_numpy(integrator):
         unit, _, _ = _batched_step(model, cfg, k % N, unit, dt, forced=False)
     Phi_ref = np.concatenate([unit[k] for k in keys], axis=1).T
     c_ref = np.concatenate([forced[k][0] for k in keys])
-    Phi, c = kp.linear_shooting(model, kernel_data(model, cfg), keys, N, dt)
+    Phi, c = kp.linear_shooting(binding.linearized(), model, kernel_data(model, cfg), keys, N, dt)
     assert np.max(_block_errors(Phi, Phi_ref, n)) < 1e-10
     # Newmark's revolution map is unstable on this rig (spectral radius 2.5: no numerical damping of
     # the stiff modes), which amplifies round-off in the forced response (measured 1.3e-10).
@@ -111,7 +111,7 @@ def test_compiled_linearized_revolutions_match_numpy(integrator):
         _, h_v = model.integrator.history(st, dt)
         st = model.integrator.advance(st, z, dt)
         np.testing.assert_allclose(v, c_v * z + h_v, rtol=0, atol=1e-10 * np.max(np.abs(v)))
-    M = kp.monodromy(model, kernel_data(model, cfg), keys, trajectory, dt)
+    M = kp.monodromy(binding.linearized(), model, kernel_data(model, cfg), keys, trajectory, dt)
     M_ref = _monodromy(model, cfg, keys, trajectory, dt)
     assert np.max(_block_errors(M, M_ref, n)) < 1e-10
 
@@ -123,14 +123,14 @@ def test_compiled_monodromy_matches_numpy_near_buckling():
     checkout and 1.5e-10 on a fresh clone (BLAS's summation order with its thread count); the
     comparisons of this file fail with a term of the linearization dropped (checked with the
     Coriolis term). Unscaled, the numpy solve alone lost 1e-7."""
-    from tmm_core.compiled import periodic as kp
+    from tmm_core.compiled import binding, periodic as kp
     from tmm_core.periodic import _monodromy, _revolution
     from tmm_core.time_step import kernel_data
     model, cfg, keys, N, dt = _rig(373.0)
     ns = len(keys) * model.n_dof
-    Phi, c = kp.linear_shooting(model, kernel_data(model, cfg), keys, N, dt)
+    Phi, c = kp.linear_shooting(binding.linearized(), model, kernel_data(model, cfg), keys, N, dt)
     _, trajectory, _ = _revolution(model, cfg, keys, np.linalg.solve(np.eye(ns) - Phi, c), N, dt)
-    M = kp.monodromy(model, kernel_data(model, cfg), keys, trajectory, dt)
+    M = kp.monodromy(binding.linearized(), model, kernel_data(model, cfg), keys, trajectory, dt)
     M_ref = _monodromy(model, cfg, keys, trajectory, dt)
     assert np.max(np.abs(M - M_ref)) < 1e-9 * np.max(np.abs(M_ref))
 

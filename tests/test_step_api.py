@@ -241,7 +241,7 @@ def test_a_numpy_model_runs_no_compiled_kernel(monkeypatch):
 
     def refuse(*args, **kwargs):
         raise AssertionError("a compiled kernel ran in a numpy model")
-    for name in ("static_solve", "factored", "march", "reduced_revolution", "single"):
+    for name in ("static_solve", "factored", "step_parts", "march", "linearized", "reduced_revolution"):
         monkeypatch.setattr(binding, name, refuse)
     monkeypatch.setattr(statics, "solve_static", refuse)
     sc = load("crank_rocker_373rpm")

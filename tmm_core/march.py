@@ -13,7 +13,8 @@ from typing import Mapping
 import numpy as np
 
 from .batches import configurations
-from .compiled import binding as kernel_binding, march as compiled_march
+from .compiled import binding as kernel_binding
+from .compiled.integrators import linear_maps
 from .discretization import Discretization
 from .errors import InputError, require_positive
 from .ked import Coupling, quasi_static
@@ -106,8 +107,7 @@ class March:
         ``record_axial`` also the segment axial forces ``(k, n_seg)`` of the 'dynamic' step."""
         indices = np.asarray(indices, dtype=np.int64)
         model = self.model
-        if model.compiled and (cfg.maps is not None or cfg.factors is not None) and not self.has_visco \
-                and model.integrator.name in compiled_march.INTEGRATOR_CODES:
+        if model.compiled and (cfg.maps is not None or cfg.factors is not None) and not self.has_visco:
             return self._compiled(cfg, indices, record_z, record_axial)
         zs = np.empty((len(indices), model.n_dof)) if record_z else None
         outs = np.empty((len(indices), self.n_out))
@@ -123,12 +123,9 @@ class March:
     def _compiled(self, cfg, indices, record_z, record_axial=False):
         model, n, integ = self.model, self.model.n_dof, self.model.integrator
         data = kernel_data(model, cfg)
-        code = compiled_march.INTEGRATOR_CODES[integ.name]
-        params = np.array(integ.parameters if code == compiled_march.GENERALIZED_ALPHA else (0.0, 0.0, 0.0, 0.0), float)
-        c_a, c_v = integ.coefficients(self.dt)
-        st = self.state
-        zero = np.zeros(n)
-        arrays = [np.array(st.get(key, zero), dtype=float) for key in ("d", "v", "a", "acc", "d1", "d2")]
+        slots, Hc, Gc, ez = linear_maps(integ, self.dt)
+        _, c_v = integ.coefficients(self.dt)
+        S = self._stacked_state(slots)
         seg = model.segments
         dynamic = model.axial_force == "dynamic"
         P = np.array(self.axial if self.axial is not None else
@@ -138,7 +135,7 @@ class March:
         Ps = np.empty((len(indices), len(seg.length))) if record_axial else np.empty((0, len(seg.length)))
         iterations = np.zeros(len(indices), dtype=np.int64)
         # The compiled march's records (tmm_core.compiled.march.march).
-        integrator = (code, params, self.dt, c_a, c_v)
+        integrator = (Hc, Gc, ez, np.array([slots.index(key) for key in "dva"]), self.dt, c_v)
         kernel = model.kernel_model()
         settings = (model.coupling.coriolis, model.has_kv, dynamic, "shortening" in model.dynamic_terms,
                     "axial_force" in model.dynamic_terms, model.axial_tolerance, AXIAL_FORCE_TOLERANCE,
@@ -147,8 +144,8 @@ class March:
         while j < len(indices):
             recorded = (outs[j:], zs[j:] if record_z else zs, Ps[j:] if record_axial else Ps, iterations[j:])
             done = kernel_binding.march()(integrator, indices[j:], data[:6], data[6:], kernel, settings,
-                                          (*arrays, P), recorded)
-            self.state = {key: arr.copy() for key, arr in zip(("d", "v", "a", "acc", "d1", "d2"), arrays) if key in st}
+                                          (S, P), recorded)
+            self.state = {key: S[i, :, 0].copy() for i, key in enumerate(slots)}
             self.axial = P.copy() if dynamic else self.axial
             j += done
             if j < len(indices):
@@ -158,7 +155,7 @@ class March:
                     zs[j] = z
                 if record_axial:
                     Ps[j] = self.axial
-                arrays = [np.array(self.state.get(key, zero), dtype=float) for key in ("d", "v", "a", "acc", "d1", "d2")]
+                S = self._stacked_state(slots)
                 P = np.array(self.axial, dtype=float) if dynamic else P
                 j += 1
         self.z = self.state["d"]
@@ -167,6 +164,10 @@ class March:
         self.iterations = iterations
         zs = zs if record_z else None
         return (zs, outs, Ps) if record_axial else (zs, outs)
+
+    def _stacked_state(self, slots):
+        """The integrator's state arrays stacked ``(K, n_dof, 1)``, as the compiled march holds them."""
+        return np.ascontiguousarray(np.stack([np.asarray(self.state[key], dtype=float) for key in slots])[:, :, None])
 
     def _commit(self, z, out):
         model = self.model

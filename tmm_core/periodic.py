@@ -37,7 +37,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.integrate import solve_ivp
 
-from .compiled import periodic as compiled_periodic
+from .compiled import binding as kernel_binding, periodic as compiled_periodic
 from .anderson import AndersonOptions, FixedPoint, anderson, block_weights
 from .errors import ConvergenceError, InputError, TMMError
 from .batches import configurations
@@ -200,7 +200,8 @@ def _linear_solution(rev: _Revolution):
     model, cfg, keys, N, dt = rev.model, rev.cfg, rev.keys, rev.N, rev.dt
     ns = len(keys) * model.n_dof
     if model.compiled:
-        Phi, c = compiled_periodic.linear_shooting(model, kernel_data(model, cfg), keys, N, dt)
+        Phi, c = compiled_periodic.linear_shooting(kernel_binding.linearized(), model, kernel_data(model, cfg), keys,
+                                                   N, dt)
     else:
         # x_N = Phi x_0 + c: the zero state with the forcing (c) and the unit states without it
         # (Phi; differencing forced unit states with c lost up to 1e-4 in blocks of small entries).
@@ -333,7 +334,7 @@ def _revolution(model: Discretization, cfg, keys, x0, N, dt):
     # history from the state before each step) and axial forces per step.
     if model.compiled:
         # The same recursion compiled (in Python it took 2/3 of the revolution's time).
-        vs = compiled_periodic.trajectory_velocities(model.integrator, state, zs, dt)
+        vs = compiled_periodic.trajectory_velocities(kernel_binding.linearized(), model.integrator, state, zs, dt)
         trajectory = [(idx, zs[j], vs[j], Ps[j]) for j, idx in enumerate(indices)]
     else:
         trajectory, st = [], state
@@ -376,7 +377,8 @@ def _monodromy(model: Discretization, cfg, keys, trajectory, dt):
 def _compiled_monodromy(model: Discretization, cfg, keys, trajectory, dt):
     """:func:`_monodromy` in the compiled kernels (:func:`tmm_core.compiled.periodic.monodromy`),
     on the batch's compiled-march arrays (the batch must have its maps)."""
-    return compiled_periodic.monodromy(model, kernel_data(model, cfg), keys, trajectory, dt)
+    return compiled_periodic.monodromy(kernel_binding.linearized(), model, kernel_data(model, cfg), keys, trajectory,
+                                       dt)
 
 
 def floquet_multipliers(A, period: float, n: int, rtol: float = 1e-10) -> np.ndarray:

@@ -6,8 +6,9 @@ hold plain functions in numba's subset and compile nothing themselves; this modu
 them in dependency order, binds each compiled helper into the modules that call it, and keeps
 the one registry of compiled entry points. Each stage is compiled on its first use only (the
 command line and the numpy path never import numba): the static solve (factorization and load
-solve of a batch of configurations), the stored factorizations, the march, the reduced model's
-revolution, and single kernels without helpers of their own (the periodic solver's).
+solve of a batch of configurations), the stored factorizations, the step's shared parts (the
+integrator and the history loads), the march, the periodic solver's linearized revolutions and the
+reduced model's revolution.
 
 The on-disk cache is :mod:`tmm_core.compiled.cache`'s, keyed by every kernel file: an edit of any
 of them compiles afresh by itself.
@@ -17,7 +18,9 @@ options. Boundaries: no arithmetic (the kernel modules), no cache policy (kernel
 """
 from __future__ import annotations
 
-from . import dense, reduced_periodic, riccati, step_data, structure, time_step
+from typing import NamedTuple
+
+from . import dense, integrators, periodic, reduced_periodic, riccati, step_data, structure, time_step
 from . import march as march_kernel     # beside the stage function march() below
 from .cache import numba_module
 
@@ -26,8 +29,11 @@ DENSE = ("stumpff", "inv3", "mm3", "ldl_inertia", "lu_factor", "lu_solve", "segm
          "iteration_converged", "iteration_start")
 #: The load solve's helpers on many load sets (tmm_core.compiled.step_data).
 MAPS = ("sweep_member", "copy_sweep", "maps_scratch", "solve_loads_many")
-#: The march's helpers (tmm_core.compiled.march).
-MARCH = ("history", "advance", "shape_products", "affine", "anderson_coefficients")
+#: The march's own helpers (tmm_core.compiled.march).
+MARCH = ("shape_products", "affine", "anderson_coefficients")
+#: The step's parts the march and the linearized revolutions share: the integrator's history and
+#: update (tmm_core.compiled.integrators) and the history loads (tmm_core.compiled.time_step).
+STEP = {integrators: ("history", "advance"), time_step: ("history_loads",)}
 #: The reduced revolution's helpers (tmm_core.compiled.reduced_periodic).
 REDUCED = ("dot", "lu_factor", "lu_solve", "subtract_rows", "lu_solve_many", "second_order", "stage_states",
            "newton_matrix")
@@ -76,11 +82,39 @@ def factored():
     return _ENTRY["factored"]
 
 
+def step_parts() -> None:
+    """Compile the step's shared parts (:data:`STEP`) and bind them into the march and the
+    linearized revolutions (plain numba options: the march's fast-math flags stay its own)."""
+    if "step" not in _ENTRY:
+        jit = numba_module().njit(cache=True)
+        for module, names in STEP.items():
+            _bind(jit, module, names, into=(march_kernel, periodic))
+        _ENTRY["step"] = True
+
+
+class Linearized(NamedTuple):
+    """The periodic solver's compiled linearized revolutions (:mod:`tmm_core.compiled.periodic`)."""
+
+    push: object
+    velocities: object
+
+
+def linearized() -> Linearized:
+    """:func:`tmm_core.compiled.periodic.push` and ``velocities``, compiled with the step's parts."""
+    if "linearized" not in _ENTRY:
+        step_parts()
+        jit = numba_module().njit(cache=True)
+        _ENTRY["linearized"] = Linearized(jit(periodic.push), jit(periodic.velocities))
+    return _ENTRY["linearized"]
+
+
 def march():
-    """:func:`tmm_core.compiled.march.march`, compiled with its helpers and the stored-factorization solve."""
+    """:func:`tmm_core.compiled.march.march`, compiled with its helpers, the step's shared parts and
+    the stored-factorization solve."""
     if "march" not in _ENTRY:
         numba = numba_module()
         factored()
+        step_parts()
         # Reassociation lets LLVM vectorise the map products (dot-product reductions); no other
         # fast-math flag: the march tests for non-finite values.
         jit = numba.njit(cache=True, fastmath={"reassoc", "contract"})
@@ -100,10 +134,3 @@ def reduced_revolution():
         _ENTRY["reduced"] = jit(reduced_periodic.revolution)
     return _ENTRY["reduced"]
 
-
-def single(function):
-    """``function`` compiled alone (a kernel that calls no helper of its own module), once."""
-    key = (function.__module__, function.__qualname__)
-    if key not in _ENTRY:
-        _ENTRY[key] = numba_module().njit(cache=True)(function)
-    return _ENTRY[key]

@@ -41,7 +41,7 @@ ROOT = HERE.parent
 #: A test checks that the kernels import nothing else of tmm_core at module level but these, the
 #: errors and this module.
 COMPILED_SOURCES = ("compiled/march.py", "compiled/dense.py", "compiled/riccati.py", "compiled/time_step.py",
-                    "compiled/step_data.py", "compiled/periodic.py", "compiled/reduced_periodic.py",
+                    "compiled/step_data.py", "compiled/integrators.py", "compiled/periodic.py", "compiled/reduced_periodic.py",
                     "compiled/structure.py", "compiled/binding.py", "matrices.py")
 PREFIX = "kernels-"
 #: Whether numba is installed: without it the numpy reference path runs everything.

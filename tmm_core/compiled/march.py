@@ -16,8 +16,12 @@ estimated axial forces leave the dynamic system indefinite) is handed back: the 
 before it and returns its index, and the caller solves that step with the numpy path (which
 refactorizes at the step's own axial forces) and resumes.
 
-Kernels are compiled on first use by :mod:`tmm_core.compiled.binding` and cached on disk. Integrator codes:
-0 Newmark (average acceleration), 1 Houbolt, 2 generalized-alpha.
+The integrator (:mod:`tmm_core.compiled.integrators`, any integrator of
+:mod:`tmm_core.integrators` as its linear maps) and the step's history loads
+(:func:`tmm_core.compiled.time_step.history_loads`) are the parts the periodic solver's
+linearized revolutions share; the march holds one state column (``M = 1``).
+
+Kernels are compiled on first use by :mod:`tmm_core.compiled.binding` and cached on disk.
 
 Owns: the compiled march. Boundaries: the numpy path (tmm_core.time_step) stays the reference.
 """
@@ -25,56 +29,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from .time_step import factored_solve  # the compiled one once bound (tmm_core.compiled.binding)
+# The compiled ones once bound (tmm_core.compiled.binding): the step's parts the periodic
+# solver's linearized revolutions share, and the solve on stored factorizations.
+from .integrators import advance, history
+from .time_step import factored_solve, history_loads
 
 # numba is imported (and the kernels compiled or loaded from its cache) on first use only, by
 # tmm_core.compiled.binding: the command line and the numpy path do not pay for it. Without numba
 # the numpy path still works.
-
-NEWMARK, HOUBOLT, GENERALIZED_ALPHA = 0, 1, 2
-INTEGRATOR_CODES = {"newmark": NEWMARK, "houbolt": HOUBOLT, "generalized_alpha": GENERALIZED_ALPHA}
-
-
-def history(code, params, dt, d, v, a, acc, d1, d2, h_a, h_v):
-    """Integrator history parts of acceleration and velocity (``a = c_a d + h_a``)."""
-    n = d.shape[0]
-    if code == NEWMARK:
-        for i in range(n):
-            h_a[i] = -4.0 / dt**2 * d[i] - 4.0 / dt * v[i] - a[i]
-            h_v[i] = -2.0 / dt * d[i] - v[i]
-    elif code == HOUBOLT:
-        for i in range(n):
-            h_a[i] = (-5.0 * d[i] + 4.0 * d1[i] - d2[i]) / dt**2
-            h_v[i] = (-18.0 * d[i] + 9.0 * d1[i] - 2.0 * d2[i]) / (6.0 * dt)
-    else:
-        am, af, g, b = params[0], params[1], params[2], params[3]
-        for i in range(n):
-            a_hist = (-d[i] - dt * v[i] - dt**2 * (0.5 - b) * a[i]) / (b * dt**2)
-            h_v[i] = v[i] + dt * (1 - g) * a[i] + dt * g * a_hist
-            h_a[i] = ((1 - am) * a_hist + am * a[i] - af * acc[i]) / (1 - af)
-
-
-def advance(code, params, dt, c_a, c_v, z, d, v, a, acc, d1, d2, h_a, h_v):
-    """Integrator update in place to the new displacements ``z`` (history computed before)."""
-    n = d.shape[0]
-    if code == GENERALIZED_ALPHA:
-        b = params[3]
-        for i in range(n):
-            a_hist = (-d[i] - dt * v[i] - dt**2 * (0.5 - b) * a[i]) / (b * dt**2)
-            a_new = z[i] / (b * dt**2) + a_hist
-            acc[i] = c_a * z[i] + h_a[i]
-            v[i] = c_v * z[i] + h_v[i]
-            a[i] = a_new
-            d[i] = z[i]
-    else:
-        for i in range(n):
-            if code == HOUBOLT:
-                d2[i] = d1[i]
-                d1[i] = d[i]
-            v[i] = c_v * z[i] + h_v[i]
-            a[i] = c_a * z[i] + h_a[i]
-            d[i] = z[i]
-
 
 def shape_products(start, end, L, z, delta, G):
     """Shortening 1/2 d^T G d and the four components of G d per segment (second_order.py)."""
@@ -148,7 +110,7 @@ def anderson_coefficients(dR, h, r, gamma, Q, R):
 
 def march(integrator, idx, maps, on_factors, model, settings, state, recorded):
     """March the steps whose configuration indices are ``idx`` (into the map batch), updating
-    the state ``d, v, a, acc, d1, d2`` and the segment axial forces ``P`` in place and writing
+    the integrator states ``S`` and the segment axial forces ``P`` in place and writing
     the outputs of each step into ``out_hist`` / ``z_hist`` / ``P_hist`` (rows; an array with no
     rows is not written) and its iteration count. The responses come from the augmented maps
     ``Zx, Ox, Ax`` (:class:`tmm_core.configuration_batch.StepMaps`) or, with ``factored``, from
@@ -157,31 +119,41 @@ def march(integrator, idx, maps, on_factors, model, settings, state, recorded):
     Returns the number of steps done (``len(idx)`` unless a step failed: then the state is that
     of the step before it).
 
-    Records (tuples, unpacked below): ``integrator = (code, params, dt [s], c_a, c_v)``;
-    ``maps = (Zx, Ox, Ax, P0, rigid, omega)`` and ``on_factors = (factored, flayout, fstored,
-    fwork, Ocx)``, the configuration batch's data
+    Records (tuples, unpacked below): ``integrator = (Hc, Gc, ez, dva, dt [s], c_v)``, the
+    integrator's linear maps (:func:`tmm_core.compiled.integrators.linear_maps`), the positions
+    of the displacement, velocity and acceleration among its state arrays, the step and the
+    velocity coefficient; ``maps = (Zx, Ox, Ax, P0, rigid, omega)`` and ``on_factors = (factored,
+    flayout, fstored, fwork, Ocx)``, the configuration batch's data
     (:func:`tmm_core.time_step.kernel_data`); ``model = (m, aM, beta_node, seg_start,
     seg_end, seg_L, seg_EA, seg_beta, seg_K, gauge_seg)``; ``settings = (coriolis, has_kv,
-    dynamic, shortening, own_force, tol_z, tol_P, max_iterations, depth)``; ``state = (d, v, a,
-    acc, d1, d2, P)``, updated in place; ``recorded = (out_hist, z_hist, P_hist, iterations)``."""
-    code, params, dt, c_a, c_v = integrator
+    dynamic, shortening, own_force, tol_z, tol_P, max_iterations, depth)``; ``state = (S, P)``
+    with ``S (K, n_dof, 1)`` the integrator's state arrays, updated in place; ``recorded =
+    (out_hist, z_hist, P_hist, iterations)``."""
+    Hc, Gc, ez, dva, dt, c_v = integrator
     Zx, Ox, Ax, P0, rigid, omega = maps
     factored, flayout, fstored, fwork, Ocx = on_factors
     m, aM, beta_node, seg_start, seg_end, seg_L, seg_EA, seg_beta, seg_K, gauge_seg = model
     coriolis, has_kv, dynamic, shortening, own_force, tol_z, tol_P, max_iterations, depth = settings
-    d, v, a, acc, d1, d2, P = state
+    S, P = state
     out_hist, z_hist, P_hist, iterations = recorded
 
-    n = d.shape[0]
+    K, n, _ = S.shape
     ns = seg_L.shape[0]
     no = Ox.shape[1]
     nx = n + ns
-    h_a = np.empty(n)
-    h_v = np.empty(n)
-    loads = np.empty(n)
+    # Column arrays (n, 1) for the shared step parts, with 1-D views of the same memory for the
+    # march's own loops.
+    h_a2 = np.empty((n, 1))
+    h_v2 = np.empty((n, 1))
+    loads2 = np.empty((n, 1))
+    zn2 = np.empty((n, 1))
+    Snew = np.empty((K, n, 1))
+    h_v = h_v2.reshape(n)
+    loads = loads2.reshape(n)
+    zn = zn2.reshape(n)
+    d, v, a = S[dva[0], :, 0], S[dva[1], :, 0], S[dva[2], :, 0]
     f = np.empty(n)
     zt = np.empty(n)
-    zn = np.empty(n)
     Pn = np.empty(ns)
     N = np.empty(ns)
     F = np.empty(ns)
@@ -206,23 +178,11 @@ def march(integrator, idx, maps, on_factors, model, settings, state, recorded):
     scale_P = 1e-9 * np.max(seg_EA)
     for j in range(idx.shape[0]):
         k = idx[j]
-        history(code, params, dt, d, v, a, acc, d1, d2, h_a, h_v)
-        # Loads: D'Alembert of the configuration, inertia history, Coriolis, Kelvin-Voigt history.
+        history(Hc, S, h_a2, h_v2)
+        # Loads: the configuration's D'Alembert loads and those of the integrator history.
+        history_loads(k, h_a2, h_v2, model, omega, (coriolis, has_kv), loads2)
         for i in range(n):
-            loads[i] = rigid[k, i] - m[i] * (h_a[i] + aM[i] * h_v[i])
-        if coriolis:
-            for node in range(n // 3):
-                u, w = 3 * node, 3 * node + 1
-                loads[u] += 2.0 * m[u] * omega[k, u] * h_v[w]
-                loads[w] -= 2.0 * m[w] * omega[k, w] * h_v[u]
-        if has_kv:
-            for s in range(ns):
-                i0 = seg_start[s]
-                for p in range(6):
-                    acc_kh = 0.0
-                    for q in range(6):
-                        acc_kh += seg_K[s, p, q] * h_v[i0 + q]
-                    loads[i0 + p] -= beta_node[i0 + p] * acc_kh
+            loads[i] += rigid[k, i]
         if not dynamic:
             # (The factored solve is called only in its branch: passing its tuples of arrays to a
             # helper on every iteration cost the maps' march ~2 us a step.)
@@ -337,7 +297,7 @@ def march(integrator, idx, maps, on_factors, model, settings, state, recorded):
                 return j
             for s in range(ns):
                 P[s] = Pn[s]
-        advance(code, params, dt, c_a, c_v, zn, d, v, a, acc, d1, d2, h_a, h_v)
+        advance(Gc, ez, S, zn2, Snew)
         for o in range(no):
             out_hist[j, o] = outv[o]
         if z_hist.shape[0] > 0:

@@ -16,52 +16,33 @@ that the per-column work is one dense product per step:
   sides instead of n_state), then every column's displacements are ``W @ [loads; axial part]``;
 * the axial-force unknowns and equations of ``J`` are scaled by EA/L (condition ~1e13 -> ~1e5);
 * the integrator's history and update are linear in its state with scalar coefficients per
-  state array, read off the integrator itself (:func:`integrator_coefficients`), so no
-  integrator formula is repeated here;
+  state array, read off the integrator itself (:mod:`tmm_core.compiled.integrators`, which the
+  march steps through too), so no integrator formula is repeated here; nor are the step's
+  history loads (:func:`tmm_core.compiled.time_step.history_loads`, the march's too);
 * state arrays the first step does not see (generalized-alpha: 1 of 4, Newmark: 1 of 3) are not
-  marched: their columns of Phi are combinations of the others (:func:`_dependent_keys`).
+  marched: their columns of Phi are combinations of the others
+  (:func:`dependent_keys`).
 
 Why: the numpy monodromy spent about 1.4 ms per step in Python calls and small dense solves with
 n_state right-hand sides (measured 0.7-1 s per revolution of 720 steps on the FE rig, 54 dof,
 216 states; one to three per periodic solve). Here (same rig, one thread, warm): 0.05 s for the
 linear pass, 0.14 s per monodromy, of which about half is the per-step solve for W.
 
-Kernels are compiled on first use and cached on disk (numba ``cache=True``, in the compiled
-layer's keyed folder: an edit of any kernel file starts a fresh cache, :mod:`tmm_core.compiled.cache`).
+Kernels are compiled on first use (:func:`tmm_core.compiled.binding.linearized`) and cached on
+disk (numba ``cache=True``, in the compiled layer's keyed folder: an edit of any kernel file starts
+a fresh cache, :mod:`tmm_core.compiled.cache`). The Python drivers below (the shooting pass, the
+monodromy, the trajectory's velocities) take the compiled ``kernels`` from their caller
+(:func:`tmm_core.compiled.binding.linearized`), since the binding imports this module.
 
-Owns: the compiled linearized revolutions. Boundaries: the numpy path in tmm_core.periodic is
+Owns: the compiled linearized revolutions (:func:`push`, :func:`velocities`) and their drivers. Boundaries: the numpy path in tmm_core.periodic is
 the reference; the step's maps and data come from :func:`tmm_core.time_step.kernel_data`.
 """
 from __future__ import annotations
 
 import numpy as np
 
-from .binding import single
-
-
-
-def integrator_coefficients(integrator, dt: float):
-    """The integrator as linear maps of its state arrays (every array of ``integrator.initial``):
-    ``(slots, Hc, Gc, ez)`` with ``h_a = sum_j Hc[0, j] x_j``, ``h_v = sum_j Hc[1, j] x_j`` and
-    the update ``x_i' = ez[i] z + sum_j Gc[i, j] x_j`` for new displacements ``z``. Read off by
-    evaluating ``history`` and ``advance`` on unit scalar states (the integrators are linear and
-    act on every degree of freedom alike); ``dt`` [s]."""
-    one, zero = np.ones(1), np.zeros(1)
-    slots = tuple(integrator.initial(zero, zero, zero, (zero, zero)).keys())
-
-    def unit(j):
-        return {s: (one if i == j else zero).copy() for i, s in enumerate(slots)}
-
-    K = len(slots)
-    Hc, Gc, ez = np.zeros((2, K)), np.zeros((K, K)), np.zeros(K)
-    for j in range(K):
-        h_a, h_v = integrator.history(unit(j), dt)
-        Hc[0, j], Hc[1, j] = h_a[0], h_v[0]
-        new = integrator.advance(unit(j), zero, dt)
-        Gc[:, j] = [new[s][0] for s in slots]
-    new = integrator.advance(unit(-1), one, dt)
-    ez[:] = [new[s][0] for s in slots]
-    return slots, Hc, Gc, ez
+from .integrators import advance, history, linear_maps
+from .time_step import history_loads
 
 
 def push(S, coef, idx, forced, maps, model, flags, c_v, trajectory):
@@ -76,7 +57,7 @@ def push(S, coef, idx, forced, maps, model, flags, c_v, trajectory):
     Columns are the last axis: every operation on a degree of freedom is a contiguous row
     operation over the M columns, and the displacements are one matrix product per step.
 
-    Records (tuples, unpacked below): ``coef = (Hc, Gc, ez)`` (:func:`integrator_coefficients`);
+    Records (tuples, unpacked below): ``coef = (Hc, Gc, ez)`` (:func:`tmm_core.compiled.integrators.linear_maps`);
     ``maps = (Zx, Ax, P0, rigid, omega)``; ``model`` the march's model record
     (:meth:`tmm_core.discretization.Discretization.kernel_model`); ``flags = (coriolis, has_kv,
     dynamic)``; ``trajectory = (zs, vs, Ps)``."""
@@ -115,39 +96,8 @@ def push(S, coef, idx, forced, maps, model, flags, c_v, trajectory):
     W2 = np.empty((n, ns))           # the axial-force block of W
     for j in range(idx.shape[0]):
         k = idx[j]
-        for i in range(n):
-            for r in range(M):
-                h_a[i, r] = 0.0
-                h_v[i, r] = 0.0
-            for q in range(K):
-                ca, cv = Hc[0, q], Hc[1, q]
-                if ca != 0.0:
-                    for r in range(M):
-                        h_a[i, r] += ca * S[q, i, r]
-                if cv != 0.0:
-                    for r in range(M):
-                        h_v[i, r] += cv * S[q, i, r]
-        # Loads (tmm_core.time_step.step_loads without the rigid-body part): inertia history, Coriolis,
-        # Kelvin-Voigt history.
-        for i in range(n):
-            for r in range(M):
-                L[i, r] = -m[i] * (h_a[i, r] + aM[i] * h_v[i, r])
-        if coriolis:
-            for node in range(n // 3):
-                u, w = 3 * node, 3 * node + 1
-                cu, cw = 2.0 * m[u] * omega[k, u], 2.0 * m[w] * omega[k, w]
-                for r in range(M):
-                    L[u, r] += cu * h_v[w, r]
-                    L[w, r] -= cw * h_v[u, r]
-        if has_kv:
-            for s in range(ns):
-                i0 = seg_start[s]
-                for p in range(6):
-                    for q in range(6):
-                        c = beta_node[i0 + p] * seg_K[s, p, q]
-                        if c != 0.0:
-                            for r in range(M):
-                                L[i0 + p, r] -= c * h_v[i0 + q, r]
+        history(Hc, S, h_a, h_v)
+        history_loads(k, h_a, h_v, model, omega, (coriolis, has_kv), L)
         if dynamic:
             for s in range(ns):
                 for p in range(4):
@@ -219,49 +169,36 @@ def push(S, coef, idx, forced, maps, model, flags, c_v, trajectory):
                     acc += Zx[k, i, q] * rigid[k, q]
                 for r in range(forced):
                     z[i, r] += acc
-        # Integrator update, the same linear map for every degree of freedom.
-        for p in range(K):
-            for i in range(n):
-                for r in range(M):
-                    Snew[p, i, r] = ez[p] * z[i, r]
-                for q in range(K):
-                    c = Gc[p, q]
-                    if c != 0.0:
-                        for r in range(M):
-                            Snew[p, i, r] += c * S[q, i, r]
-        S[:, :, :] = Snew
+        advance(Gc, ez, S, z, Snew)
 
 
-def velocities(S, Hc, Gc, ez, c_v, zs, vs):
+def velocities(S, coef, c_v, zs, vs):
     """Velocities ``vs[j] = c_v zs[j] + h_v`` along the displacements ``zs`` (N, n_dof) of a march
-    from the states ``S`` (K slots, n_dof; updated in place to the end)."""
-    K, n = S.shape
-    Snew = np.empty((K, n))
+    from the states ``S`` (K slots, n_dof, 1; updated in place to the end); ``coef = (Hc, Gc, ez)``."""
+    Hc, Gc, ez = coef
+    K, n, _ = S.shape
+    Snew = np.empty((K, n, 1))
+    h_a = np.empty((n, 1))
+    h_v = np.empty((n, 1))
+    z = np.empty((n, 1))
     for j in range(zs.shape[0]):
+        history(Hc, S, h_a, h_v)
         for i in range(n):
-            h = 0.0
-            for q in range(K):
-                h += Hc[1, q] * S[q, i]
-            vs[j, i] = c_v * zs[j, i] + h
-        for p in range(K):
-            for i in range(n):
-                acc = ez[p] * zs[j, i]
-                for q in range(K):
-                    acc += Gc[p, q] * S[q, i]
-                Snew[p, i] = acc
-        S[:, :] = Snew
+            vs[j, i] = c_v * zs[j, i] + h_v[i, 0]
+            z[i, 0] = zs[j, i]
+        advance(Gc, ez, S, z, Snew)
 
 
-def trajectory_velocities(integrator, state, zs, dt: float) -> np.ndarray:
+def trajectory_velocities(kernels, integrator, state, zs, dt: float) -> np.ndarray:
     """Velocities after every step of a march with displacements ``zs`` (N, n_dof) from the
     integrator ``state`` (a dict as :meth:`integrator.initial` gives), step ``dt`` [s]: the
     ``v = c_v z + h_v`` of :func:`tmm_core.periodic._revolution`'s Python loop."""
-    slots, Hc, Gc, ez = integrator_coefficients(integrator, dt)
+    slots, Hc, Gc, ez = linear_maps(integrator, dt)
     _, c_v = integrator.coefficients(dt)
     zs = np.ascontiguousarray(zs, dtype=float)
-    S = np.array([np.asarray(state[s], dtype=float) for s in slots])
+    S = np.array([np.asarray(state[s], dtype=float) for s in slots])[:, :, None].copy()
     vs = np.empty_like(zs)
-    single(velocities)(S, Hc, Gc, ez, c_v, zs, vs)
+    kernels.velocities(S, (Hc, Gc, ez), c_v, zs, vs)
     return vs
 
 
@@ -271,13 +208,13 @@ def _inputs(model, data, dt):
     (:class:`tmm_core.discretization.Discretization`): ``(slots, coef, maps, kernel,
     (coriolis, has_kv), c_v)``."""
     Zx, _, Ax, P0, rigid, omega = data[:6]
-    slots, Hc, Gc, ez = integrator_coefficients(model.integrator, dt)
+    slots, Hc, Gc, ez = linear_maps(model.integrator, dt)
     _, c_v = model.integrator.coefficients(dt)
     return slots, (Hc, Gc, ez), (Zx, Ax, P0, rigid, omega), model.kernel_model(), (model.coupling.coriolis,
                                                                                    model.has_kv), c_v
 
 
-def _dependent_keys(slots, keys, Hc, Gc):
+def dependent_keys(slots, keys, Hc, Gc):
     """``(marched, dependent, C)``: positions in ``keys`` of the state arrays whose unit states are
     marched, of the others, and ``C`` (len(marched), len(dependent)) with
     ``Phi e_dependent[t] = sum_p C[p, t] Phi e_marched[p]`` per degree of freedom.
@@ -332,29 +269,29 @@ def _expand(X, marched, dependent, C, n):
     return Phi
 
 
-def linear_shooting(model, data, keys, N: int, dt: float):
+def linear_shooting(kernels, model, data, keys, N: int, dt: float):
     """The linear step's revolution ``x_N = Phi x_0 + c`` (as the first pass of
     :func:`tmm_core.periodic.periodic_steady_state`): ``(Phi, c)`` for the stacked state of
     ``keys``, ``data`` being the compiled-march arrays of the N configurations of the revolution
     (:func:`tmm_core.time_step.kernel_data`, with the maps)."""
     slots, coef, maps, kernel, flags, c_v = _inputs(model, data, dt)
     n = model.n_dof
-    marched, dependent, C = _dependent_keys(slots, keys, coef[0], coef[1])
+    marched, dependent, C = dependent_keys(slots, keys, coef[0], coef[1])
     S = _initial_states(slots, keys, n, marched, extra=1)
     no_trajectory = (np.zeros((0, n)), np.zeros((0, n)), np.zeros((0, len(model.segments.length))))
-    single(push)(S, coef, np.arange(1, N + 1) % N, 1, maps, kernel, (*flags, False), c_v, no_trajectory)
+    kernels.push(S, coef, np.arange(1, N + 1) % N, 1, maps, kernel, (*flags, False), c_v, no_trajectory)
     X = _stacked(S, slots, keys)
     return _expand(X[:, 1:], marched, dependent, C, n), X[:, 0].copy()
 
 
-def monodromy(model, data, keys, trajectory, dt: float) -> np.ndarray:
+def monodromy(kernels, model, data, keys, trajectory, dt: float) -> np.ndarray:
     """Monodromy matrix of the second-order step linearized about ``trajectory`` (a list of
     ``(idx, z, v, P)`` per step, as :func:`tmm_core.periodic._revolution` returns it); ``data`` as
     :func:`linear_shooting`."""
     slots, coef, maps, kernel, flags, c_v = _inputs(model, data, dt)
     idx = np.array([t[0] for t in trajectory], dtype=np.int64)
     linearized_about = tuple(np.ascontiguousarray(np.array([t[i] for t in trajectory]), dtype=float) for i in (1, 2, 3))
-    marched, dependent, C = _dependent_keys(slots, keys, coef[0], coef[1])
+    marched, dependent, C = dependent_keys(slots, keys, coef[0], coef[1])
     S = _initial_states(slots, keys, model.n_dof, marched)
-    single(push)(S, coef, idx, 0, maps, kernel, (*flags, True), c_v, linearized_about)
+    kernels.push(S, coef, idx, 0, maps, kernel, (*flags, True), c_v, linearized_about)
     return _expand(_stacked(S, slots, keys), marched, dependent, C, model.n_dof)

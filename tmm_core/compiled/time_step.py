@@ -1,5 +1,10 @@
-"""Compiled factorizations kept per configuration, and a time step's solve on them (numba): the
-map-free path of the compiled march (:mod:`tmm_core.compiled.march`).
+"""The compiled time step's loads, the factorizations kept per configuration, and a step's solve
+on them (numba): what the compiled march (:mod:`tmm_core.compiled.march`) and the periodic
+solver's linearized revolutions (:mod:`tmm_core.compiled.periodic`) share of a step.
+
+A step's loads linear in the integrator history (inertia, Coriolis and Kelvin-Voigt history:
+:func:`history_loads`) are written here once, for M columns of states, and mirror
+:func:`tmm_core.time_step.step_loads`; the march adds the configuration's rigid-body loads.
 
 The load-to-response maps of :mod:`tmm_core.step_data` cost ``n_dof + 1`` solves per
 configuration to build and ``O(n_dof^2)`` memory and work per step: quadratic in the segments.
@@ -11,8 +16,9 @@ the segments. The outputs (drive torque, gauge strains) are affine in the joint 
 gauges' station states; their coefficients per configuration come from the Python side
 (:func:`tmm_core.step_data.compiled_factors`).
 
-Owns: the stored factorizations (:func:`factor_range`, a range of a batch's configurations) and the solve of
-one set of node loads on one of them (:func:`factored_solve`). Boundaries: the factorization and
+Owns: a step's history loads (:func:`history_loads`), the stored factorizations (:func:`factor_range`,
+a range of a batch's configurations) and the solve of one set of node loads on one of them
+(:func:`factored_solve`). Boundaries: the factorization and
 the load solve themselves are :mod:`tmm_core.compiled.riccati` and :mod:`tmm_core.compiled.structure`.
 """
 from __future__ import annotations
@@ -30,6 +36,38 @@ solve_loads = structure.solve_loads
 STORED = {"lead": 5, "prefix": 5, "lcol": 3, "B0": 4, "T220": 4, "SP": 4, "TL": 4, "Gis": 5, "Xs": 5, "BGis": 5,
           "HGis": 5, "Cs": 5, "Ds": 5, "Af": 4, "Bf": 4, "firsts": 2, "Kfull": 3, "lu": 3, "piv": 2}
 INTEGER = ("firsts", "piv")
+
+
+def history_loads(k, h_a, h_v, model, omega, flags, L):
+    """The loads [N, N m] of a step at configuration ``k`` that are linear in the integrator
+    history ``h_a, h_v`` (n_dof, M columns), into ``L[:n_dof]``: the inertia history with mass
+    damping, the Coriolis terms and the Kelvin-Voigt history; :func:`tmm_core.time_step.step_loads`
+    with ``rigid=False``. ``model`` is the model record
+    (:meth:`tmm_core.discretization.Discretization.kernel_model`), ``omega`` (B, n_dof) each DOF's
+    link speed [rad/s] per configuration, ``flags = (coriolis, has_kv)``."""
+    m, aM, beta_node, seg_start, _end, _length, _EA, _beta, seg_K, _gauges = model
+    coriolis, has_kv = flags
+    n, M = h_a.shape
+    for i in range(n):
+        for r in range(M):
+            L[i, r] = -m[i] * (h_a[i, r] + aM[i] * h_v[i, r])
+    if coriolis:
+        # At u rows the w-velocity history of the same node, at w rows the u-velocity one.
+        for node in range(n // 3):
+            u, w = 3 * node, 3 * node + 1
+            cu, cw = 2.0 * m[u] * omega[k, u], 2.0 * m[w] * omega[k, w]
+            for r in range(M):
+                L[u, r] += cu * h_v[w, r]
+                L[w, r] -= cw * h_v[u, r]
+    if has_kv:
+        for s in range(seg_start.shape[0]):
+            i0 = seg_start[s]
+            for p in range(6):
+                for q in range(6):
+                    c = beta_node[i0 + p] * seg_K[s, p, q]
+                    if c != 0.0:
+                        for r in range(M):
+                            L[i0 + p, r] -= c * h_v[i0 + q, r]
 
 
 def factor_range(b_start, b_stop, segments, configuration, joints, checks, stored):

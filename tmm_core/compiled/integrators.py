@@ -1,0 +1,82 @@
+"""The implicit integrators of the compiled steps (numba): every integrator of
+:mod:`tmm_core.integrators` as linear maps of its state arrays, and the two kernels that apply
+them (the history before a step, the update after it).
+
+The integrators are linear and act on every degree of freedom alike, so each is fully described
+by a few scalar coefficients per state array (:func:`linear_maps`), read off the numpy
+integrator itself by evaluating its ``history`` and ``advance`` on unit states. No integrator
+formula is written here: the numpy classes are the one place that defines them, and the
+compiled march and the periodic solver's linearized revolutions both step through
+:func:`history` and :func:`advance` on those coefficients.
+
+States are stacked as ``S (K, n_dof, M)``: the integrator's K state arrays (in the order of its
+``initial`` keys) for M columns (one for a march, the unit states for a monodromy); the columns
+are the last axis so that every operation is a contiguous row operation.
+
+Owns: the integrators' linear maps and their compiled application. Boundaries: the formulas are
+tmm_core.integrators'; compiled and bound by tmm_core.compiled.binding.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+
+def linear_maps(integrator, dt: float):
+    """The integrator as linear maps of its state arrays: ``(slots, Hc, Gc, ez)`` with the
+    history ``h_a = sum_j Hc[0, j] x_j``, ``h_v = sum_j Hc[1, j] x_j`` and the update
+    ``x_i' = ez[i] z + sum_j Gc[i, j] x_j`` for new displacements ``z``; ``slots`` names the
+    state arrays (``integrator.initial``'s keys), ``dt`` [s]. Plain Python (not compiled)."""
+    one, zero = np.ones(1), np.zeros(1)
+    slots = tuple(integrator.initial(zero, zero, zero, (zero, zero)).keys())
+
+    def unit(j):
+        return {s: (one if i == j else zero).copy() for i, s in enumerate(slots)}
+
+    K = len(slots)
+    Hc, Gc, ez = np.zeros((2, K)), np.zeros((K, K)), np.zeros(K)
+    for j in range(K):
+        h_a, h_v = integrator.history(unit(j), dt)
+        Hc[0, j], Hc[1, j] = h_a[0], h_v[0]
+        new = integrator.advance(unit(j), zero, dt)
+        Gc[:, j] = [new[s][0] for s in slots]
+    new = integrator.advance(unit(-1), one, dt)
+    ez[:] = [new[s][0] for s in slots]
+    return slots, Hc, Gc, ez
+
+
+def history(Hc, S, h_a, h_v):
+    """The integrator history ``h_a, h_v`` (n_dof, M) of the states ``S`` (K, n_dof, M): the
+    acceleration and velocity are ``a = c_a z + h_a``, ``v = c_v z + h_v`` in the step's new
+    displacements ``z`` (:meth:`tmm_core.integrators.Newmark.history` and its peers)."""
+    K, n, M = S.shape
+    for i in range(n):
+        for r in range(M):
+            h_a[i, r] = 0.0
+            h_v[i, r] = 0.0
+        for q in range(K):
+            ca, cv = Hc[0, q], Hc[1, q]
+            if ca != 0.0:
+                for r in range(M):
+                    h_a[i, r] += ca * S[q, i, r]
+            if cv != 0.0:
+                for r in range(M):
+                    h_v[i, r] += cv * S[q, i, r]
+
+
+def advance(Gc, ez, S, z, Snew):
+    """The integrator update of the states ``S`` (K, n_dof, M) in place to the new displacements
+    ``z`` (n_dof, M); ``Snew`` is scratch of the shape of ``S``."""
+    K, n, M = S.shape
+    for p in range(K):
+        for i in range(n):
+            for r in range(M):
+                Snew[p, i, r] = ez[p] * z[i, r]
+            for q in range(K):
+                c = Gc[p, q]
+                if c != 0.0:
+                    for r in range(M):
+                        Snew[p, i, r] += c * S[q, i, r]
+    for p in range(K):
+        for i in range(n):
+            for r in range(M):
+                S[p, i, r] = Snew[p, i, r]
