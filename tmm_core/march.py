@@ -145,7 +145,7 @@ class March:
             recorded = (outs[j:], zs[j:] if record_z else zs, Ps[j:] if record_axial else Ps, iterations[j:])
             done = kernel_binding.march()(integrator, indices[j:], data[:6], data[6:], kernel, settings,
                                           (S, P), recorded)
-            self.state = {key: S[i, :, 0].copy() for i, key in enumerate(slots)}
+            self.state = {key: S[i].copy() for i, key in enumerate(slots)}
             self.axial = P.copy() if dynamic else self.axial
             j += done
             if j < len(indices):
@@ -166,8 +166,8 @@ class March:
         return (zs, outs, Ps) if record_axial else (zs, outs)
 
     def _stacked_state(self, slots):
-        """The integrator's state arrays stacked ``(K, n_dof, 1)``, as the compiled march holds them."""
-        return np.ascontiguousarray(np.stack([np.asarray(self.state[key], dtype=float) for key in slots])[:, :, None])
+        """The integrator's state arrays stacked ``(K, n_dof)``, as the compiled march holds them."""
+        return np.stack([np.asarray(self.state[key], dtype=float) for key in slots])
 
     def _commit(self, z, out):
         model = self.model

@@ -9,9 +9,10 @@ formula is written here: the numpy classes are the one place that defines them, 
 compiled march and the periodic solver's linearized revolutions both step through
 :func:`history` and :func:`advance` on those coefficients.
 
-States are stacked as ``S (K, n_dof, M)``: the integrator's K state arrays (in the order of its
-``initial`` keys) for M columns (one for a march, the unit states for a monodromy); the columns
-are the last axis so that every operation is a contiguous row operation.
+States are stacked as ``S (K, L)``: the integrator's K state arrays (in the order of its
+``initial`` keys), each flattened to L values (n_dof for a march; n_dof times the unit states for
+a monodromy, a C-ordered ``(K, n_dof, M)`` array reshaped): the maps act on every value alike, so
+each is one contiguous loop.
 
 Owns: the integrators' linear maps and their compiled application. Boundaries: the formulas are
 tmm_core.integrators'; compiled and bound by tmm_core.compiled.binding.
@@ -45,38 +46,35 @@ def linear_maps(integrator, dt: float):
 
 
 def history(Hc, S, h_a, h_v):
-    """The integrator history ``h_a, h_v`` (n_dof, M) of the states ``S`` (K, n_dof, M): the
-    acceleration and velocity are ``a = c_a z + h_a``, ``v = c_v z + h_v`` in the step's new
-    displacements ``z`` (:meth:`tmm_core.integrators.Newmark.history` and its peers)."""
-    K, n, M = S.shape
-    for i in range(n):
-        for r in range(M):
-            h_a[i, r] = 0.0
-            h_v[i, r] = 0.0
-        for q in range(K):
-            ca, cv = Hc[0, q], Hc[1, q]
-            if ca != 0.0:
-                for r in range(M):
-                    h_a[i, r] += ca * S[q, i, r]
-            if cv != 0.0:
-                for r in range(M):
-                    h_v[i, r] += cv * S[q, i, r]
+    """The integrator history ``h_a, h_v`` (L,) of the states ``S`` (K, L): the acceleration and
+    velocity are ``a = c_a z + h_a``, ``v = c_v z + h_v`` in the step's new displacements ``z``
+    (:meth:`tmm_core.integrators.Newmark.history` and its peers)."""
+    K, L = S.shape
+    for i in range(L):
+        h_a[i] = 0.0
+        h_v[i] = 0.0
+    for q in range(K):
+        ca, cv = Hc[0, q], Hc[1, q]
+        if ca != 0.0:
+            for i in range(L):
+                h_a[i] += ca * S[q, i]
+        if cv != 0.0:
+            for i in range(L):
+                h_v[i] += cv * S[q, i]
 
 
 def advance(Gc, ez, S, z, Snew):
-    """The integrator update of the states ``S`` (K, n_dof, M) in place to the new displacements
-    ``z`` (n_dof, M); ``Snew`` is scratch of the shape of ``S``."""
-    K, n, M = S.shape
+    """The integrator update of the states ``S`` (K, L) in place to the new displacements ``z``
+    (L,); ``Snew`` is scratch of the shape of ``S``."""
+    K, L = S.shape
     for p in range(K):
-        for i in range(n):
-            for r in range(M):
-                Snew[p, i, r] = ez[p] * z[i, r]
-            for q in range(K):
-                c = Gc[p, q]
-                if c != 0.0:
-                    for r in range(M):
-                        Snew[p, i, r] += c * S[q, i, r]
+        for i in range(L):
+            Snew[p, i] = ez[p] * z[i]
+        for q in range(K):
+            c = Gc[p, q]
+            if c != 0.0:
+                for i in range(L):
+                    Snew[p, i] += c * S[q, i]
     for p in range(K):
-        for i in range(n):
-            for r in range(M):
-                S[p, i, r] = Snew[p, i, r]
+        for i in range(L):
+            S[p, i] = Snew[p, i]

@@ -19,7 +19,7 @@ refactorizes at the step's own axial forces) and resumes.
 The integrator (:mod:`tmm_core.compiled.integrators`, any integrator of
 :mod:`tmm_core.integrators` as its linear maps) and the step's history loads
 (:func:`tmm_core.compiled.time_step.history_loads`) are the parts the periodic solver's
-linearized revolutions share; the march holds one state column (``M = 1``).
+linearized revolutions share.
 
 Kernels are compiled on first use by :mod:`tmm_core.compiled.binding` and cached on disk.
 
@@ -127,7 +127,7 @@ def march(integrator, idx, maps, on_factors, model, settings, state, recorded):
     (:func:`tmm_core.time_step.kernel_data`); ``model = (m, aM, beta_node, seg_start,
     seg_end, seg_L, seg_EA, seg_beta, seg_K, gauge_seg)``; ``settings = (coriolis, has_kv,
     dynamic, shortening, own_force, tol_z, tol_P, max_iterations, depth)``; ``state = (S, P)``
-    with ``S (K, n_dof, 1)`` the integrator's state arrays, updated in place; ``recorded =
+    with ``S (K, n_dof)`` the integrator's state arrays, updated in place; ``recorded =
     (out_hist, z_hist, P_hist, iterations)``."""
     Hc, Gc, ez, dva, dt, c_v = integrator
     Zx, Ox, Ax, P0, rigid, omega = maps
@@ -137,21 +137,21 @@ def march(integrator, idx, maps, on_factors, model, settings, state, recorded):
     S, P = state
     out_hist, z_hist, P_hist, iterations = recorded
 
-    K, n, _ = S.shape
+    K, n = S.shape
     ns = seg_L.shape[0]
     no = Ox.shape[1]
     nx = n + ns
-    # Column arrays (n, 1) for the shared step parts, with 1-D views of the same memory for the
-    # march's own loops.
+    # The history loads take one column (n, 1); the march's own loops read 1-D views of the same
+    # memory.
     h_a2 = np.empty((n, 1))
     h_v2 = np.empty((n, 1))
     loads2 = np.empty((n, 1))
-    zn2 = np.empty((n, 1))
-    Snew = np.empty((K, n, 1))
+    Snew = np.empty((K, n))
+    h_a = h_a2.reshape(n)
     h_v = h_v2.reshape(n)
     loads = loads2.reshape(n)
-    zn = zn2.reshape(n)
-    d, v, a = S[dva[0], :, 0], S[dva[1], :, 0], S[dva[2], :, 0]
+    zn = np.empty(n)
+    d, v, a = S[dva[0]], S[dva[1]], S[dva[2]]
     f = np.empty(n)
     zt = np.empty(n)
     Pn = np.empty(ns)
@@ -178,7 +178,7 @@ def march(integrator, idx, maps, on_factors, model, settings, state, recorded):
     scale_P = 1e-9 * np.max(seg_EA)
     for j in range(idx.shape[0]):
         k = idx[j]
-        history(Hc, S, h_a2, h_v2)
+        history(Hc, S, h_a, h_v)
         # Loads: the configuration's D'Alembert loads and those of the integrator history.
         history_loads(k, h_a2, h_v2, model, omega, (coriolis, has_kv), loads2)
         for i in range(n):
@@ -297,7 +297,7 @@ def march(integrator, idx, maps, on_factors, model, settings, state, recorded):
                 return j
             for s in range(ns):
                 P[s] = Pn[s]
-        advance(Gc, ez, S, zn2, Snew)
+        advance(Gc, ez, S, zn, Snew)
         for o in range(no):
             out_hist[j, o] = outv[o]
         if z_hist.shape[0] > 0:

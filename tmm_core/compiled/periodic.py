@@ -94,9 +94,14 @@ def push(S, coef, idx, forced, maps, model, flags, c_v, trajectory):
     B = np.zeros((nx, nx))           # [[Z, 0], [A, I]], rows scaled like J's
     W1 = np.zeros((n, n + 1))        # the load block of W (and a zero column, as L's zero row)
     W2 = np.empty((n, ns))           # the axial-force block of W
+    # Flat views for the integrator, which acts on every value alike.
+    S_flat = S.reshape((K, n * M))
+    Snew_flat = Snew.reshape((K, n * M))
+    h_a_flat = h_a.reshape(n * M)
+    h_v_flat = h_v.reshape(n * M)
     for j in range(idx.shape[0]):
         k = idx[j]
-        history(Hc, S, h_a, h_v)
+        history(Hc, S_flat, h_a_flat, h_v_flat)
         history_loads(k, h_a, h_v, model, omega, (coriolis, has_kv), L)
         if dynamic:
             for s in range(ns):
@@ -169,24 +174,22 @@ def push(S, coef, idx, forced, maps, model, flags, c_v, trajectory):
                     acc += Zx[k, i, q] * rigid[k, q]
                 for r in range(forced):
                     z[i, r] += acc
-        advance(Gc, ez, S, z, Snew)
+        advance(Gc, ez, S_flat, z.reshape(n * M), Snew_flat)
 
 
 def velocities(S, coef, c_v, zs, vs):
     """Velocities ``vs[j] = c_v zs[j] + h_v`` along the displacements ``zs`` (N, n_dof) of a march
-    from the states ``S`` (K slots, n_dof, 1; updated in place to the end); ``coef = (Hc, Gc, ez)``."""
+    from the states ``S`` (K slots, n_dof; updated in place to the end); ``coef = (Hc, Gc, ez)``."""
     Hc, Gc, ez = coef
-    K, n, _ = S.shape
-    Snew = np.empty((K, n, 1))
-    h_a = np.empty((n, 1))
-    h_v = np.empty((n, 1))
-    z = np.empty((n, 1))
+    K, n = S.shape
+    Snew = np.empty((K, n))
+    h_a = np.empty(n)
+    h_v = np.empty(n)
     for j in range(zs.shape[0]):
         history(Hc, S, h_a, h_v)
         for i in range(n):
-            vs[j, i] = c_v * zs[j, i] + h_v[i, 0]
-            z[i, 0] = zs[j, i]
-        advance(Gc, ez, S, z, Snew)
+            vs[j, i] = c_v * zs[j, i] + h_v[i]
+        advance(Gc, ez, S, zs[j], Snew)
 
 
 def trajectory_velocities(kernels, integrator, state, zs, dt: float) -> np.ndarray:
@@ -196,7 +199,7 @@ def trajectory_velocities(kernels, integrator, state, zs, dt: float) -> np.ndarr
     slots, Hc, Gc, ez = linear_maps(integrator, dt)
     _, c_v = integrator.coefficients(dt)
     zs = np.ascontiguousarray(zs, dtype=float)
-    S = np.array([np.asarray(state[s], dtype=float) for s in slots])[:, :, None].copy()
+    S = np.array([np.asarray(state[s], dtype=float) for s in slots])
     vs = np.empty_like(zs)
     kernels.velocities(S, (Hc, Gc, ez), c_v, zs, vs)
     return vs

@@ -36,6 +36,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .dense import dot, lu_factor, lu_solve, lu_solve_many  # the compiled ones once bound (tmm_core.compiled.binding)
+
 
 #: Refactorize while the chord iteration contracts slower than this (update ratio).
 CHORD_CONTRACTION = 0.03
@@ -52,132 +54,6 @@ STALL_FACTOR = 1e3
 #: was at most this (the chord iteration then contracts by about this factor: the Newton matrix
 #: moves in proportion to the state).
 CHORD_START = 0.1
-def lu_factor(a, piv):
-    """In-place LU with partial pivoting of the square ``a`` (LAPACK getrf's pivots, rows swapped
-    whole); ``piv[k]`` is the row swapped with row k. Blocked by 4 columns: the trailing update
-    subtracts four pivot rows in one pass over each row (half the memory traffic of one at a
-    time), on one-dimensional row views (which numba's loops vectorize better than 2-D indexing):
-    measured 2.5x faster than the plain loop at 69 x 69."""
-    n = a.shape[0]
-    for k0 in range(0, n, 4):
-        k1 = min(k0 + 4, n)
-        # Panel: columns k0..k1-1 of every row below, with the pivot search over all of them.
-        for k in range(k0, k1):
-            p = k
-            big = abs(a[k, k])
-            for i in range(k + 1, n):
-                if abs(a[i, k]) > big:
-                    big = abs(a[i, k])
-                    p = i
-            piv[k] = p
-            if p != k:
-                for j in range(n):
-                    t = a[k, j]
-                    a[k, j] = a[p, j]
-                    a[p, j] = t
-            inv = 1.0 / a[k, k]
-            for i in range(k + 1, n):
-                l_ = a[i, k] * inv
-                a[i, k] = l_
-                for j in range(k + 1, k1):
-                    a[i, j] -= l_ * a[k, j]
-        # The pivot rows right of the panel, then the trailing rows.
-        for k in range(k0, k1):
-            for i in range(k + 1, k1):
-                l_ = a[i, k]
-                for j in range(k1, n):
-                    a[i, j] -= l_ * a[k, j]
-        if k1 - k0 == 4:
-            m = n - k1
-            p0, p1, p2, p3 = a[k0, k1:], a[k0 + 1, k1:], a[k0 + 2, k1:], a[k0 + 3, k1:]
-            for i in range(k1, n):
-                l0, l1, l2, l3 = a[i, k0], a[i, k0 + 1], a[i, k0 + 2], a[i, k0 + 3]
-                row = a[i, k1:]
-                for j in range(m):
-                    row[j] -= l0 * p0[j] + l1 * p1[j] + l2 * p2[j] + l3 * p3[j]
-        else:
-            for i in range(k1, n):
-                for k in range(k0, k1):
-                    l_ = a[i, k]
-                    for j in range(k1, n):
-                        a[i, j] -= l_ * a[k, j]
-
-
-def dot(x, y, lo, hi):
-    """``sum x[lo:hi] y[lo:hi]`` with four partial sums (a single running sum waits on the
-    latency of every addition: 3x slower)."""
-    s0 = 0.0
-    s1 = 0.0
-    s2 = 0.0
-    s3 = 0.0
-    k = lo
-    while k + 4 <= hi:
-        s0 += x[k] * y[k]
-        s1 += x[k + 1] * y[k + 1]
-        s2 += x[k + 2] * y[k + 2]
-        s3 += x[k + 3] * y[k + 3]
-        k += 4
-    while k < hi:
-        s0 += x[k] * y[k]
-        k += 1
-    return (s0 + s1) + (s2 + s3)
-
-
-def lu_solve(lu, piv, b):
-    """``b <- A^{-1} b`` in place for one right-hand side (``lu``, ``piv`` from lu_factor)."""
-    n = lu.shape[0]
-    for k in range(n):
-        p = piv[k]
-        if p != k:
-            t = b[k]
-            b[k] = b[p]
-            b[p] = t
-    for i in range(n):
-        b[i] -= dot(lu[i], b, 0, i)
-    for i in range(n - 1, -1, -1):
-        b[i] = (b[i] - dot(lu[i], b, i + 1, n)) / lu[i, i]
-
-
-def lu_solve_many(lu, piv, B):
-    """``B <- A^{-1} B`` in place for the columns of ``B``: row operations on contiguous rows,
-    four rows of the factor at a time (as in lu_factor)."""
-    n, m = B.shape
-    for k in range(n):
-        p = piv[k]
-        if p != k:
-            for j in range(m):
-                t = B[k, j]
-                B[k, j] = B[p, j]
-                B[p, j] = t
-    for i in range(n):                       # forward: L Y = B (unit diagonal)
-        subtract_rows(lu, i, B, 0, i)
-    for i in range(n - 1, -1, -1):           # backward: U X = Y
-        subtract_rows(lu, i, B, i + 1, n)
-        inv = 1.0 / lu[i, i]
-        row = B[i]
-        for j in range(m):
-            row[j] *= inv
-
-
-def subtract_rows(lu, i, B, lo, hi):
-    """``B[i] -= sum(lu[i, k] B[k] for lo <= k < hi)``, four rows of ``B`` per pass over ``B[i]``."""
-    m = B.shape[1]
-    row = B[i]
-    k = lo
-    while k + 4 <= hi:
-        l0, l1, l2, l3 = lu[i, k], lu[i, k + 1], lu[i, k + 2], lu[i, k + 3]
-        b0, b1, b2, b3 = B[k], B[k + 1], B[k + 2], B[k + 3]
-        for j in range(m):
-            row[j] -= l0 * b0[j] + l1 * b1[j] + l2 * b2[j] + l3 * b3[j]
-        k += 4
-    while k < hi:
-        l_ = lu[i, k]
-        b0 = B[k]
-        for j in range(m):
-            row[j] -= l_ * b0[j]
-        k += 1
-
-
 def stage_states(h, A, A2, c, eta, v, acc, es, vs):
     """Collocation state at the three stages: ``eta'_i = eta' + h sum_j A_ij acc_j``,
     ``eta_i = eta + h c_i eta' + h^2 sum_j (A^2)_ij acc_j``."""

@@ -296,7 +296,10 @@ def factor_configuration(bi, segments, configuration, joints, checks, factors, s
     negative[bi, 1] = ng
     pivots[bi, 0] = pmin
     pivots[bi, 1] = pmax
-    if not lu_factor(Kff, nf, lu, piv):
+    for i in range(nf):
+        for j in range(nf):
+            lu[i, j] = Kff[i, j]
+    if not lu_factor(lu, piv):
         status[bi] = 2
         return False
     return True

@@ -33,6 +33,8 @@ import math
 
 import numpy as np
 
+from .dense import lu_solve_many  # the compiled one once bound (tmm_core.compiled.binding)
+
 
 def maps_scratch(M, mmax, nd, nf, Nn, R):
     """The work arrays of :func:`solve_loads_many` for ``M`` members of at most ``mmax`` chain
@@ -221,24 +223,12 @@ def solve_loads_many(bi, Fn, joints, outputs, factors, scratch):
             rfull[e0, ri] += cp * q0 + sn * q1
             rfull[e1, ri] += -sn * q0 + cp * q1
             rfull[e2, ri] += q2
-    # -- joint solve (dense.lu_solve's order), displacements and joint forces -------
+    # -- joint solve (the one-load solve's, dense.lu_solve_many), displacements and joint forces --
     for i in range(nf):
-        src = free[piv[i]]
+        src = free[i]
         for ri in range(Rp):
             xf[i, ri] = -rfull[src, ri]
-    for i in range(nf):
-        for j in range(i):
-            lij = lu[i, j]
-            for ri in range(Rp):
-                xf[i, ri] -= lij * xf[j, ri]
-    for k in range(nf - 1, -1, -1):
-        for j in range(k + 1, nf):
-            lkj = lu[k, j]
-            for ri in range(Rp):
-                xf[k, ri] -= lkj * xf[j, ri]
-        dk = lu[k, k]
-        for ri in range(Rp):
-            xf[k, ri] = xf[k, ri] / dk
+    lu_solve_many(lu, piv, xf)
     for i in range(nd):
         for ri in range(Rp):
             qv[i, ri] = 0.0

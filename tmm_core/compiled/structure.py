@@ -55,7 +55,7 @@ import math
 import numpy as np
 
 from .. import matrices
-from .dense import iteration_converged, lu_solve, state_change
+from .dense import iteration_converged, lu_solve_many, state_change
 from .riccati import factor_configuration, factor_scratch
 from .step_data import maps_scratch, solve_loads_many
 
@@ -144,7 +144,6 @@ def solve_range(b_start, b_stop, segments, configuration, Fn, joints, outputs, c
     rfull = np.zeros(nd)
     lu = np.zeros((nf, nf))
     piv = np.zeros(nf, dtype=np.int64)
-    rhs = np.zeros(nf)
     xf = np.zeros(nf)
     qv = np.zeros(nd)
     a = np.zeros(3)
@@ -164,7 +163,7 @@ def solve_range(b_start, b_stop, segments, configuration, Fn, joints, outputs, c
     scratch = maps_scratch(M, mmax, nd, nf, Kn.shape[1], R_many)
     factors = (lead, prefix, lcol, B0, T220, SP, TL, Gis, Xs, BGis, HGis, Cs, Ds, Af, Bf, firsts, Kfull, lu, piv)
     load_joints = (seg_off, rigid, angle, ends, free)
-    load_work = (pcol, ys, cs, af, t6, t1, t2, a, c, y, v3, rfull, rhs, xf, qv, zl, zs, ze, qe, S0, zj, stn, zi, fi)
+    load_work = (pcol, ys, cs, af, t6, t1, t2, a, c, y, v3, rfull, xf, qv, zl, zs, ze, qe, S0, zj, stn, zi, fi)
 
     tol, max_iter, recount = iteration
     cnt = count.copy()
@@ -228,12 +227,12 @@ def solve_loads(bi, Fn, joints, outputs, factors, work):
     Records: ``joints = (seg_off, rigid, angle, ends, free)``, ``outputs = (states, q_out,
     reaction, zout, nout, gnode, gstate)`` (as :func:`solve_range`), ``factors`` the
     configuration's factorization (:func:`tmm_core.compiled.riccati.factor_configuration`),
-    ``work = (pcol, ys, cs, af, t6, t1, t2, a, c, y, v3, rfull, rhs, xf, qv, zl, zs, ze, qe, S0,
+    ``work = (pcol, ys, cs, af, t6, t1, t2, a, c, y, v3, rfull, xf, qv, zl, zs, ze, qe, S0,
     zj, stn, zi, fi)`` scratch arrays."""
     seg_off, rigid, angle, ends, free = joints
     states, q_out, reaction, zout, nout, gnode, gstate = outputs
     lead, prefix, lcol, B0, T220, SP, TL, Gis, Xs, BGis, HGis, Cs, Ds, Af, Bf, firsts, Kfull, lu, piv = factors
-    pcol, ys, cs, af, t6, t1, t2, a, c, y, v3, rfull, rhs, xf, qv, zl, zs, ze, qe, S0, zj, stn, zi, fi = work
+    pcol, ys, cs, af, t6, t1, t2, a, c, y, v3, rfull, xf, qv, zl, zs, ze, qe, S0, zj, stn, zi, fi = work
     R, M, nd, nf = Fn.shape[1], seg_off.shape[0] - 1, Kfull.shape[0], lu.shape[0]
     full, compact = states.shape[1] > 0, zout.shape[1] > 0
     # -- every load set: load sweep (tmm_core.riccati.sweep_loads), joint solve, states ------
@@ -303,9 +302,10 @@ def solve_loads(bi, Fn, joints, outputs, factors, work):
                 rfull[ends[mi, o]] += cp * qe[o] + sn * qe[o + 1]
                 rfull[ends[mi, o + 1]] += -sn * qe[o] + cp * qe[o + 1]
                 rfull[ends[mi, o + 2]] += qe[o + 2]
+        # The joint solve as the maps' (one column of the same solve: equal bit for bit).
         for i in range(nf):
-            rhs[i] = -rfull[free[i]]
-        lu_solve(lu, piv, nf, rhs, xf)
+            xf[i] = -rfull[free[i]]
+        lu_solve_many(lu, piv, xf.reshape((nf, 1)))
         for i in range(nd):
             qv[i] = 0.0
         for i in range(nf):

@@ -106,7 +106,7 @@ def work_arrays(M, mmax, Nn, S, nd, nf, G):
             np.zeros((1, 3 * Nn, 1)), np.zeros((1, S, 1)), np.zeros((1, G, 6, 1)),
             np.zeros((M, mmax + 1, 6)), np.zeros((M, mmax, 3)), np.zeros((M, mmax + 1, 3)), np.zeros((M, 3)),
             np.zeros(6), np.zeros(3), np.zeros(3), np.zeros(3), np.zeros(3), np.zeros(3), np.zeros(3), np.zeros(nd),
-            np.zeros(nf), np.zeros(nf), np.zeros(nd), np.zeros(6), np.zeros(3), np.zeros(3), np.zeros(6), np.zeros(6),
+            np.zeros(nf), np.zeros(nd), np.zeros(6), np.zeros(3), np.zeros(3), np.zeros(6), np.zeros(6),
             np.zeros((mmax + 1, 3)), np.zeros((Nn, 2, 6)), np.array([0, 1, 2]), np.array([5, 4, 3]))
 
 
@@ -119,7 +119,7 @@ def factored_solve(k, f, layout, stored, work, zn, N, y):
     ``layout = (seg_off, rigid, angle (B, M), ends, free, gauge nodes)``."""
     seg_off, rigid, angle, ends, free, gnode = layout
     lead, prefix, lcol, B0, T220, SP, TL, Gis, Xs, BGis, HGis, Cs, Ds, Af, Bf, firsts, Kfull, lu, piv = stored
-    (Fn, states, q_out, reaction, zout, nout, gstate, pcol, ys, cs, af, t6, t1, t2, a, c, yv, v3, rfull, rhs, xf, qv,
+    (Fn, states, q_out, reaction, zout, nout, gstate, pcol, ys, cs, af, t6, t1, t2, a, c, yv, v3, rfull, xf, qv,
      zl, zs, ze, qe, S0, zj, stn, zi, fi) = work
     Nn = Fn.shape[2]
     for node in range(Nn):
@@ -134,7 +134,7 @@ def factored_solve(k, f, layout, stored, work, zn, N, y):
                Ds[k], Af[k], Bf[k], firsts[k], Kfull[k], lu[k], piv[k])
     joints = (seg_off, rigid, angle[k:k + 1], ends, free)
     outputs = (states, q_out, reaction, zout, nout, gnode, gstate)
-    load_work = (pcol, ys, cs, af, t6, t1, t2, a, c, yv, v3, rfull, rhs, xf, qv, zl, zs, ze, qe, S0, zj, stn, zi, fi)
+    load_work = (pcol, ys, cs, af, t6, t1, t2, a, c, yv, v3, rfull, xf, qv, zl, zs, ze, qe, S0, zj, stn, zi, fi)
     solve_loads(entry, Fn, joints, outputs, factors, load_work)
     for i in range(3 * Nn):
         zn[i] = zout[0, i, 0]
