@@ -141,15 +141,10 @@ def march(integrator, idx, maps, on_factors, model, settings, state, recorded):
     ns = seg_L.shape[0]
     no = Ox.shape[1]
     nx = n + ns
-    # The history loads take one column (n, 1); the march's own loops read 1-D views of the same
-    # memory.
-    h_a2 = np.empty((n, 1))
-    h_v2 = np.empty((n, 1))
-    loads2 = np.empty((n, 1))
+    h_a = np.empty(n)
+    h_v = np.empty(n)
+    loads = np.empty(n)
     Snew = np.empty((K, n))
-    h_a = h_a2.reshape(n)
-    h_v = h_v2.reshape(n)
-    loads = loads2.reshape(n)
     zn = np.empty(n)
     d, v, a = S[dva[0]], S[dva[1]], S[dva[2]]
     f = np.empty(n)
@@ -180,7 +175,7 @@ def march(integrator, idx, maps, on_factors, model, settings, state, recorded):
         k = idx[j]
         history(Hc, S, h_a, h_v)
         # Loads: the configuration's D'Alembert loads and those of the integrator history.
-        history_loads(k, h_a2, h_v2, model, omega, (coriolis, has_kv), loads2)
+        history_loads(k, h_a, h_v, model, omega, (coriolis, has_kv), loads)
         for i in range(n):
             loads[i] += rigid[k, i]
         if not dynamic:

@@ -46,7 +46,8 @@ from .time_step import history_loads
 
 
 def push(S, coef, idx, forced, maps, model, flags, c_v, trajectory):
-    """March the states ``S`` (K slots, n_dof, M columns) in place through the steps at
+    """March the states ``S`` (K slots, n_dof rows of M columns, each slot flattened: value
+    ``(i, r)`` at ``i M + r``; a C-ordered ``(K, n_dof, M)`` array reshaped) in place through the steps at
     configurations ``idx`` of a map batch (augmented maps ``Zx``, ``Ax``:
     :class:`tmm_core.configuration_batch.StepMaps`): the linear step (``dynamic`` False: loads
     through the displacement map) or the second-order step linearized about the trajectory ``zs, vs,
@@ -66,15 +67,21 @@ def push(S, coef, idx, forced, maps, model, flags, c_v, trajectory):
     m, aM, beta_node, seg_start, seg_end, seg_L, seg_EA, seg_beta, seg_K, _gauge_seg = model
     coriolis, has_kv, dynamic = flags
     zs, vs, Ps = trajectory
-    K, n, M = S.shape
+    K, nM = S.shape
+    n = m.shape[0]
+    M = nM // n
     ns = seg_L.shape[0]
     nx = n + ns
-    h_a = np.empty((n, M))
-    h_v = np.empty((n, M))
+    # Flat rows of M values (value (i, r) at i M + r), as the integrator and the history loads
+    # take them; L is the loads' matrix for the products.
+    h_a = np.empty(nM)
+    h_v = np.empty(nM)
+    loads = np.empty(nM)
+    zf = np.empty(nM)
     L = np.zeros((n + 1, M))         # row n stays zero: Zx[k] @ L leaves out the constant column
     D = np.empty((ns, M))
     q_ = np.empty(M)
-    Snew = np.empty((K, n, M))
+    Snew = np.empty((K, nM))
     EAL = seg_EA / seg_L
     kb = seg_beta * EAL
     # Per-segment data of the linearization: the node-vector index of (w0, theta0, w1, theta1),
@@ -94,15 +101,13 @@ def push(S, coef, idx, forced, maps, model, flags, c_v, trajectory):
     B = np.zeros((nx, nx))           # [[Z, 0], [A, I]], rows scaled like J's
     W1 = np.zeros((n, n + 1))        # the load block of W (and a zero column, as L's zero row)
     W2 = np.empty((n, ns))           # the axial-force block of W
-    # Flat views for the integrator, which acts on every value alike.
-    S_flat = S.reshape((K, n * M))
-    Snew_flat = Snew.reshape((K, n * M))
-    h_a_flat = h_a.reshape(n * M)
-    h_v_flat = h_v.reshape(n * M)
     for j in range(idx.shape[0]):
         k = idx[j]
-        history(Hc, S_flat, h_a_flat, h_v_flat)
-        history_loads(k, h_a, h_v, model, omega, (coriolis, has_kv), L)
+        history(Hc, S, h_a, h_v)
+        history_loads(k, h_a, h_v, model, omega, (coriolis, has_kv), loads)
+        for i in range(n):
+            for r in range(M):
+                L[i, r] = loads[i * M + r]
         if dynamic:
             for s in range(ns):
                 for p in range(4):
@@ -119,12 +124,12 @@ def push(S, coef, idx, forced, maps, model, flags, c_v, trajectory):
             for s in range(ns):
                 st, en = seg_start[s], seg_end[s]
                 for r in range(M):
-                    q_[r] = kb[s] * (ga[s, 0] * h_v[dof[s, 0], r] + ga[s, 1] * h_v[dof[s, 1], r]
-                                     + ga[s, 2] * h_v[dof[s, 2], r] + ga[s, 3] * h_v[dof[s, 3], r])
+                    q_[r] = kb[s] * (ga[s, 0] * h_v[dof[s, 0] * M + r] + ga[s, 1] * h_v[dof[s, 1] * M + r]
+                                     + ga[s, 2] * h_v[dof[s, 2] * M + r] + ga[s, 3] * h_v[dof[s, 3] * M + r])
                 for r in range(M):
                     L[st, r] += q_[r]
                     L[en, r] -= q_[r]
-                    D[s, r] = kb[s] * (h_v[en, r] - h_v[st, r]) + q_[r]
+                    D[s, r] = kb[s] * (h_v[en * M + r] - h_v[st * M + r]) + q_[r]
             # J = [[I - Z f_z, -Z f_P], [-(A f_z + F_z), I - A f_P]] with f_z = Su F_z - sum dP G
             # (segment blocks), f_P[dof_s, s] = -G d_s; rows of Z and A alike. The axial-force
             # unknowns and equations are scaled by EA/L (to displacements): unscaled, J mixes
@@ -174,7 +179,10 @@ def push(S, coef, idx, forced, maps, model, flags, c_v, trajectory):
                     acc += Zx[k, i, q] * rigid[k, q]
                 for r in range(forced):
                     z[i, r] += acc
-        advance(Gc, ez, S_flat, z.reshape(n * M), Snew_flat)
+        for i in range(n):
+            for r in range(M):
+                zf[i * M + r] = z[i, r]
+        advance(Gc, ez, S, zf, Snew)
 
 
 def velocities(S, coef, c_v, zs, vs):
@@ -282,7 +290,8 @@ def linear_shooting(kernels, model, data, keys, N: int, dt: float):
     marched, dependent, C = dependent_keys(slots, keys, coef[0], coef[1])
     S = _initial_states(slots, keys, n, marched, extra=1)
     no_trajectory = (np.zeros((0, n)), np.zeros((0, n)), np.zeros((0, len(model.segments.length))))
-    kernels.push(S, coef, np.arange(1, N + 1) % N, 1, maps, kernel, (*flags, False), c_v, no_trajectory)
+    kernels.push(S.reshape(len(S), -1), coef, np.arange(1, N + 1) % N, 1, maps, kernel, (*flags, False), c_v,
+                 no_trajectory)
     X = _stacked(S, slots, keys)
     return _expand(X[:, 1:], marched, dependent, C, n), X[:, 0].copy()
 
@@ -296,5 +305,5 @@ def monodromy(kernels, model, data, keys, trajectory, dt: float) -> np.ndarray:
     linearized_about = tuple(np.ascontiguousarray(np.array([t[i] for t in trajectory]), dtype=float) for i in (1, 2, 3))
     marched, dependent, C = dependent_keys(slots, keys, coef[0], coef[1])
     S = _initial_states(slots, keys, model.n_dof, marched)
-    kernels.push(S, coef, idx, 0, maps, kernel, (*flags, True), c_v, linearized_about)
+    kernels.push(S.reshape(len(S), -1), coef, idx, 0, maps, kernel, (*flags, True), c_v, linearized_about)
     return _expand(_stacked(S, slots, keys), marched, dependent, C, model.n_dof)

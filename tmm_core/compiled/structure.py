@@ -144,7 +144,7 @@ def solve_range(b_start, b_stop, segments, configuration, Fn, joints, outputs, c
     rfull = np.zeros(nd)
     lu = np.zeros((nf, nf))
     piv = np.zeros(nf, dtype=np.int64)
-    xf = np.zeros(nf)
+    xf = np.zeros((nf, 1))         # the joint solve's one column (the maps' solve has many)
     qv = np.zeros(nd)
     a = np.zeros(3)
     c = np.zeros(3)
@@ -304,12 +304,12 @@ def solve_loads(bi, Fn, joints, outputs, factors, work):
                 rfull[ends[mi, o + 2]] += qe[o + 2]
         # The joint solve as the maps' (one column of the same solve: equal bit for bit).
         for i in range(nf):
-            xf[i] = -rfull[free[i]]
-        lu_solve_many(lu, piv, xf.reshape((nf, 1)))
+            xf[i, 0] = -rfull[free[i]]
+        lu_solve_many(lu, piv, xf)
         for i in range(nd):
             qv[i] = 0.0
         for i in range(nf):
-            qv[free[i]] = xf[i]
+            qv[free[i]] = xf[i, 0]
         for i in range(nd):
             q_out[bi, ri, i] = qv[i]
             acc = rfull[i]

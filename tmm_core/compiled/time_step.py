@@ -40,34 +40,38 @@ INTEGER = ("firsts", "piv")
 
 def history_loads(k, h_a, h_v, model, omega, flags, L):
     """The loads [N, N m] of a step at configuration ``k`` that are linear in the integrator
-    history ``h_a, h_v`` (n_dof, M columns), into ``L[:n_dof]``: the inertia history with mass
-    damping, the Coriolis terms and the Kelvin-Voigt history; :func:`tmm_core.time_step.step_loads`
-    with ``rigid=False``. ``model`` is the model record
+    history ``h_a, h_v``, into ``L``: the inertia history with mass damping, the Coriolis terms
+    and the Kelvin-Voigt history; :func:`tmm_core.time_step.step_loads` with ``rigid=False``.
+    For M columns of states at once, ``h_a``, ``h_v`` and ``L`` hold n_dof rows of M values,
+    flattened (value ``(i, r)`` at ``i M + r``; M = 1 for a march). ``model`` is the model record
     (:meth:`tmm_core.discretization.Discretization.kernel_model`), ``omega`` (B, n_dof) each DOF's
     link speed [rad/s] per configuration, ``flags = (coriolis, has_kv)``."""
     m, aM, beta_node, seg_start, _end, _length, _EA, _beta, seg_K, _gauges = model
     coriolis, has_kv = flags
-    n, M = h_a.shape
+    n = m.shape[0]
+    M = h_a.shape[0] // n
     for i in range(n):
-        for r in range(M):
-            L[i, r] = -m[i] * (h_a[i, r] + aM[i] * h_v[i, r])
+        for r in range(i * M, (i + 1) * M):
+            L[r] = -m[i] * (h_a[r] + aM[i] * h_v[r])
     if coriolis:
         # At u rows the w-velocity history of the same node, at w rows the u-velocity one.
         for node in range(n // 3):
             u, w = 3 * node, 3 * node + 1
             cu, cw = 2.0 * m[u] * omega[k, u], 2.0 * m[w] * omega[k, w]
             for r in range(M):
-                L[u, r] += cu * h_v[w, r]
-                L[w, r] -= cw * h_v[u, r]
+                L[u * M + r] += cu * h_v[w * M + r]
+                L[w * M + r] -= cw * h_v[u * M + r]
     if has_kv:
-        for s in range(seg_start.shape[0]):
-            i0 = seg_start[s]
-            for p in range(6):
-                for q in range(6):
-                    c = beta_node[i0 + p] * seg_K[s, p, q]
-                    if c != 0.0:
-                        for r in range(M):
-                            L[i0 + p, r] -= c * h_v[i0 + q, r]
+        # Column by column, a segment's 6x6 block times its history velocities: a march (M = 1)
+        # runs the tight inner loops it needs per step.
+        for r in range(M):
+            for s in range(seg_start.shape[0]):
+                i0 = seg_start[s]
+                for p in range(6):
+                    acc = 0.0
+                    for q in range(6):
+                        acc += seg_K[s, p, q] * h_v[(i0 + q) * M + r]
+                    L[(i0 + p) * M + r] -= beta_node[i0 + p] * acc
 
 
 def factor_range(b_start, b_stop, segments, configuration, joints, checks, stored):
@@ -106,7 +110,7 @@ def work_arrays(M, mmax, Nn, S, nd, nf, G):
             np.zeros((1, 3 * Nn, 1)), np.zeros((1, S, 1)), np.zeros((1, G, 6, 1)),
             np.zeros((M, mmax + 1, 6)), np.zeros((M, mmax, 3)), np.zeros((M, mmax + 1, 3)), np.zeros((M, 3)),
             np.zeros(6), np.zeros(3), np.zeros(3), np.zeros(3), np.zeros(3), np.zeros(3), np.zeros(3), np.zeros(nd),
-            np.zeros(nf), np.zeros(nd), np.zeros(6), np.zeros(3), np.zeros(3), np.zeros(6), np.zeros(6),
+            np.zeros((nf, 1)), np.zeros(nd), np.zeros(6), np.zeros(3), np.zeros(3), np.zeros(6), np.zeros(6),
             np.zeros((mmax + 1, 3)), np.zeros((Nn, 2, 6)), np.array([0, 1, 2]), np.array([5, 4, 3]))
 
 
