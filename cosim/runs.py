@@ -53,6 +53,7 @@ from .engines import ENGINES, EngineUnavailable, make_engine
 from .files import write_atomic
 from .interrupted import mark_interrupted
 from .interrupts import Interrupts
+from .kernel_warmup import KernelWarmup, first_run_in_numpy
 from .master import CoSimulation, InputError
 from tmm_core.revolution import last_revolution, revolutions_completed
 
@@ -182,6 +183,19 @@ def run_scenario(scenario, options: RunOptions = RunOptions(), callback=None) ->
     plan = _plan(scenario, options)
     folder = run_folder(plan.sc.name, options.out)
     summary = _open_folder(plan, options, folder)
+    warmup = KernelWarmup.start(folder / "scenario.resolved.toml") if plan.first_run_numpy else None
+    try:
+        return _run_and_write(plan, options, callback, folder, summary, warmup)
+    except BaseException:
+        if warmup is not None:
+            warmup.stop()
+        raise
+
+
+def _run_and_write(plan: _Plan, options: RunOptions, callback, folder: Path, summary: dict,
+                   warmup: KernelWarmup | None) -> RunResult:
+    """The run's engines, results and files (:func:`run_scenario`, after its folder is opened);
+    last, the kernels' compilation beside a first run is awaited."""
     writer = TraceWriter(folder / "traces.csv")
     notes = []
     # Started before the engines set up: its child process imports rerun meanwhile.
@@ -200,6 +214,10 @@ def run_scenario(scenario, options: RunOptions = RunOptions(), callback=None) ->
         _write_results(folder, plan.sc, summary, notes, options)
     if recorder is not None:
         _close_recorder(recorder, summary, notes)
+    if warmup is not None and status == "interrupted":
+        warmup.stop()
+    elif warmup is not None:
+        notes.append(warmup.finish())
     summary["status"] = final_status(status, summary)
     if notes:
         summary["notes"] = notes
@@ -222,6 +240,9 @@ class _Plan:
     duration_s: float
     cost: dict
     viewer: object
+    #: The transfer-matrix engine runs in numpy while its kernels compile beside it
+    #: (cosim.kernel_warmup: a cold numba cache and a run shorter in numpy than the compilation).
+    first_run_numpy: bool = False
 
 
 def _plan(scenario, options: RunOptions) -> _Plan:
@@ -254,7 +275,11 @@ def _plan(scenario, options: RunOptions) -> _Plan:
     cost = check_cost(sc, list(engines), duration, cosim.macro_step_s, options.max_hours)
     if options.records is not None:       # a bad user records directory is refused before the run
         records_for(sc, Path(options.records))
-    return _Plan(sc, mode, engines, unavailable, cosim, revolutions, until_steady, duration, cost, viewer)
+    first_run_numpy = first_run_in_numpy(sc, engines, duration)
+    if first_run_numpy:
+        engines["tmm"].backend = "numpy"    # set before the engine is reset: its model is built then
+    return _Plan(sc, mode, engines, unavailable, cosim, revolutions, until_steady, duration, cost, viewer,
+                 first_run_numpy)
 
 
 def _open_folder(plan: _Plan, options: RunOptions, folder: Path) -> dict:
@@ -286,7 +311,7 @@ def _run_engines(plan: _Plan, options: RunOptions, callback, folder: Path, summa
     it goes; returns ``(status, CoSimResult or None, whether the traces could not be written)``.
     An interrupt, a full disk or running out of memory ends it with the steps so far on disk."""
     engines = plan.engines
-    if "tmm" in engines:
+    if "tmm" in engines and not plan.first_run_numpy:     # (a first run's engine runs in numpy)
         compile_notice()
     progress = RunProgress(plan.until_steady, f"{plan.sc.name} ({', '.join(engines)})", bar=options.progress)
     last_write = [time.monotonic()]

@@ -27,11 +27,15 @@ def is_rigid(engine: str) -> bool:
     return MODELS.get(engine, "").startswith("rigid")
 
 
-def make_engine(name: str) -> Engine:
-    """A fresh engine by name; raises :class:`EngineUnavailable` if its library cannot be imported."""
+def make_engine(name: str, *, backend: str | None = None) -> Engine:
+    """A fresh engine by name; raises :class:`EngineUnavailable` if its library cannot be imported.
+    ``backend``: the transfer-matrix engine's computing backend (:mod:`tmm_core.backend`:
+    "compiled" or "numpy"; None, the default); another engine refuses one."""
+    if backend is not None and name != "tmm":
+        raise EngineError(f"engine {name!r} has no computing backend to choose (backend = {backend!r}); only 'tmm' has")
     if name == "tmm":
         from .tmm import TMMEngine
-        return TMMEngine()
+        return TMMEngine(backend=backend)
     if name == "exudyn":
         _require("exudyn", "exudyn>=1.13.6,<1.14")
         from .exudyn import ExudynEngine

@@ -61,7 +61,10 @@ class TMMEngine:
     name = "tmm"
     kinematic = True      # takes a crank motion, returns the drive torque
 
-    def __init__(self):
+    def __init__(self, backend: str | None = None):
+        """``backend``: the time domain's computing backend (:mod:`tmm_core.backend`; None: its
+        default, compiled where numba is installed)."""
+        self.backend = backend
         self._dt = None
 
     @property
@@ -80,7 +83,7 @@ class TMMEngine:
             raise EngineError("tmm: solver.tmm.model = \"reduced\" is for periodic solves (cosim sweep, uncertainty, "
                               "identify); a time-marching run needs model = \"full\" (or drop the key)")
         self.scenario = scenario
-        self.td = scenario.time_domain()
+        self.td = scenario.time_domain(backend=self.backend)
         # The step and the cached revolution are the scenario's (its set-point speed); ``speed`` is
         # only the crank's state at t0 (a motor run may start from rest).
         set_speed = scenario.drive.speed_rad_s
