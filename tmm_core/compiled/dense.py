@@ -3,13 +3,13 @@ functions, 3x3 inverse and product, LDL^T inertia, the compiled layer's one LU (
 LAPACK's row-swap pivots, blocked by four columns; its solves for one right-hand side and for
 many, which the joint system of every configuration and the reduced model's Newton matrix share),
 the sparse blocks of a segment's field matrix, and the beam-column iteration's change and
-stopping rule. Plain Python here;
-:func:`tmm_core.compiled.binding.static_solve` compiles them (numba, cached on disk) and binds the
-compiled objects where the kernels look them up.
+stopping rule. Plain Python here; :mod:`tmm_core.compiled.binding` compiles them (numba, cached on
+disk: the LU in ``binding.lu``, the others in ``binding.static_solve``) and binds the compiled
+objects where the kernels look them up.
 
 Owns: the small dense numba helpers of the compiled factorization (Stumpff functions, 3x3
-algebra, LDL^T inertia, LU). Boundaries: no structure knowledge; compiled by
-tmm_core.compiled.binding.static_solve.
+algebra, LDL^T inertia, the one LU). Boundaries: no structure knowledge; compiled by
+tmm_core.compiled.binding.
 """
 from __future__ import annotations
 
