@@ -41,6 +41,7 @@ from tmm_core.compiled import statics as compiled_statics
 
 from .engines import ENGINES
 from .figures import peaks_by_speed
+from .interrupts import Interrupts
 from .master import CoSimulation, macro_step_for
 from .metrics import steadiness
 from .overrides import apply_overrides, prescribed_speed
@@ -414,11 +415,14 @@ def run_sweep(scenario: str, rpm, engines=("tmm",), revolutions: float | None = 
         continued = many and sc.tmm.model in CONTINUED_MODELS
         futures = _first_point(sc, rpms, tuple(engines), revs, method, continued and not scheduler)
         blocks = len(rpms) - len(futures) if continued else None
-        with executor(workers, scheduler, blocks) as ex:
+        # Interrupts: a SIGTERM that lands while a worker is forked raises its KeyboardInterrupt in
+        # an at-fork hook, where Python ignores it; remembered, it stops the sweep at the next point.
+        with Interrupts() as interrupts, executor(workers, scheduler, blocks) as ex:
             futures.update({ex.submit(sweep_point, sc.raw, str(sc.path or sc.name), float(r), tuple(engines), revs,
                                       method, many): float(r) for r in rpms[len(futures):]})
             saved = -math.inf
             for fut in as_completed(futures):
+                interrupts.check()
                 try:
                     point = fut.result()
                 except Exception as exc:       # a worker that died or raised: keep the others
