@@ -44,9 +44,12 @@ from pathlib import Path
 
 import numpy as np
 
+from tmm_core.compiled.cache import PERIODIC_COMPILE_ESTIMATE_S
+
 from .identify_report import plot, record_rrd
 from .records import peaks_at, records_for
 from .run_guards import MAX_HOURS, check_study
+from .run_progress import compile_notice
 from .runlog import run_folder, write_json
 from .scenario import ScenarioError, check_unknowns, from_dict, load
 from .uncertainty import evaluate, parallel_map
@@ -376,6 +379,7 @@ def identify(calibration, validation=(), parameters=None, records_dir=None, out=
     folder = run_folder(f"{tag}-identify", out)
     log.info("identify %s on %s (%d choices x %d starts); results to %s", ", ".join(names), tag, len(combos),
              len(x0s), folder)
+    compile_notice(PERIODIC_COMPILE_ESTIMATE_S)
     raws = [(sc.raw, str(sc.path or sc.name)) for sc in cal]
     jobs = [(raws, unknowns, continuous, c, x0, plan["targets"], settings, sigma_relative, sigma_absolute_ue,
              nfev) for c in combos for x0 in x0s]

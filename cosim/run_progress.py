@@ -28,12 +28,15 @@ log = logging.getLogger(__name__)
 BAR_FORMAT = "{desc}: {percentage:3.0f}%|{bar}| {elapsed}{postfix}"
 
 
-def compile_notice() -> str | None:
-    """Say so before a run that will compile the transfer-matrix kernels (numba's cache is cold):
-    the bar would otherwise sit at 0 % for one to two minutes. Returns the message logged."""
+def compile_notice(estimate_s: float = COMPILE_ESTIMATE_S) -> str | None:
+    """Say so before a run or a study that will compile the transfer-matrix kernels (numba's cache
+    is cold): the bar would otherwise sit at 0 % for one to two minutes. ``estimate_s`` [s]: how
+    long it takes on a 2-core machine (the time domain's kernels by default; a study that solves
+    periodic orbits passes :data:`tmm_core.compiled.cache.PERIODIC_COMPILE_ESTIMATE_S`). Returns
+    the message logged."""
     if not cache_is_cold():
         return None
-    text = (f"compiling the transfer-matrix kernels (once, about {COMPILE_ESTIMATE_S:.0f} s on a 2-core machine; "
+    text = (f"compiling the transfer-matrix kernels (once, about {estimate_s:.0f} s on a 2-core machine; "
             "later runs load them from numba's cache)")
     log.info(text)
     return text

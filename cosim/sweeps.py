@@ -38,6 +38,7 @@ from tmm_core.reduced import ReducedOptions, build_basis
 from tmm_core.reduced_periodic import periodic_steady_state_reduced, stage_points
 from tmm_core.reduced_stages import StageCoefficients
 from tmm_core.compiled import statics as compiled_statics
+from tmm_core.compiled.cache import PERIODIC_COMPILE_ESTIMATE_S
 
 from .engines import ENGINES
 from .figures import peaks_by_speed
@@ -48,6 +49,7 @@ from .overrides import apply_overrides, prescribed_speed
 from .parallel import describe, executor
 from .physics_flags import buckling_flags
 from .resonance import campbell, frequency_map, plot_sweep
+from .run_progress import compile_notice
 from .runs import last_revolution_stats
 from .run_guards import MAX_HOURS, check_study, estimate_cost
 from .runlog import run_folder, write_csv, write_json
@@ -370,6 +372,13 @@ def _unsolved_note(sc, points: list, bad: list) -> str:
             "lost point (--method march shows the response there)")
 
 
+def _check_engines(engines) -> None:
+    """Refuse an engine name the bench does not have."""
+    for e in engines:
+        if e not in ENGINES:
+            raise ScenarioError(f"unknown engine {e!r}; choose from {', '.join(ENGINES)}")
+
+
 def run_sweep(scenario: str, rpm, engines=("tmm",), revolutions: float | None = None, workers: int | None = None,
               scheduler: str | None = None, out: Path | None = None, progress: bool = True,
               record: bool = True, method: str = "periodic", resonance: bool = True,
@@ -390,14 +399,14 @@ def run_sweep(scenario: str, rpm, engines=("tmm",), revolutions: float | None = 
                             "periodic, or the full model (--model full) to march in time")
     rpms = parse_rpm(rpm) if isinstance(rpm, str) else np.asarray(rpm, dtype=float)
     revs = sc.output.revolutions if revolutions is None else revolutions
-    for e in engines:
-        if e not in ENGINES:
-            raise ScenarioError(f"unknown engine {e!r}; choose from {', '.join(ENGINES)}")
+    _check_engines(engines)
     check_study(sc, "sweep", _sweep_solves(rpm, rpms, revolutions), sweep_point_cost(sc, rpms, engines, revs, method),
                 workers, max_hours)
     record_peaks = peaks_by_speed(getattr(sc, "rig", None), float(rpms.min()), float(rpms.max()), records_dir)
     folder = run_folder(f"{sc.name}-sweep", out)
     log.info("sweep of %s at %d speeds (%s); results to %s", sc.name, len(rpms), ", ".join(engines), folder)
+    if "tmm" in engines:
+        compile_notice(PERIODIC_COMPILE_ESTIMATE_S)
     summary = {"scenario": sc.name, "status": "incomplete", "rpm": rpms.tolist(), "engines": list(engines),
                "revolutions": revs, "method": method, "model": sc.tmm.model, "executor": describe(scheduler),
                "points": []}

@@ -46,10 +46,13 @@ from pathlib import Path
 
 import numpy as np
 
+from tmm_core.compiled.cache import PERIODIC_COMPILE_ESTIMATE_S
+
 from .figures import gauge_label, new_figure, save
 from .parallel import executor
 from .records import peaks_at, records_for
 from .run_guards import MAX_HOURS, check_study
+from .run_progress import compile_notice
 from .runlog import run_folder, write_csv, write_json
 from .scenario import ScenarioError, check_unknowns, load
 from .unknowns import Settings, declared, read, solve_cost, solve_job, variant
@@ -171,6 +174,7 @@ def run_uncertainty(scenario: str, samples: int | None = None, seed: int | None 
     folder = run_folder(f"{sc.name}-uncertainty", out)
     log.info("uncertainty of %s: %d samples%s; results to %s", sc.name, n,
              f" + Morris {r} trajectories" if sensitivity else "", folder)
+    compile_notice(PERIODIC_COMPILE_ESTIMATE_S)
     summary = {"scenario": sc.name, "status": "incomplete", "samples": n, "seed": seed,
                "model": {"engine": "tmm", "segments": settings.segments, "step_deg": settings.step_deg,
                          "method": "time marching to the steady revolution"},

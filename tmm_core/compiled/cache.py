@@ -31,6 +31,10 @@ from pathlib import Path
 #: machine: the first prescribed TMM run of the FE rig took 52 s (wall and process CPU alike:
 #: compiling is single-threaded), of which about 2 s are the run itself; longer on a loaded one.
 COMPILE_ESTIMATE_S = 50.0
+#: Time [s] of compiling the kernels of a periodic sweep (the periodic solver's linearized
+#: revolutions as well) on an empty cache: a 2-point full-model sweep of the FE rig took 82 s
+#: whole, of which about 1.5 s are the points.
+PERIODIC_COMPILE_ESTIMATE_S = 80.0
 
 HERE = Path(__file__).resolve().parent
 #: The package the compiled sources are named relative to (tmm_core).
