@@ -15,7 +15,6 @@ Owns: static analysis of an instantaneous structure. Boundaries: no time domain.
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from typing import Mapping
 
