@@ -12,6 +12,9 @@ mode, its value and the threshold. Kinds:
 * ``resonance``: a natural frequency within :data:`RESONANCE_BAND` of a harmonic k = 1 ..
   :data:`HARMONICS` of the crank speed: each flexible link's own first bending mode (closed form)
   and, for four-bars, the linkage's modes over a revolution (:func:`cosim.resonance.frequency_map`);
+* ``step``: the transfer-matrix step near such a resonance of a link's own mode, where its
+  integrator's period error, amplified by the resonance at the link's damping, moves the resonant
+  response by :data:`STEP_ERROR_FRACTION` or more (:func:`step_flags`);
 * ``rigid_model``: the rigid engine's peak bending more than :data:`RIGID_FACTOR` times off every
   flexible engine's at the same gauge.
 
@@ -25,8 +28,9 @@ import math
 
 import numpy as np
 from tmm_core import FourBarMechanism
-from tmm_core.closed_forms import euler_load_N, first_bending_frequency_Hz
+from tmm_core.closed_forms import euler_load_N, first_bending_frequency_Hz, resonance_sensitivity
 from tmm_core.fourbar_limits import grashof_class
+from tmm_core.integrators import get_integrator, numerical_frequency
 
 from .engines import is_rigid
 from .resonance import frequency_map
@@ -50,6 +54,9 @@ HARMONICS = 15
 #: A mode within this fraction of a harmonic: a 2 %-damped mode amplifies it at least
 #: 1 / (1 - 0.95^2) = 10x, enough for a weak harmonic to dominate the response.
 RESONANCE_BAND = 0.05
+#: The step's period error times the resonance's sensitivity (the predicted shift of the resonant
+#: response, :func:`step_flags`) flagged from this fraction, and the shift the suggested step keeps.
+STEP_ERROR_FRACTION, STEP_ERROR_TARGET = 0.01, 0.005
 #: The rigid model's peak bending this many times off every flexible engine's: the elastic
 #: response is then larger than the rigid-body load's own strain.
 RIGID_FACTOR = 2.0
@@ -148,7 +155,7 @@ def link_modes(sc) -> list:
         support = end_conditions(sc.mechanism, link)
         f = first_bending_frequency_Hz(link.material.E_Pa * link.section.inertia_m4, mu, link.length_m, support)
         out.append({"what": f"the {name}'s own first bending mode ({support}, closed form) at {f:.1f} Hz",
-                    "band_Hz": (f, f)})
+                    "band_Hz": (f, f), "link": link, "f_Hz": f})
     return out
 
 
@@ -198,6 +205,47 @@ def resonance_flags(rpm: float, modes: list) -> list:
     return out
 
 
+def _nearest_harmonic(f_Hz: float, rpm: float) -> tuple | None:
+    """``(gap, k, harmonic [Hz])`` of the harmonic k = 1 .. :data:`HARMONICS` of the crank speed
+    nearest ``f_Hz``, if within :data:`RESONANCE_BAND` of it."""
+    near = [(abs(f_Hz - k * rpm / 60.0) / (k * rpm / 60.0), k, k * rpm / 60.0) for k in range(1, HARMONICS + 1)]
+    gap, k, h = min(near)
+    return (gap, k, h) if gap <= RESONANCE_BAND else None
+
+
+def step_flags(sc, rpm: float, modes: list) -> list:
+    """The transfer-matrix step near a resonance of a link's own mode (``modes`` of
+    :func:`link_modes`): the step's integrator lowers the mode's frequency by its period error
+    (:func:`tmm_core.integrators.numerical_frequency`), which the resonant response amplifies by
+    :func:`tmm_core.closed_forms.resonance_sensitivity` at the link's damping. Flagged where the
+    product reaches :data:`STEP_ERROR_FRACTION`, with the step that keeps it within
+    :data:`STEP_ERROR_TARGET` (the period error is second order in the step)."""
+    integrator, dt = get_integrator(sc.tmm.integrator), sc.engine_step_s("tmm")
+    out = []
+    for m in modes:
+        near = _nearest_harmonic(m["f_Hz"], rpm) if "link" in m else None
+        if near is None:
+            continue
+        gap, k, h = near
+        zeta = float(m["link"].damping.ratio_at(m["f_Hz"]))
+        omega = 2.0 * math.pi * m["f_Hz"]
+        period_error = omega / numerical_frequency(integrator, omega, dt)[0] - 1.0
+        shift = resonance_sensitivity(h / m["f_Hz"], zeta) * period_error
+        if not shift >= STEP_ERROR_FRACTION:
+            continue
+        deg = math.degrees(abs(sc.drive.speed_rad_s) * dt)
+        enough = deg * math.sqrt(STEP_ERROR_TARGET / shift)
+        out.append(flag("step", f"step: {m['what']} lies {100 * gap:.1f} % from harmonic {k} with "
+                                f"{100 * zeta:.2g} % damping, where the resonant response moves "
+                                f"{resonance_sensitivity(h / m['f_Hz'], zeta):.0f}x any relative error of that "
+                                f"frequency; the step ({deg:.3g} deg, {integrator.name}) puts the mode "
+                                f"{100 * period_error:.3f} % low: about {100 * shift:.1f} % on the resonant part of "
+                                f"the response (a step of {enough:.2g} deg keeps it within "
+                                f"{100 * STEP_ERROR_TARGET:g} %; flagged from {100 * STEP_ERROR_FRACTION:g} %)",
+                        shift, STEP_ERROR_FRACTION))
+    return out
+
+
 def _peak(stats: dict) -> float:
     return max(abs(stats.get("bending_max_ue") or 0.0), abs(stats.get("bending_min_ue") or 0.0))
 
@@ -232,8 +280,9 @@ def physics_flags(sc, summary: dict, modes: list | None = None) -> dict:
     """``{engine: [flag]}`` for every engine of the summary that was available. ``modes``: the
     natural frequencies to check (default :func:`link_modes` and :func:`linkage_modes`)."""
     rpm = sc.drive.speed_rpm
+    own = link_modes(sc)
     if modes is None:
-        modes = link_modes(sc) + linkage_modes(sc, rpm)
+        modes = own + linkage_modes(sc, rpm)
     common = transmission_flags(sc, summary.get("linkage"))
     resonant = resonance_flags(rpm, modes)
     rigid = rigid_flags(summary.get("engines") or {})
@@ -245,6 +294,8 @@ def physics_flags(sc, summary: dict, modes: list | None = None) -> dict:
         if is_rigid(name):            # it has no modes to ring: its peaks miss the resonance
             res = [dict(f, message=f["message"] + f"; {name} is rigid and cannot show it") for f in resonant]
         out[name] = buckling_flags(sc, e.get("gauges")) + common + res + rigid.get(name, [])
+        if name == "tmm":
+            out[name] += step_flags(sc, rpm, own)
     return out
 
 

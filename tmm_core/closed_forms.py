@@ -1,11 +1,13 @@
 """Closed forms of a uniform Euler-Bernoulli link: its Euler buckling load and its first bending
-frequency, for the classical end conditions.
+frequency, for the classical end conditions; and how strongly a damped oscillator's steady
+response near a resonance depends on its natural frequency.
 
 Used where an orientation is enough (the buckling refusal's message, the run's physics flags, the
 loader's check of a far too soft link); the transfer-matrix analyses compute the real thing
 (:mod:`tmm_core.frequencies`, the Wittrick-Williams count of :mod:`tmm_core.buckling`).
 
-Owns: the end conditions' effective-length factors and first-mode eigenvalues. Boundaries: no
+Owns: the end conditions' effective-length factors and first-mode eigenvalues, the resonance
+sensitivity. Boundaries: no
 mechanism, no analysis.
 """
 from __future__ import annotations
@@ -45,3 +47,18 @@ def first_bending_frequency_Hz(EI_Nm2: float, mass_per_length_kg_m: float, lengt
     uniform beam without attached masses (``mass_per_length_kg_m`` = rho A [kg/m])."""
     beta_l = _support(support)[1]
     return (beta_l / length_m) ** 2 * math.sqrt(EI_Nm2 / mass_per_length_kg_m) / (2 * math.pi)
+
+
+def resonance_sensitivity(frequency_ratio: float, damping_ratio: float) -> float:
+    """How strongly a damped oscillator's steady response to a harmonic load depends on its own
+    natural frequency: ``|d ln A / d ln f_n|`` at the ratio ``r`` = load frequency / natural
+    frequency and damping ratio ``zeta``, for ``A = 1 / sqrt((1 - r^2)^2 + (2 zeta r)^2)``:
+    ``|2 r^2 (1 - r^2) - 4 zeta^2 r^2| / ((1 - r^2)^2 + (2 zeta r)^2)``. A relative error e in
+    the natural frequency moves the resonant response by about this times e (43 at r = 1.023,
+    zeta = 0.5 %; 26 at zeta = 2 %)."""
+    r2 = frequency_ratio**2
+    denominator = (1.0 - r2) ** 2 + (2.0 * damping_ratio * frequency_ratio) ** 2
+    if not denominator > 0:
+        raise InputError(f"resonance sensitivity: undamped at resonance (ratio {frequency_ratio!r}, damping "
+                         f"{damping_ratio!r}): the response is unbounded")
+    return abs(2.0 * r2 * (1.0 - r2) - 4.0 * damping_ratio**2 * r2) / denominator

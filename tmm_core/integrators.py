@@ -9,11 +9,20 @@ mass m then acts on the instantaneous structure as a spring ``m c_a`` to ground 
 
 States are dictionaries of arrays shaped like the displacement vector.
 
-Owns: the implicit integrators' coefficients and updates. Boundaries: no structure or loads.
+Every integrator here is linear and acts on every degree of freedom alike: :func:`linear_maps`
+reads it off as a few scalar coefficients per state array (what the compiled steps apply), and
+:func:`numerical_frequency` gives the frequency and damping it gives an undamped oscillator (its
+period error, which a lightly damped response near a resonance amplifies).
+
+Owns: the implicit integrators' coefficients and updates, their linear maps and their numerical
+frequency. Boundaries: no structure or loads.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
+
+import numpy as np
 
 from .errors import InputError, require_positive
 
@@ -143,3 +152,48 @@ def get_integrator(name):
 
 def check_step(dt) -> float:
     return float(require_positive("time step dt_s", dt))
+
+
+def linear_maps(integrator, dt: float):
+    """The integrator as linear maps of its state arrays: ``(slots, Hc, Gc, ez)`` with the
+    history ``h_a = sum_j Hc[0, j] x_j``, ``h_v = sum_j Hc[1, j] x_j`` and the update
+    ``x_i' = ez[i] z + sum_j Gc[i, j] x_j`` for new displacements ``z``; ``slots`` names the
+    state arrays (``integrator.initial``'s keys), ``dt`` [s]. The compiled steps apply them
+    (:mod:`tmm_core.compiled.integrators`)."""
+    one, zero = np.ones(1), np.zeros(1)
+    slots = tuple(integrator.initial(zero, zero, zero, (zero, zero)).keys())
+
+    def unit(j):
+        return {s: (one if i == j else zero).copy() for i, s in enumerate(slots)}
+
+    K = len(slots)
+    Hc, Gc, ez = np.zeros((2, K)), np.zeros((K, K)), np.zeros(K)
+    for j in range(K):
+        h_a, h_v = integrator.history(unit(j), dt)
+        Hc[0, j], Hc[1, j] = h_a[0], h_v[0]
+        new = integrator.advance(unit(j), zero, dt)
+        Gc[:, j] = [new[s][0] for s in slots]
+    new = integrator.advance(unit(-1), one, dt)
+    ez[:] = [new[s][0] for s in slots]
+    return slots, Hc, Gc, ez
+
+
+def numerical_frequency(integrator, omega_rad_s: float, dt: float) -> tuple[float, float]:
+    """``(omega_num [rad/s], damping ratio)`` of an undamped oscillator of circular frequency
+    ``omega_rad_s`` stepped by ``integrator`` at ``dt`` [s] as the time step steps a structure
+    (unit mass, stiffness omega^2, the new acceleration ``c_a z + h_a``): from the principal
+    (complex) eigenvalues ``exp((-xi + i) omega_num dt)`` of the step's amplification matrix. Its
+    period error ``omega / omega_num - 1`` is second order in ``omega dt`` (Newmark's average
+    acceleration: ``omega_num dt = 2 atan(omega dt / 2)``)."""
+    _, Hc, Gc, ez = linear_maps(integrator, dt)
+    c_a, _ = integrator.coefficients(dt)
+    amplification = Gc - np.outer(ez, Hc[0]) / (c_a + omega_rad_s**2)
+    eigenvalues = np.linalg.eigvals(amplification)
+    # The principal pair is complex; the spurious roots (real, inside the unit circle) are not.
+    pair = eigenvalues[np.abs(eigenvalues.imag) > 1e-12 * np.abs(eigenvalues)]
+    if not len(pair):
+        return 0.0, math.inf
+    principal = pair[np.argmax(np.abs(pair))]
+    phase = abs(float(np.angle(principal)))
+    omega_num = phase / dt
+    return omega_num, (-math.log(abs(principal)) / phase if phase > 0 else math.inf)

@@ -14,10 +14,10 @@ import numpy as np
 
 from .batches import configurations
 from .compiled import binding as kernel_binding
-from .compiled.integrators import linear_maps
 from .discretization import Discretization
 from .errors import InputError, require_positive
 from .ked import Coupling, quasi_static
+from .integrators import linear_maps
 from .time_step import ANDERSON_DEPTH, AXIAL_FORCE_TOLERANCE, kernel_data, solve_step, step_loads
 
 class March:

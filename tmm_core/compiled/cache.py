@@ -40,13 +40,14 @@ HERE = Path(__file__).resolve().parent
 #: The package the compiled sources are named relative to (tmm_core).
 ROOT = HERE.parent
 #: The files numba compiles the kernels from: every kernel module of ``compiled/``,
-#: ``matrices.py`` (its constants are compiled into them) and the binding (its numba options are
-#: part of what is compiled); the Python drivers (``compiled/statics.py``, this module) are not.
+#: ``matrices.py`` (its constants are compiled into them), ``integrators.py`` (the linearized
+#: revolutions' drivers read its linear maps) and the binding (its numba options are part of what
+#: is compiled); the Python drivers (``compiled/statics.py``, this module) are not.
 #: A test checks that the kernels import nothing else of tmm_core at module level but these, the
 #: errors and this module.
 COMPILED_SOURCES = ("compiled/march.py", "compiled/dense.py", "compiled/riccati.py", "compiled/time_step.py",
                     "compiled/step_data.py", "compiled/integrators.py", "compiled/periodic.py", "compiled/reduced_periodic.py",
-                    "compiled/structure.py", "compiled/binding.py", "matrices.py")
+                    "compiled/structure.py", "compiled/binding.py", "matrices.py", "integrators.py")
 PREFIX = "kernels-"
 #: Whether numba is installed: without it the numpy reference path runs everything.
 AVAILABLE = importlib.util.find_spec("numba") is not None

@@ -3,8 +3,8 @@
 them (the history before a step, the update after it).
 
 The integrators are linear and act on every degree of freedom alike, so each is fully described
-by a few scalar coefficients per state array (:func:`linear_maps`), read off the numpy
-integrator itself by evaluating its ``history`` and ``advance`` on unit states. No integrator
+by a few scalar coefficients per state array (:func:`tmm_core.integrators.linear_maps`), read
+off the numpy integrator itself by evaluating its ``history`` and ``advance`` on unit states. No integrator
 formula is written here: the numpy classes are the one place that defines them, and the
 compiled march and the periodic solver's linearized revolutions both step through
 :func:`history` and :func:`advance` on those coefficients.
@@ -14,35 +14,10 @@ States are stacked as ``S (K, L)``: the integrator's K state arrays (in the orde
 a monodromy, a C-ordered ``(K, n_dof, M)`` array reshaped): the maps act on every value alike, so
 each is one contiguous loop.
 
-Owns: the integrators' linear maps and their compiled application. Boundaries: the formulas are
+Owns: the compiled application of the integrators' linear maps. Boundaries: the formulas are
 tmm_core.integrators'; compiled and bound by tmm_core.compiled.binding.
 """
 from __future__ import annotations
-
-import numpy as np
-
-
-def linear_maps(integrator, dt: float):
-    """The integrator as linear maps of its state arrays: ``(slots, Hc, Gc, ez)`` with the
-    history ``h_a = sum_j Hc[0, j] x_j``, ``h_v = sum_j Hc[1, j] x_j`` and the update
-    ``x_i' = ez[i] z + sum_j Gc[i, j] x_j`` for new displacements ``z``; ``slots`` names the
-    state arrays (``integrator.initial``'s keys), ``dt`` [s]. Plain Python (not compiled)."""
-    one, zero = np.ones(1), np.zeros(1)
-    slots = tuple(integrator.initial(zero, zero, zero, (zero, zero)).keys())
-
-    def unit(j):
-        return {s: (one if i == j else zero).copy() for i, s in enumerate(slots)}
-
-    K = len(slots)
-    Hc, Gc, ez = np.zeros((2, K)), np.zeros((K, K)), np.zeros(K)
-    for j in range(K):
-        h_a, h_v = integrator.history(unit(j), dt)
-        Hc[0, j], Hc[1, j] = h_a[0], h_v[0]
-        new = integrator.advance(unit(j), zero, dt)
-        Gc[:, j] = [new[s][0] for s in slots]
-    new = integrator.advance(unit(-1), one, dt)
-    ez[:] = [new[s][0] for s in slots]
-    return slots, Hc, Gc, ez
 
 
 def history(Hc, S, h_a, h_v):

@@ -41,7 +41,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .integrators import advance, history, linear_maps
+from ..integrators import linear_maps
+from .integrators import advance, history
 from .time_step import history_loads
 
 
