@@ -24,7 +24,6 @@ import subprocess
 import sys
 import tempfile
 import time
-import tomllib
 from pathlib import Path
 
 from tmm_core.backend import choose_backend
@@ -33,7 +32,7 @@ from tmm_core.compiled.cache import COMPILE_ESTIMATE_S, cache_is_cold
 from .engines import make_engine
 from .master import run_prescribed
 from .run_guards import tmm_numpy_seconds
-from .scenario import Scenario, from_dict
+from .scenario import Scenario, load
 
 log = logging.getLogger(__name__)
 
@@ -108,13 +107,11 @@ class KernelWarmup:
 
 def main(argv: list[str] | None = None) -> int:
     """Compile the kernels of a prescribed run of the scenario a run folder's
-    ``scenario.resolved.toml`` (``argv[0]``) records (its ``[input]``, overrides included): a few
-    macro steps of it through the transfer-matrix engine with the compiled backend."""
+    ``scenario.resolved.toml`` (``argv[0]``) records (overrides included: :func:`cosim.scenario.load`
+    reads its ``[input]``): a few macro steps of it through the transfer-matrix engine with the
+    compiled backend."""
     args = sys.argv[1:] if argv is None else argv
-    with open(args[0], "rb") as fh:
-        as_run = tomllib.load(fh)
-    sc = from_dict(as_run["input"], path=as_run["scenario"].get("file") or args[0])
-    run_prescribed(make_engine("tmm", backend="compiled"), sc, revolutions=WARMUP_REVOLUTIONS)
+    run_prescribed(make_engine("tmm", backend="compiled"), load(Path(args[0])), revolutions=WARMUP_REVOLUTIONS)
     return 0
 
 

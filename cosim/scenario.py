@@ -57,9 +57,15 @@ log = logging.getLogger(__name__)
 LINKAGE_TYPES = ("four-bar", "slider-crank", "linkage", "structure")
 
 
+#: The tables of a run folder's ``scenario.resolved.toml`` (:func:`resolved`), by which
+#: :func:`load` knows one: a scenario file has none of ``resolved`` and ``input``.
+AS_RUN_TABLES = frozenset({"scenario", "resolved", "input"})
+
+
 def load(path_or_name) -> Scenario | StaticScenario:
     """Load a scenario from a path or from the name of a file in ``scenarios/``; a loaded
-    scenario of any kind (a variant made with ``with_overrides``) is returned as it is."""
+    scenario of any kind (a variant made with ``with_overrides``) is returned as it is. A run
+    folder's ``scenario.resolved.toml`` loads as the scenario that run ran (its ``[input]``)."""
     if isinstance(path_or_name, Variants):
         return path_or_name
     path = Path(path_or_name)
@@ -74,6 +80,10 @@ def load(path_or_name) -> Scenario | StaticScenario:
         data = read_with_bases(path)
     except ScenarioFileError as exc:
         raise ScenarioError(str(exc)) from None
+    if AS_RUN_TABLES <= data.keys():
+        # A run folder's scenario.resolved.toml (:func:`resolved`): the scenario it ran, overrides
+        # included, is its [input]; the rest is the record of what that made.
+        return from_dict(data["input"], str(path), default_name=data["scenario"].get("name") or path.stem)
     return from_dict(data, str(path), default_name=path.stem)
 
 

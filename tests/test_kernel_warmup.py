@@ -77,3 +77,19 @@ def test_a_sweep_on_a_cold_cache_says_it_compiles_and_how_long(tmp_path, monkeyp
                   resonance=False)
     said = [r.getMessage() for r in caplog.records if "compiling the transfer-matrix kernels" in r.getMessage()]
     assert said and f"about {PERIODIC_COMPILE_ESTIMATE_S:.0f} s" in said[0], said
+
+
+def test_a_run_folders_resolved_scenario_loads_as_the_scenario_it_ran(tmp_path):
+    """``scenario.resolved.toml`` (what the kernels' warm-up reads, and what a user reruns) loads
+    as the scenario the run ran, a typed override included; it was refused before ('assumptions':
+    unknown key)."""
+    import tomli_w
+
+    from cosim.scenario import resolved
+    variant = load("crank_rocker_95rpm").with_overrides({"drive.speed": "120 rpm"})
+    path = tmp_path / "scenario.resolved.toml"
+    path.write_text(tomli_w.dumps(resolved(variant)), encoding="utf-8")
+    again = load(path)
+    assert again.name == variant.name and again.drive.speed_rpm == pytest.approx(120.0)
+    assert [link.length_m for link in again.mechanism.links()] == [link.length_m for link in variant.mechanism.links()]
+    assert again.gauges == variant.gauges
