@@ -38,7 +38,7 @@ import numpy as np
 from scipy.integrate import solve_ivp
 
 from .compiled import binding as kernel_binding, periodic as compiled_periodic
-from .anderson import AndersonOptions, FixedPoint, anderson, block_weights
+from .anderson import AndersonOptions, FixedPoint, anderson, block_weights, residual_of
 from .errors import ConvergenceError, InputError, TMMError
 from .batches import configurations
 from .discretization import Discretization, HoldsModel, as_model
@@ -139,7 +139,7 @@ def periodic_steady_state(source: Discretization | HoldsModel, speed_rad_s: floa
             except ConvergenceError as exc:
                 solved = _past_linear_start(revolution, fp, shooting, info, exc)
         x0, (xN, trajectory, outs, residual), info["newton_iterations"] = solved
-        Phi = revolution.monodromy(model, cfg, keys, trajectory, dt)
+        Phi = revolution.monodromy(trajectory)
     else:
         # One revolution from the periodic state, for the outputs and as a check.
         st = _state(model, keys, x0[None, :])
@@ -148,7 +148,7 @@ def periodic_steady_state(source: Discretization | HoldsModel, speed_rad_s: floa
             st, _, out = _batched_step(model, cfg, k % N, st, dt)
             outs.append(out[0])
         xN = np.concatenate([st[k][0] for k in keys])
-        residual = float(np.max(np.abs(xN - x0)) / max(np.max(np.abs(x0)), 1e-300))
+        residual = residual_of(x0, xN)
     multipliers = np.linalg.eigvals(Phi)
     multipliers = multipliers[np.argsort(-np.abs(multipliers))]
     outs = np.array(outs)
@@ -167,10 +167,11 @@ class _Revolution:
     N: int
     dt: float
 
-    @property
-    def monodromy(self):
-        """The linearized revolution (compiled kernels or the numpy reference)."""
-        return _compiled_monodromy if self.model.compiled else _monodromy
+    def monodromy(self, trajectory):
+        """The monodromy of the revolution linearized about ``trajectory`` (compiled kernels or the
+        numpy reference)."""
+        linearized = _compiled_monodromy if self.model.compiled else _monodromy
+        return linearized(self.model, self.cfg, self.keys, trajectory, self.dt)
 
 
 def _one_period(crank, speed_rad_s, step_s, step_deg, start_angle):
@@ -276,7 +277,7 @@ def _shoot(model: Discretization, cfg, keys, x0, N, dt, it):
         raise ConvergenceError(f"periodic solver: Newton shooting left the range of the model at iteration "
                                f"{it} ({exc}); the response may not be periodic at this speed (march in "
                                "time instead)") from None
-    return xN, trajectory, outs, float(np.max(np.abs(xN - x0)) / max(np.max(np.abs(x0)), 1e-300))
+    return xN, trajectory, outs, residual_of(x0, xN)
 
 
 def _newton(rev: _Revolution, x0, shot, jacobian, tolerance, iterations, strict):
@@ -293,7 +294,7 @@ def _newton(rev: _Revolution, x0, shot, jacobian, tolerance, iterations, strict)
         if it == iterations or (strict and residual > last):
             break
         if jacobian is None or residual > 0.25 * last:
-            jacobian = np.eye(len(x0)) - rev.monodromy(model, cfg, keys, trajectory, dt)
+            jacobian = np.eye(len(x0)) - rev.monodromy(trajectory)
         last = residual
         x0 = x0 + np.linalg.solve(jacobian, xN - x0)
         try:

@@ -51,7 +51,7 @@ from scipy.linalg import lu_factor, lu_solve
 from .compiled import binding as kernel_binding, reduced_periodic as compiled_reduced_periodic
 from .backend import choose_backend
 from .discretization import Discretization, HoldsModel, as_model
-from .anderson import AndersonOptions, anderson, block_weights
+from .anderson import AndersonOptions, anderson, block_weights, residual_of
 from .errors import ConvergenceError, InputError
 from .ked import CrankMotion
 from .periodic import PeriodicResult
@@ -437,7 +437,7 @@ def periodic_steady_state_reduced(source: Discretization | HoldsModel, speed_rad
             xN, _, outs = model.revolution(x0, False, outputs=True, jacobian=False)
             solved = (x0, xN, mono, outs, 0)
     x0, xN, mono, outs, _ = solved
-    residual = float(np.max(np.abs(xN - x0)) / max(np.max(np.abs(x0)), 1e-300))
+    residual = residual_of(x0, xN)
     mult = np.linalg.eigvals(mono)
     mult = mult[np.argsort(-np.abs(mult))]
     return PeriodicResult(model.stage_time, model.stage_angle, full.outputs.torque(outs), full.outputs.split(outs),
@@ -462,7 +462,7 @@ def _reduced_newton(model: ReducedModel, x0, jac, tolerance, iterations):
             jac, mono, fresh = m_new, m_new, True
         if not np.all(np.isfinite(xN)):
             raise ConvergenceError("reduced model: Newton shooting left the range of the model")
-        residual = float(np.max(np.abs(xN - x0)) / max(np.max(np.abs(x0)), 1e-300))
+        residual = residual_of(x0, xN)
         if residual < tolerance:
             if m_new is None:
                 # The chord Jacobian is an earlier iterate's (or the linear model's): its
@@ -498,7 +498,7 @@ def _reduced_from_guess(model: ReducedModel, guess, tolerance, info):
         xN, mono, outs = model.revolution(fp.x, True, outputs=True, jacobian=True)
     except ConvergenceError:
         return fp, None
-    residual = float(np.max(np.abs(xN - fp.x)) / max(np.max(np.abs(fp.x)), 1e-300))
+    residual = residual_of(fp.x, xN)
     if residual >= tolerance:
         return fp, None
     info["start"], info["newton_iterations"] = "guess", 0

@@ -32,7 +32,6 @@ from .post import Gauge
 from .revolution import Revolution, aligned_change
 from . import time_step
 
-# The size limits of the step data keep their old names here (cosim's run guard reads the budget).
 __all__ = ["TimeDomain", "time_domain", "RunOptions", "march_history"]
 
 #: The model's fields and views that read through the facade (``td.n_dof`` is ``td.model.n_dof``).
