@@ -90,10 +90,11 @@ def campbell(fmap: dict, rpm_min: float, rpm_max: float, max_harmonic: int = 20)
 
 
 def plot_sweep(folder, name: str, points: list, fmap: dict | None, marks_rpm=(), max_harmonic: int = 20,
-               record_peaks=(), not_steady_rpm=()) -> list:
+               record_peaks=(), not_steady_rpm=(), unstable_rpm=()) -> list:
     """Write ``sweep_peaks`` and ``campbell`` figures (PNG and SVG) to ``folder``; returns the paths.
     ``record_peaks`` (:func:`cosim.figures.peaks_by_speed`) are drawn as open markers at their speeds;
-    ``not_steady_rpm``: marched points whose last revolutions still differ (shaded)."""
+    ``not_steady_rpm``: marched points whose last revolutions still differ (shaded);
+    ``unstable_rpm``: solved orbits a march would leave (shaded; ``summary["unstable_orbits"]``)."""
 
     folder = Path(folder)
     paths = []
@@ -120,8 +121,7 @@ def plot_sweep(folder, name: str, points: list, fmap: dict | None, marks_rpm=(),
         ax.axvline(r, color="mistyrose", lw=3, zorder=0)
     # Solved orbits a march would leave (|Floquet multiplier| > 1): their peaks are not what a
     # run at that speed settles to.
-    unstable = [p["rpm"] for p in done if ((p["engines"].get("tmm") or {}).get("orbit") or "stable") != "stable"]
-    for r in unstable:
+    for r in unstable_rpm:
         ax.axvline(r, color="thistle", lw=3, zorder=0)
     for r in marks_rpm:
         ax.axvline(r, color="k", lw=0.8, ls=":")
@@ -129,7 +129,7 @@ def plot_sweep(folder, name: str, points: list, fmap: dict | None, marks_rpm=(),
     ax.set_ylabel("peak bending strain [µε]")
     notes = (["grey: no solution, e.g. buckling"] if failed else []) + \
         (["pink: not steady, peaks of a transient"] if len(not_steady_rpm) else []) + \
-        (["violet: unstable orbit, |mu| > 1"] if unstable else [])
+        (["violet: unstable orbit, |mu| > 1"] if len(unstable_rpm) else [])
     ax.set_title(f"{name}: steady-state peak strain vs speed" + (f" ({'; '.join(notes)})" if notes else ""))
     ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0)
     ax.grid(alpha=0.3)

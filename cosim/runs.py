@@ -49,7 +49,7 @@ from tmm_core.fourbar_limits import limit_positions
 from . import __version__
 from . import figures as run_figures      # through the module: a test puts a failing stand-in there
 from .compare import convention_warnings, score_history, score_peaks, sign_check
-from .engines import ENGINES, EngineUnavailable, make_engine
+from .engines import ENGINES, EngineUnavailable, check_engine_names, make_engine
 from .files import write_atomic
 from .interrupted import mark_interrupted
 from .interrupts import Interrupts
@@ -249,9 +249,7 @@ def _plan(scenario, options: RunOptions) -> _Plan:
     """Every check that can refuse the run, before its folder exists: engines, viewer, drive mode,
     length, cost and the records directory."""
     sc = scenario if isinstance(scenario, Scenario) else load(scenario)
-    for e in options.engines:
-        if e not in ENGINES:
-            raise InputError(f"unknown engine {e!r}; choose from {', '.join(ENGINES)}")
+    check_engine_names(options.engines)
     viewer = _viewer_options(options)                    # refuses a bad viewer before anything runs
     mode = options.mode or sc.drive.mode
     engines, unavailable = {}, {}

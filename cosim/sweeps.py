@@ -40,7 +40,7 @@ from tmm_core.reduced_stages import StageCoefficients
 from tmm_core.compiled import statics as compiled_statics
 from tmm_core.compiled.cache import PERIODIC_COMPILE_ESTIMATE_S
 
-from .engines import ENGINES
+from .engines import check_engine_names
 from .figures import peaks_by_speed
 from .interrupts import Interrupts
 from .master import CoSimulation, macro_step_for
@@ -372,13 +372,6 @@ def _unsolved_note(sc, points: list, bad: list) -> str:
             "lost point (--method march shows the response there)")
 
 
-def _check_engines(engines) -> None:
-    """Refuse an engine name the bench does not have."""
-    for e in engines:
-        if e not in ENGINES:
-            raise ScenarioError(f"unknown engine {e!r}; choose from {', '.join(ENGINES)}")
-
-
 def run_sweep(scenario: str, rpm, engines=("tmm",), revolutions: float | None = None, workers: int | None = None,
               scheduler: str | None = None, out: Path | None = None, progress: bool = True,
               record: bool = True, method: str = "periodic", resonance: bool = True,
@@ -399,7 +392,7 @@ def run_sweep(scenario: str, rpm, engines=("tmm",), revolutions: float | None = 
                             "periodic, or the full model (--model full) to march in time")
     rpms = parse_rpm(rpm) if isinstance(rpm, str) else np.asarray(rpm, dtype=float)
     revs = sc.output.revolutions if revolutions is None else revolutions
-    _check_engines(engines)
+    check_engine_names(engines)
     check_study(sc, "sweep", _sweep_solves(rpm, rpms, revolutions), sweep_point_cost(sc, rpms, engines, revs, method),
                 workers, max_hours)
     record_peaks = peaks_by_speed(getattr(sc, "rig", None), float(rpms.min()), float(rpms.max()), records_dir)
@@ -508,7 +501,8 @@ def _after_points(sc, folder: Path, summary: dict, points: list, rpms, resonance
         summary["figures"] = [str(x.name) for x in plot_sweep(folder, sc.name, summary["points"], fmap,
                                                                 marks_rpm=[sc.drive.speed_rpm],
                                                                 record_peaks=record_peaks,
-                                                                not_steady_rpm=summary.get("points_not_steady", ()))]
+                                                                not_steady_rpm=summary.get("points_not_steady", ()),
+                                                                unstable_rpm=[o["rpm"] for o in summary["unstable_orbits"]])]
     return fmap
 
 

@@ -8,6 +8,8 @@ engine code.
 """
 from __future__ import annotations
 
+from tmm_core.errors import InputError
+
 from ..interrupts import caused_by_interrupt
 from .base import DriveInput, Engine, EngineError, EngineOutput, EngineRun, EngineUnavailable
 
@@ -20,6 +22,14 @@ ENGINES = ("tmm", "exudyn", "mujoco")
 MODELS = {"tmm": "flexible: transfer-matrix beams",
           "exudyn": "flexible: ANCF beam elements",
           "mujoco": "rigid bodies, quasi-static strain"}
+
+
+def check_engine_names(names) -> None:
+    """Refuse a name that is not one of :data:`ENGINES` (:class:`tmm_core.errors.InputError`,
+    naming it and the engines there are), before anything runs."""
+    for name in names:
+        if name not in ENGINES:
+            raise InputError(f"unknown engine {name!r}; choose from {', '.join(ENGINES)}")
 
 
 def is_rigid(engine: str) -> bool:
