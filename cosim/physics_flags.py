@@ -187,17 +187,11 @@ def linkage_modes(sc, rpm: float, progress: bool = False) -> list:
 def resonance_flags(rpm: float, modes: list) -> list:
     """Modes ``[{"what", "band_Hz": (lo, hi)}]`` within :data:`RESONANCE_BAND` of a harmonic k f_rev
     (k = 1 .. :data:`HARMONICS`, f_rev = rpm / 60 [Hz]); the nearest harmonic per mode."""
-    f_rev, out = rpm / 60.0, []
+    out = []
     for m in modes:
-        lo, hi = m["band_Hz"]
-        near = []
-        for k in range(1, HARMONICS + 1):
-            h = k * f_rev
-            gap = 0.0 if lo <= h <= hi else min(abs(lo - h), abs(hi - h)) / h
-            if gap <= RESONANCE_BAND:
-                near.append((gap, k, h))
+        near = _nearest_harmonic(m["band_Hz"], rpm)
         if near:
-            gap, k, h = min(near)
+            gap, k, h = near
             where = "takes in" if gap == 0 else f"lies within {100 * gap:.1f} % of"
             out.append(flag("resonance", f"resonance: {m['what']} {where} harmonic {k} of the crank speed "
                                          f"({h:.1f} Hz at {rpm:.0f} rpm; flagged within {100 * RESONANCE_BAND:g} % "
@@ -205,12 +199,18 @@ def resonance_flags(rpm: float, modes: list) -> list:
     return out
 
 
-def _nearest_harmonic(f_Hz: float, rpm: float) -> tuple | None:
-    """``(gap, k, harmonic [Hz])`` of the harmonic k = 1 .. :data:`HARMONICS` of the crank speed
-    nearest ``f_Hz``, if within :data:`RESONANCE_BAND` of it."""
-    near = [(abs(f_Hz - k * rpm / 60.0) / (k * rpm / 60.0), k, k * rpm / 60.0) for k in range(1, HARMONICS + 1)]
-    gap, k, h = min(near)
-    return (gap, k, h) if gap <= RESONANCE_BAND else None
+def _nearest_harmonic(band_Hz: tuple, rpm: float) -> tuple | None:
+    """``(gap, k, harmonic [Hz])`` of the harmonic k f_rev (k = 1 .. :data:`HARMONICS`, f_rev =
+    rpm / 60 [Hz]) nearest the frequency band ``(lo, hi)`` [Hz] (gap 0 inside it, else relative to
+    the harmonic), if within :data:`RESONANCE_BAND`; else None."""
+    lo, hi = band_Hz
+    near = []
+    for k in range(1, HARMONICS + 1):
+        h = k * rpm / 60.0
+        gap = 0.0 if lo <= h <= hi else min(abs(lo - h), abs(hi - h)) / h
+        if gap <= RESONANCE_BAND:
+            near.append((gap, k, h))
+    return min(near) if near else None
 
 
 def step_flags(sc, rpm: float, modes: list) -> list:
@@ -223,21 +223,22 @@ def step_flags(sc, rpm: float, modes: list) -> list:
     integrator, dt = get_integrator(sc.tmm.integrator), sc.engine_step_s("tmm")
     out = []
     for m in modes:
-        near = _nearest_harmonic(m["f_Hz"], rpm) if "link" in m else None
+        near = _nearest_harmonic(m["band_Hz"], rpm) if "link" in m else None
         if near is None:
             continue
         gap, k, h = near
         zeta = float(m["link"].damping.ratio_at(m["f_Hz"]))
         omega = 2.0 * math.pi * m["f_Hz"]
         period_error = omega / numerical_frequency(integrator, omega, dt)[0] - 1.0
-        shift = resonance_sensitivity(h / m["f_Hz"], zeta) * period_error
+        sensitivity = resonance_sensitivity(h / m["f_Hz"], zeta)
+        shift = sensitivity * period_error
         if not shift >= STEP_ERROR_FRACTION:
             continue
         deg = math.degrees(abs(sc.drive.speed_rad_s) * dt)
         enough = deg * math.sqrt(STEP_ERROR_TARGET / shift)
         out.append(flag("step", f"step: {m['what']} lies {100 * gap:.1f} % from harmonic {k} with "
                                 f"{100 * zeta:.2g} % damping, where the resonant response moves "
-                                f"{resonance_sensitivity(h / m['f_Hz'], zeta):.0f}x any relative error of that "
+                                f"{sensitivity:.0f}x any relative error of that "
                                 f"frequency; the step ({deg:.3g} deg, {integrator.name}) puts the mode "
                                 f"{100 * period_error:.3f} % low: about {100 * shift:.1f} % on the resonant part of "
                                 f"the response (a step of {enough:.2g} deg keeps it within "
