@@ -132,7 +132,8 @@ def march(integrator, idx, maps, on_factors, model, settings, state, recorded):
     Hc, Gc, ez, dva, dt, c_v = integrator
     Zx, Ox, Ax, P0, rigid, omega = maps
     factored, flayout, fstored, fwork, Ocx = on_factors
-    m, aM, beta_node, seg_start, seg_end, seg_L, seg_EA, seg_beta, seg_K, gauge_seg = model
+    # The masses, mass damping and bending blocks serve only the history loads (the whole record).
+    _m, _aM, _beta_node, seg_start, seg_end, seg_L, seg_EA, seg_beta, _seg_K, gauge_seg = model
     coriolis, has_kv, dynamic, shortening, own_force, tol_z, tol_P, max_iterations, depth = settings
     S, P = state
     out_hist, z_hist, P_hist, iterations = recorded

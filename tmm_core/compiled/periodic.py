@@ -65,7 +65,8 @@ def push(S, coef, idx, forced, maps, model, flags, c_v, trajectory):
     dynamic)``; ``trajectory = (zs, vs, Ps)``."""
     Hc, Gc, ez = coef
     Zx, Ax, P0, rigid, omega = maps
-    m, aM, beta_node, seg_start, seg_end, seg_L, seg_EA, seg_beta, seg_K, _gauge_seg = model
+    # The mass damping and bending blocks serve only the history loads (the whole record).
+    m, _aM, _beta_node, seg_start, seg_end, seg_L, seg_EA, seg_beta, _seg_K, _gauge_seg = model
     coriolis, has_kv, dynamic = flags
     zs, vs, Ps = trajectory
     K, nM = S.shape
