@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import contextlib
 import signal
+import sys
 
 
 #: The signals this process has been interrupted by, in order (the exit status follows the last).
@@ -61,11 +62,17 @@ def interrupt_on_sigterm() -> None:
 class Interrupts:
     """SIGINT and SIGTERM during a run: remembered, then raised as KeyboardInterrupt. An engine
     that swallows the exception in its own solver (exudyn's Newton loop calls Python user
-    functions) cannot hide it: the run stops at the end of that macro step."""
+    functions) cannot hide it: the run stops at the end of that macro step.
+
+    Where Python itself cannot raise it (a signal that lands in a hook it calls and whose errors
+    it ignores, e.g. logging's at-fork hook while a worker process is forked), it printed
+    "Exception ignored ... Traceback" on stderr and dropped it. Such a KeyboardInterrupt, once
+    remembered, is not printed: :meth:`check` raises it at the next step or point."""
 
     def __init__(self):
         self.signal = None
         self.previous = {}
+        self.unraisable = None
 
     def __enter__(self):
         for sig in (signal.SIGINT, signal.SIGTERM):
@@ -73,7 +80,16 @@ class Interrupts:
                 self.previous[sig] = signal.signal(sig, self._handle)
             except ValueError:          # not the main thread: Python's own handling stays
                 pass
+        self.unraisable = sys.unraisablehook
+        sys.unraisablehook = self._unraisable
         return self
+
+    def _unraisable(self, unraisable) -> None:
+        """Python's hook for an exception it cannot raise: a remembered interrupt stays quiet
+        (:meth:`check` raises it), anything else is reported as before."""
+        if self.signal is not None and issubclass(unraisable.exc_type, KeyboardInterrupt):
+            return
+        self.unraisable(unraisable)
 
     def _handle(self, signum, frame):
         self.signal = signum
@@ -86,4 +102,6 @@ class Interrupts:
     def __exit__(self, *exc):
         for sig, handler in self.previous.items():
             signal.signal(sig, handler)
+        if self.unraisable is not None:
+            sys.unraisablehook = self.unraisable
         return False
