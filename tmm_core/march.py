@@ -143,7 +143,7 @@ class March:
         j = 0
         while j < len(indices):
             recorded = (outs[j:], zs[j:] if record_z else zs, Ps[j:] if record_axial else Ps, iterations[j:])
-            done = kernel_binding.march()(integrator, indices[j:], data[:6], data[6:], kernel, settings,
+            done = kernel_binding.march()(integrator, indices[j:], data[:6], data[6], kernel, settings,
                                           (S, P), recorded)
             self.state = {key: S[i].copy() for i, key in enumerate(slots)}
             self.axial = P.copy() if dynamic else self.axial

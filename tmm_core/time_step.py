@@ -217,9 +217,11 @@ def _node_loads(model: Discretization, loads):
 
 
 def kernel_data(model: Discretization, cfg):
-    """The arrays of a configuration batch the compiled march reads (cached in the batch):
-    its maps, or its stored factorizations (:class:`tmm_core.configuration_batch.StepFactors`)
-    with placeholder maps."""
+    """The arrays of a configuration batch the compiled march reads (cached in the batch): its maps
+    (``Zx, Ox, Ax, P0, rigid, omega``), or placeholder maps and its stored factorizations
+    (:class:`tmm_core.configuration_batch.StepFactors`), as
+    ``(Zx, Ox, Ax, P0, rigid, omega, on_factors)``: ``on_factors`` is None for maps
+    (:func:`tmm_core.compiled.time_step.march_arrays`)."""
     data = cfg.cache.get("kernel")
     if data is None:
         maps, fac = cfg.maps, cfg.factors
@@ -237,7 +239,7 @@ def kernel_data(model: Discretization, cfg):
             arrays = (np.zeros((1, n, n + 1)), np.zeros((1, no, n + 1)), np.zeros((1, ns, n + 1)))
         data = tuple(np.ascontiguousarray(x, dtype=float) for x in arrays + (
             cfg.P0 if dynamic else np.zeros((1, ns)), cfg.rigid, omega))
-        data += compiled_time_step.march_arrays(fac, model.n_dof // 3, ns, no)
+        data += (compiled_time_step.march_arrays(fac, model.n_dof // 3, ns, no),)
         cfg.cache["kernel"] = data
     return data
 

@@ -25,8 +25,8 @@ from . import march as march_kernel     # beside the stage function march() belo
 from .cache import numba_module
 
 #: The dense helpers every factorization and solve calls (tmm_core.compiled.dense).
-DENSE = ("stumpff", "inv3", "mm3", "ldl_inertia", "segment_blocks", "full6", "state_change", "iteration_converged",
-         "iteration_start")
+DENSE = ("stumpff", "inv3", "mm3", "ldl_inertia", "segment_blocks", "full6", "copy_states", "state_change",
+         "iteration_converged", "iteration_start")
 #: The compiled layer's one LU (tmm_core.compiled.dense): the joint systems' and the reduced model's.
 LU = ("dot", "subtract_rows", "lu_factor", "lu_solve", "lu_solve_many")
 #: The load solve's helpers on many load sets (tmm_core.compiled.step_data).

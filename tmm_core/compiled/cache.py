@@ -10,7 +10,7 @@ itself, and the folders of other keys beside the package are removed. Every kern
 :func:`numba_module`, which points numba's cache there before the first kernel is made.
 
 The first run on a machine (or after the kernels' source changed) compiles them, which takes
-about a minute on a small machine; :func:`cache_is_cold` lets a caller say so before it starts
+about 35 s on a small machine; :func:`cache_is_cold` lets a caller say so before it starts
 instead of sitting silent.
 
 Owns: the compiled layer's cache folder and key, the cold-cache check and the compile-time
@@ -28,13 +28,13 @@ import shutil
 from pathlib import Path
 
 #: Time [s] of compiling the time-domain kernels when numba's cache is empty, on an idle 2-core
-#: machine: the first prescribed TMM run of the FE rig took 52 s (wall and process CPU alike:
-#: compiling is single-threaded), of which about 2 s are the run itself; longer on a loaded one.
-COMPILE_ESTIMATE_S = 50.0
+#: machine: the first run's warm-up process of the FE rig (``tests/benchmarks/bench_compile.py``)
+#: took 35-37 s whole (compiling is single-threaded); longer on a loaded one.
+COMPILE_ESTIMATE_S = 35.0
 #: Time [s] of compiling the kernels of a periodic sweep (the periodic solver's linearized
-#: revolutions as well) on an empty cache: a 2-point full-model sweep of the FE rig took 82 s
-#: whole, of which about 1.5 s are the points.
-PERIODIC_COMPILE_ESTIMATE_S = 80.0
+#: revolutions as well) on an empty cache: a 2-point full-model sweep of the FE rig (241 and 373
+#: rpm, one worker) took 56 s whole, of which about 1.5 s are the points.
+PERIODIC_COMPILE_ESTIMATE_S = 55.0
 
 HERE = Path(__file__).resolve().parent
 #: The package the compiled sources are named relative to (tmm_core).

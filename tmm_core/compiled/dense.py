@@ -115,6 +115,16 @@ def ldl_inertia(S, n, work):
     return negative, pmin, pmax
 
 
+def copy_states(dst, src):
+    """``dst[...] = src`` for station-state arrays ``(Nn, 2, 6)``, element by element: a slice
+    assignment compiles numba's broadcasting checks and their error messages (about 1.5 s of a
+    first run's compilation)."""
+    for i in range(src.shape[0]):
+        for side in range(2):
+            for k in range(6):
+                dst[i, side, k] = src[i, side, k]
+
+
 def state_change(new, old, w, scales):
     """Relative change between two station-state arrays ``(Nn, 2, 6)`` of one configuration,
     weighted by ``w (6,)`` (as :func:`tmm_core.statics.solve_static`'s change): the larger of the
@@ -301,8 +311,9 @@ def lu_solve_many(lu, piv, B):
                 t = B[k, j]
                 B[k, j] = B[p, j]
                 B[p, j] = t
+    # np.int64(0), not a bare 0: numba would compile subtract_rows once more for the literal.
     for i in range(n):                       # forward: L Y = B (unit diagonal)
-        subtract_rows(lu, i, B, 0, i)
+        subtract_rows(lu, i, B, np.int64(0), i)
     for i in range(n - 1, -1, -1):           # backward: U X = Y
         subtract_rows(lu, i, B, i + 1, n)
         inv = 1.0 / lu[i, i]

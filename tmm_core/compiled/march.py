@@ -113,7 +113,7 @@ def march(integrator, idx, maps, on_factors, model, settings, state, recorded):
     the integrator states ``S`` and the segment axial forces ``P`` in place and writing
     the outputs of each step into ``out_hist`` / ``z_hist`` / ``P_hist`` (rows; an array with no
     rows is not written) and its iteration count. The responses come from the augmented maps
-    ``Zx, Ox, Ax`` (:class:`tmm_core.configuration_batch.StepMaps`) or, with ``factored``, from
+    ``Zx, Ox, Ax`` (:class:`tmm_core.configuration_batch.StepMaps`) or, with ``on_factors`` given, from
     solves on the stored factorizations (:func:`tmm_core.compiled.time_step.factored_solve`:
     ``flayout, fstored, fwork``; the outputs ``Ocx`` applied to ``y``).
     Returns the number of steps done (``len(idx)`` unless a step failed: then the state is that
@@ -122,8 +122,8 @@ def march(integrator, idx, maps, on_factors, model, settings, state, recorded):
     Records (tuples, unpacked below): ``integrator = (Hc, Gc, ez, dva, dt [s], c_v)``, the
     integrator's linear maps (:func:`tmm_core.compiled.integrators.linear_maps`), the positions
     of the displacement, velocity and acceleration among its state arrays, the step and the
-    velocity coefficient; ``maps = (Zx, Ox, Ax, P0, rigid, omega)`` and ``on_factors = (factored,
-    flayout, fstored, fwork, Ocx)``, the configuration batch's data
+    velocity coefficient; ``maps = (Zx, Ox, Ax, P0, rigid, omega)`` and ``on_factors = (flayout,
+    fstored, fwork, Ocx)`` or None for a batch with maps, the configuration batch's data
     (:func:`tmm_core.time_step.kernel_data`); ``model = (m, aM, beta_node, seg_start,
     seg_end, seg_L, seg_EA, seg_beta, seg_K, gauge_seg)``; ``settings = (coriolis, has_kv,
     dynamic, shortening, own_force, tol_z, tol_P, max_iterations, depth)``; ``state = (S, P)``
@@ -131,7 +131,6 @@ def march(integrator, idx, maps, on_factors, model, settings, state, recorded):
     (out_hist, z_hist, P_hist, iterations)``."""
     Hc, Gc, ez, dva, dt, c_v = integrator
     Zx, Ox, Ax, P0, rigid, omega = maps
-    factored, flayout, fstored, fwork, Ocx = on_factors
     # The masses, mass damping and bending blocks serve only the history loads (the whole record).
     _m, _aM, _beta_node, seg_start, seg_end, seg_L, seg_EA, seg_beta, _seg_K, gauge_seg = model
     coriolis, has_kv, dynamic, shortening, own_force, tol_z, tol_P, max_iterations, depth = settings
@@ -157,7 +156,11 @@ def march(integrator, idx, maps, on_factors, model, settings, state, recorded):
     G = np.empty((ns, 4))
     damp = np.empty(ns)
     outv = np.empty(no)
-    y = np.empty(Ocx.shape[2] - 1)
+    # Stored factorizations, or None (maps): numba prunes every ``on_factors is not None`` branch
+    # of a march compiled for maps, so that it does not compile the factored solve in.
+    if on_factors is not None:
+        flayout, fstored, fwork, Ocx = on_factors
+        y = np.empty(Ocx.shape[2] - 1)
     x = np.empty(nx)
     gx = np.empty(nx)
     r = np.empty(nx)
@@ -182,7 +185,7 @@ def march(integrator, idx, maps, on_factors, model, settings, state, recorded):
         if not dynamic:
             # (The factored solve is called only in its branch: passing its tuples of arrays to a
             # helper on every iteration cost the maps' march ~2 us a step.)
-            if factored:
+            if on_factors is not None:
                 factored_solve(k, loads, flayout, fstored, fwork, zn, N, y)
                 affine(Ocx, k, y, outv)
             else:
@@ -221,7 +224,7 @@ def march(integrator, idx, maps, on_factors, model, settings, state, recorded):
                     f[i1 + 2] -= dP * G[s, 3]
                 for i in range(n):
                     f[i] += loads[i]
-                if factored:
+                if on_factors is not None:
                     factored_solve(k, f, flayout, fstored, fwork, zn, N, y)
                 else:
                     affine(Zx, k, f, zn)
@@ -246,7 +249,7 @@ def march(integrator, idx, maps, on_factors, model, settings, state, recorded):
                 dPr = dP_num / (dP_den + scale_P)
                 if dz < tol_z and dPr < tol_P:
                     converged = True
-                    if factored:
+                    if on_factors is not None:
                         affine(Ocx, k, y, outv)           # y: the last solve's, for these loads
                     else:
                         affine(Ox, k, f, outv)

@@ -75,7 +75,9 @@ def factor_configuration(bi, segments, configuration, joints, checks, factors, s
                     for q in range(3):
                         lead[mi, j, fi[r], zi[q]] += Kn[bi, nd_, r, q]
             else:                # a rigid segment before the first deformable one
-                segment_blocks(L[s0 + j // 2], 1.0, 1.0, 0.0, 0.0, 0.0, True, inv_fact, c5, sp, t1, t2)
+                # np.bool_, not a bare True/False: numba compiles a callee once more for every
+                # literal argument (here and below: segment_blocks three times instead of once).
+                segment_blocks(L[s0 + j // 2], 1.0, 1.0, 0.0, 0.0, 0.0, np.bool_(True), inv_fact, c5, sp, t1, t2)
                 full6(sp, t1, t2, T6, t6)
                 for r in range(6):
                     for q in range(6):
@@ -88,7 +90,7 @@ def factor_configuration(bi, segments, configuration, joints, checks, factors, s
                     prefix[mi, j + 1, r, q] = acc
         sg = s0 + first // 2
         segment_blocks(L[sg], EA[sg] * factor[bi, sg], EI[sg] * factor[bi, sg], P[bi, sg], qloc[bi, sg, 1],
-                        qloc[bi, sg, 0], False, inv_fact, c5, sp, t1, t2)
+                        qloc[bi, sg, 0], np.bool_(False), inv_fact, c5, sp, t1, t2)
         full6(sp, t1, t2, T6, t6)
         for r in range(6):
             lcol[mi, r] = t6[r]

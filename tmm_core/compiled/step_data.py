@@ -207,7 +207,8 @@ def solve_loads_many(bi, Fn, joints, outputs, factors, scratch):
         hi8 = min(lo + (hi - lo + 7) // 8 * 8, Rp)
         sweep_member(mi, lo, hi8, seg_off, FT, lead, lcol, B0, T220, SP, TL, BGis, HGis, firsts, pcol, cs, ys, af, st)
         sweep_member(mi, R, Rp, seg_off, FT, lead, lcol, B0, T220, SP, TL, BGis, HGis, firsts, pcol, cs, ys, af, st)
-        copy_sweep(mi, 0, lo, R, m, firsts[mi], pcol, cs, ys, af)
+        # np.int64(0), not a bare 0: numba would compile copy_sweep once more for the literal.
+        copy_sweep(mi, np.int64(0), lo, R, m, firsts[mi], pcol, cs, ys, af)
         copy_sweep(mi, hi, R, R, m, firsts[mi], pcol, cs, ys, af)
         cp = math.cos(-angle[bi, mi])
         sn = math.sin(-angle[bi, mi])

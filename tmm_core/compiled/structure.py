@@ -55,7 +55,7 @@ import math
 import numpy as np
 
 from .. import matrices
-from .dense import iteration_converged, lu_solve_many, state_change
+from .dense import copy_states, iteration_converged, lu_solve_many, state_change
 from .riccati import factor_configuration, factor_scratch
 from .step_data import maps_scratch, solve_loads_many
 
@@ -175,7 +175,7 @@ def solve_range(b_start, b_stop, segments, configuration, Fn, joints, outputs, c
         relax, prev, c1, c2, c3 = 1.0, math.inf, 0.0, 0.0, 0.0
         it = 2
         if max_iter > 1:
-            old[:] = start[bi]
+            copy_states(old, start[bi])
         while True:
             if recount:
                 for mi in range(M):
@@ -212,7 +212,7 @@ def solve_range(b_start, b_stop, segments, configuration, Fn, joints, outputs, c
                     node = sg + mi
                     target = 0.0 if rigid[sg] else 0.5 * (stn[node, 1, 5] + stn[node + 1, 0, 5])
                     P[bi, sg] = P[bi, sg] + relax * (target - P[bi, sg])
-            old[:] = stn
+            copy_states(old, stn)
             it += 1
 
 

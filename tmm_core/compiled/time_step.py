@@ -86,22 +86,20 @@ def factor_range(b_start, b_stop, segments, configuration, joints, checks, store
         factor_configuration(bi, segments, configuration, joints, checks, factors, scratch)
 
 
-def march_arrays(factors, n_nodes: int, n_seg: int, n_out: int) -> tuple:
-    """``(factored, layout, stored, work, Ocx)``, what the compiled march reads of a
-    :class:`tmm_core.configuration_batch.StepFactors` (and the scratch arrays of its solve); for
-    ``factors`` None, placeholders of the same array types, so that one compiled march serves the
-    maps too."""
+def march_arrays(factors, n_nodes: int, n_seg: int, n_out: int) -> tuple | None:
+    """``(layout, stored, work, Ocx)``, what the compiled march reads of a
+    :class:`tmm_core.configuration_batch.StepFactors` (and the scratch arrays of its solve); None
+    for ``factors`` None (a batch with maps). The march tests its record for None, and numba
+    prunes those branches when it compiles the march for the maps: a maps run does not compile the
+    stored-factorization solve into the march (5 s of a first run's compilation)."""
     if factors is None:
-        layout = (np.zeros(2, np.int64), np.zeros(1, np.bool_), np.zeros((1, 1)), np.zeros((1, 6), np.int64),
-                  np.zeros(0, np.int64), np.zeros(0, np.int64))
-        stored = tuple(np.zeros((1,) * ndim, dtype=np.int64 if k in INTEGER else float) for k, ndim in STORED.items())
-        return False, layout, stored, work_arrays(1, 1, 1, 1, 1, 1, 0), np.zeros((1, n_out, 1))
+        return None
     arrays = dict(zip(STORED, factors.stored))
     seg_off, _, _, _, _, gauge_nodes = factors.layout
     mmax = 2 * int(np.max(np.diff(seg_off))) + 1
     work = work_arrays(len(seg_off) - 1, mmax, n_nodes, n_seg, arrays["Kfull"].shape[1], arrays["lu"].shape[1],
                        len(gauge_nodes))
-    return True, factors.layout, factors.stored, work, factors.Ocx
+    return factors.layout, factors.stored, work, factors.Ocx
 
 
 def work_arrays(M, mmax, Nn, S, nd, nf, G):
