@@ -180,28 +180,34 @@ def run_scenario(scenario, options: RunOptions = RunOptions(), callback=None) ->
     The pipeline: the plan (every check before anything is written), the folder with its opening
     summary, the engines' loop (traces and recording written as it goes), the summary of the
     results (printed through ``options.on_results``), then the slower files."""
-    plan = _plan(scenario, options)
-    folder = run_folder(plan.sc.name, options.out)
-    summary = _open_folder(plan, options, folder)
-    warmup = KernelWarmup.start(folder / "scenario.resolved.toml") if plan.first_run_numpy else None
-    try:
-        return _run_and_write(plan, options, callback, folder, summary, warmup)
-    except BaseException:
-        if warmup is not None:
-            warmup.stop()
-        raise
+    # Signals are remembered from the start: a library may catch the KeyboardInterrupt of a
+    # Ctrl-C while the engines load (exudyn's import falls back to its other build when one fails
+    # to import, and an interrupted import fails), and the run would go on as if none had come.
+    with Interrupts() as interrupts:
+        plan = _plan(scenario, options)
+        interrupts.check()
+        folder = run_folder(plan.sc.name, options.out)
+        summary = _open_folder(plan, options, folder)
+        warmup = KernelWarmup.start(folder / "scenario.resolved.toml") if plan.first_run_numpy else None
+        try:
+            return _run_and_write(plan, options, callback, folder, summary, warmup, interrupts)
+        except BaseException:
+            if warmup is not None:
+                warmup.stop()
+            raise
 
 
 def _run_and_write(plan: _Plan, options: RunOptions, callback, folder: Path, summary: dict,
-                   warmup: KernelWarmup | None) -> RunResult:
-    """The run's engines, results and files (:func:`run_scenario`, after its folder is opened);
-    last, the kernels' compilation beside a first run is awaited."""
+                   warmup: KernelWarmup | None, interrupts: Interrupts) -> RunResult:
+    """The run's engines, results and files (:func:`run_scenario`, after its folder is opened;
+    ``interrupts`` its signals); last, the kernels' compilation beside a first run is awaited."""
     writer = TraceWriter(folder / "traces.csv")
     notes = []
     # Started before the engines set up: its child process imports rerun meanwhile.
     recorder = _start_recorder(plan.sc, plan.mode, plan.engines, folder, options, plan.viewer, summary)
     exports = _start_exports(plan.engines, folder)
-    status, result, write_failed = _run_engines(plan, options, callback, folder, summary, notes, writer, recorder)
+    status, result, write_failed = _run_engines(plan, options, callback, folder, summary, notes, writer, recorder,
+                                                interrupts)
     _summarise_results(plan, options, folder, summary, notes, status, result, recorder, exports)
     if options.on_results is not None:
         options.on_results(dict(summary, status=final_status(status, summary)))
@@ -304,7 +310,7 @@ def _open_folder(plan: _Plan, options: RunOptions, folder: Path) -> dict:
 
 
 def _run_engines(plan: _Plan, options: RunOptions, callback, folder: Path, summary: dict, notes: list,
-                 writer: TraceWriter, recorder) -> tuple:
+                 writer: TraceWriter, recorder, interrupts: Interrupts) -> tuple:
     """The master's loop, every macro step's samples written to traces.csv and the recording as
     it goes; returns ``(status, CoSimResult or None, whether the traces could not be written)``.
     An interrupt, a full disk or running out of memory ends it with the steps so far on disk."""
@@ -316,7 +322,6 @@ def _run_engines(plan: _Plan, options: RunOptions, callback, folder: Path, summa
     failures = {}
     written_t = [None]
     stations = [False]
-    interrupts = Interrupts()
 
     # The macro steps' samples, collected once for traces.csv and the recording, go to both in
     # blocks (cosim.samples).
@@ -351,10 +356,10 @@ def _run_engines(plan: _Plan, options: RunOptions, callback, folder: Path, summa
 
     status, result, write_failed = None, None, False
     try:
-        with interrupts:
-            result = plan.cosim.run(plan.duration_s, callback=on_step, until_steady=plan.until_steady,
-                                    keep_revolutions=KEEP_REVOLUTIONS)
-            take_block()                # the last macro steps
+        interrupts.check()              # one an engine's set-up or the recorder's start caught
+        result = plan.cosim.run(plan.duration_s, callback=on_step, until_steady=plan.until_steady,
+                                keep_revolutions=KEEP_REVOLUTIONS)
+        take_block()                    # the last macro steps
         status = result.status
         if interrupts.signal is not None:
             mark_interrupted(result, written_t[0], failures)

@@ -98,3 +98,29 @@ def test_a_signal_python_cannot_raise_is_remembered_and_not_printed():
     res = subprocess.run([sys.executable, "-c", UNRAISABLE], env=env, capture_output=True, text=True, timeout=120)
     assert res.stdout.strip() == "remembered", (res.stdout, res.stderr)
     assert "Traceback" not in res.stderr and "Exception ignored" not in res.stderr, res.stderr
+
+
+def test_a_ctrl_c_a_library_catches_while_the_engines_load_still_ends_the_run(monkeypatch, tmp_path):
+    """A library may catch the KeyboardInterrupt of a Ctrl-C: exudyn's import falls back to its
+    other build when one fails to import, and an interrupted import fails. Caught while the
+    engines load (before the run's loop), it was lost, and the run went on and ended with 0 (a
+    Ctrl-C at about 1 s of `cosim run`'s start-up, seen once in CI). The run remembers signals
+    from its start and ends before it writes anything."""
+    from cosim import runs
+
+    real = runs.make_engine
+
+    def catching_library(name, **kwargs):
+        try:
+            os.kill(os.getpid(), signal.SIGINT)
+            time.sleep(0.5)             # the handler runs here, at the next bytecode
+        except KeyboardInterrupt:
+            pass                        # the library's fallback
+        return real(name, **kwargs)
+
+    monkeypatch.setattr(runs, "make_engine", catching_library)
+    out = tmp_path / "out"
+    with pytest.raises(KeyboardInterrupt):
+        runs.run_scenario("crank_rocker_373rpm", runs.RunOptions(engines=("mujoco",), revolutions=0.1, out=out,
+                                                                 viewer="none", progress=False, figures=False))
+    assert not out.exists()
