@@ -2,6 +2,7 @@
 
 Every expected value comes from the full transfer-matrix model (its frequency search, its
 periodic steady state) or from a closed form, never from the reduced code itself."""
+import dataclasses
 import math
 
 import numpy as np
@@ -288,3 +289,75 @@ def test_reduced_model_of_an_elastic_crank_agrees_with_the_full_one(beam_column)
             assert peak(reduced.gauges[g][0]) == pytest.approx(peak(b), rel=0.01), g
     if not beam_column:
         assert np.max(reduced.drive_torque) == pytest.approx(np.max(full.drive_torque), rel=0.01)
+
+
+def _link_model():
+    """The small FE rig of :func:`_small_rig` on a basis with one axial coordinate per link."""
+    from tmm_core.reduced_periodic import ReducedModel
+    sc = load("crank_rocker_373rpm").with_overrides({"solver.tmm.segments": 4})
+    td = _time_domain(sc)
+    options = ReducedOptions(modes=2, positions=24, mode_positions=6, steps=120, axial="link")
+    basis = build_basis(td, 0.0, options)
+    from tmm_core.ked import CrankMotion
+    crank = CrankMotion.constant_speed(sc.drive.speed_rad_s, step_deg=3.0, revolutions=1.0)
+    return ReducedModel(td, crank, basis, backend="numpy"), basis
+
+
+def test_link_axial_coordinates_replace_the_segment_pairs():
+    """One axial load pair per link (on its end nodes) instead of one per segment: the static
+    correction of the linear model (no pairs) plus one column per link, here 2 on the FE rig
+    (the per-segment basis: up to 8 more, some dependent on the rigid-body load shapes)."""
+    sc = load("crank_rocker_373rpm").with_overrides({"solver.tmm.segments": 4})
+    options = dict(modes=2, positions=24, mode_positions=6)
+    linear = build_basis(_time_domain(sc, beam_column=False), 0.0, ReducedOptions(**options))
+    td = _time_domain(sc)
+    link = build_basis(td, 0.0, ReducedOptions(**options, axial="link"))
+    segment = build_basis(td, 0.0, ReducedOptions(**options))
+    assert (link.n_modes, link.n_static) == (linear.n_modes, linear.n_static + 2)
+    assert segment.size > link.size
+    with pytest.raises(Exception, match="axial must be one of"):
+        ReducedOptions(axial="node")
+
+
+def test_link_second_order_with_one_segment_per_link_is_the_segment_one():
+    """The link-level axial force with every segment taken as its own link (compliance L/EA, its
+    own damping time) is the per-segment second-order term exactly: ``N``, both Jacobians, the
+    axial forces and the gauge's shortening term (the per-segment formulas are the reference)."""
+    model, basis = _link_model()
+    rng = np.random.default_rng(1)
+    P = np.array([0, 7, 200])
+    eta, v = rng.normal(size=(3, basis.size)) * 1e-3, rng.normal(size=(3, basis.size)) * 1e-1
+    n_seg = len(model.k)
+    model.links_of, model.compliance, model.link_beta = np.eye(n_seg), 1.0 / model.k, model.beta
+    as_links = model.second_order(P, eta, v)
+    model.basis = dataclasses.replace(basis, axial="segment")
+    as_segments = model.second_order(P, eta, v)
+    for got, ref in zip(as_links, as_segments):
+        np.testing.assert_allclose(got, ref, rtol=1e-12, atol=1e-12 * np.max(np.abs(ref)))
+
+
+def test_link_second_order_jacobians_are_the_derivatives():
+    """``dN/deta`` and ``dN/deta'`` of the link-level term against central differences."""
+    model, basis = _link_model()
+    rng = np.random.default_rng(2)
+    P = np.array([11])
+    eta, v = rng.normal(size=(1, basis.size)) * 1e-2, rng.normal(size=(1, basis.size))
+    N, N_e, N_v, _, _ = model.second_order(P, eta, v)
+    for J, which in ((N_e, 0), (N_v, 1)):
+        fd = np.zeros_like(J[0])
+        for j in range(basis.size):
+            h = 1e-6 * max(1.0, abs((eta, v)[which][0, j]))
+            plus, minus = [x.copy() for x in (eta, v)], [x.copy() for x in (eta, v)]
+            plus[which][0, j] += h
+            minus[which][0, j] -= h
+            fd[:, j] = (model.second_order(P, *plus, jacobian=False)[0][0]
+                        - model.second_order(P, *minus, jacobian=False)[0][0]) / (2 * h)
+        np.testing.assert_allclose(J[0], fd, rtol=1e-5, atol=1e-6 * np.max(np.abs(fd)))
+
+
+def test_link_axial_coordinates_refuse_the_compiled_revolution():
+    """The prototype has no compiled revolution: asking for one is refused, naming the way out."""
+    from tmm_core.reduced_periodic import ReducedModel
+    model, basis = _link_model()
+    with pytest.raises(Exception, match="backend='numpy'"):
+        ReducedModel(model.model, None, basis, backend="compiled")   # refused before the crank is read

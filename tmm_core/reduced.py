@@ -57,6 +57,8 @@ from .structure import LoadCase, factorize, solve_factored
 
 #: Default number of link modes (chosen from the accuracy study, docs/validation.md "Reduced model accuracy").
 DEFAULT_MODES = 4
+#: The axial coordinates of :class:`ReducedOptions` (``axial``): per segment, or per link.
+AXIAL_COORDINATES = ("segment", "link")
 
 
 @dataclass(frozen=True)
@@ -71,14 +73,24 @@ class ReducedOptions:
         the FE rig 360 steps agree with 720 within 0.02 % on every peak at 241 and 373 rpm (180
         steps: 0.04 % and 0.2 %). Modes far above the crank harmonics (beyond about 8 on the FE
         rig, 1.8 kHz) are damped by the L-stable propagator rather than resolved.
+    axial : the second-order axial force (``axial_force = 'dynamic'``). ``"segment"``: one static
+        correction per segment (a pair of axial loads on its nodes), so that every segment's
+        elongation follows its own shortening from bending, and each segment's own axial force.
+        ``"link"`` (prototype of issue 37, numpy backend only): one per flexible link (a pair of
+        axial loads on its end nodes), and the link's axial force uniform along it, from the
+        link's compatibility: its chord elongation plus the sum of its segments' shortenings over
+        its axial compliance ``sum L/EA`` (r = 23 -> 9 on the FE rig).
     """
 
     modes: int = DEFAULT_MODES
     positions: int = 90
     mode_positions: int = 18
     steps: int = 360
+    axial: str = "segment"
 
     def __post_init__(self):
+        if self.axial not in AXIAL_COORDINATES:
+            raise InputError(f"reduced model: axial must be one of {', '.join(AXIAL_COORDINATES)}, got {self.axial!r}")
         for name in ("modes", "positions", "mode_positions", "steps"):
             v = getattr(self, name)
             if int(v) != v or v < 1:
@@ -102,6 +114,7 @@ class ReducedBasis:
         whose modes were collected (linear theory, no rotating-frame terms).
     gauge_maps : (n_gauges, 2, n_dof) bending and axial strain per unit node displacement.
     n_modes, n_static : columns from the modes and from the static correction.
+    axial : the axial coordinates, per segment or per link (:class:`ReducedOptions`).
     """
 
     angles: np.ndarray
@@ -112,6 +125,7 @@ class ReducedBasis:
     gauge_maps: np.ndarray
     n_modes: int
     n_static: int
+    axial: str = "segment"
 
     @property
     def size(self) -> int:
@@ -260,6 +274,9 @@ def build_basis(source: Discretization | HoldsModel, start_angle: float = 0.0,
         pairs = np.zeros((model.n_dof, len(seg.length)))
         pairs[seg.start, np.arange(len(seg.length))] = 1.0
         pairs[seg.end, np.arange(len(seg.length))] = -1.0
+        if options.axial == "link":
+            # One pair per link, on its end nodes: the sum of its segments' pairs.
+            pairs = pairs @ segment_links(model).T
         W_static = np.concatenate([W_static, pairs * float(np.linalg.norm(W_static[:, 0]))], axis=1)
     W = np.concatenate([W_modes, W_static], axis=1)
     T = Z @ W                                                     # (J, n, r)
@@ -284,4 +301,11 @@ def build_basis(source: Discretization | HoldsModel, start_angle: float = 0.0,
             raise InputError(f"reduced model: a gauge strain is not a function of the node displacements (fit error "
                              f"{err:.2g}); a gauge on a loaded node?")
     return ReducedBasis(angles, T, K, torque, np.array(freqs), gauge_maps, int(min(options.modes, keep.sum())),
-                        int(keep.sum()) - int(min(options.modes, keep.sum())))
+                        int(keep.sum()) - int(min(options.modes, keep.sum())), options.axial)
+
+
+def segment_links(model: Discretization) -> np.ndarray:
+    """``(n_links, n_seg)``: 1 where the segment (stacked, :attr:`Discretization.segments`) belongs
+    to the link (:attr:`Discretization.links`, in order)."""
+    counts = [link.total_segments for link in model.links]
+    return np.repeat(np.eye(len(counts)), counts, axis=1)

@@ -55,7 +55,7 @@ from .anderson import AndersonOptions, anderson, block_weights, residual_of
 from .errors import ConvergenceError, InputError
 from .ked import CrankMotion
 from .periodic import PeriodicResult
-from .reduced import ReducedBasis, ReducedOptions, build_basis
+from .reduced import ReducedBasis, ReducedOptions, build_basis, segment_links
 from .reduced_stages import StageCoefficients, stage_terms
 from .second_order import geometric_matrices
 
@@ -110,6 +110,9 @@ class ReducedModel:
             raise InputError("the reduced model carries both second-order terms or neither")
         self.model, self.basis = model, basis
         self.backend = model.backend if backend is None else choose_backend(backend)
+        if basis.axial == "link" and self.backend == "compiled":
+            raise InputError("the reduced model with one axial coordinate per link (ReducedOptions(axial='link'), a "
+                             "prototype) has no compiled revolution yet; pass backend='numpy'")
         #: Compiled path: chord Newton iterations in the revolutions without the monodromy (see
         #: tmm_core.compiled.reduced_periodic); False refactorizes every iteration, as the numpy path does.
         self.chord = True
@@ -130,6 +133,12 @@ class ReducedModel:
         self.torque_map, self.torque_offset = terms.torque_map, terms.torque_offset
         seg = model.segments
         self.k, self.beta, self.G = seg.stiffness, seg.beta, geometric_matrices(seg.length)
+        if basis.axial == "link":
+            # Link level: the segments of each link (S_l), its axial compliance sum L/EA [m/N] and
+            # its damping time (one per link: every segment of a link carries the link's).
+            self.links_of = segment_links(model)
+            self.compliance = self.links_of @ (1.0 / self.k)
+            self.link_beta = self.links_of @ self.beta / self.links_of.sum(axis=1)
         self._segment_maps = None              # built on first use (numpy path only)
         self.A2 = RADAU_A @ RADAU_A
         self.stage_acc = None                  # stage accelerations of the last revolution (guesses)
@@ -149,6 +158,8 @@ class ReducedModel:
             self._segment_maps = (Ed, self.G[None] @ Ed, Td[:, wdofs], T[:, seg.end] - T[:, seg.start],
                                   Td[:, seg.end] - Td[:, seg.start])
         Ed, GEd, Edd, a, ad = (x[P] for x in self._segment_maps)
+        if self.basis.axial == "link":
+            return self._second_order_links(Ed, GEd, Edd, a, ad, eta, v, jacobian)
         k, beta = self.k, self.beta
         col = lambda x: x[:, None, :, None]  # noqa: E731  (k, r) -> (k, 1, r, 1) against (k, s, 4, r)
         d = (Ed @ col(eta))[..., 0]                                   # (k, s, 4)
@@ -176,6 +187,45 @@ class ReducedModel:
         H = np.swapaxes((Ed * Pax[..., None, None]).reshape(len(P), 4 * ns, r), 1, 2) @ GEd.reshape(len(P), 4 * ns, r)
         bT = np.swapaxes(b, 1, 2)
         return N, bT @ P_eta + H + aT @ F_eta, bT @ P_v + aT @ F_v, Pax, delta
+
+    def _second_order_links(self, Ed, GEd, Edd, a, ad, eta, v, jacobian):
+        """:meth:`second_order` with the axial force uniform along each link (``ReducedOptions.axial
+        = 'link'``): ``P_l = (e_l + beta e_l' + Delta_l + beta Delta_l') / c_l`` with the link's
+        chord elongation ``e_l``, the sum of its segments' shortenings ``Delta_l`` and its axial
+        compliance ``c_l = sum L/EA``; ``N = sum_l P_l dDelta_l/deta + F_l de_l/deta``, ``F_l =
+        (Delta_l + beta Delta_l') / c_l``. Returns the segments' ``P_s = P_l`` and, in place of
+        their shortening, ``Delta_l / (c_l k_s)`` (the gauge's axial strain adds it over the
+        segment's length, as the per-segment model adds its shortening: with one segment per link
+        the two are the same)."""
+        S, c, beta = self.links_of, self.compliance, self.link_beta
+        col = lambda x: x[:, None, :, None]  # noqa: E731  (k, r) -> (k, 1, r, 1) against (k, s, 4, r)
+        d = (Ed @ col(eta))[..., 0]                                   # (k, s, 4)
+        dd = (Ed @ col(v) + Edd @ col(eta))[..., 0]
+        Gd = (GEd @ col(eta))[..., 0]
+        delta = S @ (0.5 * np.sum(d * Gd, axis=-1))[..., None]        # (k, l, 1): per link
+        rate = S @ np.sum(dd * Gd, axis=-1)[..., None]
+        F = (delta + beta[:, None] * rate)[..., 0] / c               # (k, l)
+        al, ald = S @ a, S @ ad                                       # link chords de/deta (k, l, r)
+        e = (al @ eta[:, :, None])[..., 0]
+        ed = (al @ v[:, :, None] + ald @ eta[:, :, None])[..., 0]
+        Pl = (e + beta * ed) / c + F
+        b_s = (np.swapaxes(GEd, -1, -2) @ d[..., None])[..., 0]        # dDelta_s/deta (k, s, r)
+        b = S @ b_s                                                   # (k, l, r)
+        aT, bT = np.swapaxes(al, 1, 2), np.swapaxes(b, 1, 2)
+        N = (bT @ Pl[..., None] + aT @ F[..., None])[..., 0]
+        Ps = Pl @ S                                                   # (k, s): each segment its link's
+        strain_length = ((delta[..., 0] / c) @ S) / self.k            # Delta_l / (c_l k_s)
+        if not jacobian:
+            return N, None, None, Ps, strain_length
+        rate_eta = S @ ((np.swapaxes(Edd, -1, -2) @ Gd[..., None])[..., 0]
+                        + (np.swapaxes(GEd, -1, -2) @ dd[..., None])[..., 0])
+        F_eta = (b + beta[:, None] * rate_eta) / c[:, None]
+        F_v = (beta / c)[:, None] * b
+        P_eta = (al + beta[:, None] * ald) / c[:, None] + F_eta
+        P_v = (beta / c)[:, None] * al + F_v
+        ns, r = Ed.shape[1], Ed.shape[-1]
+        H = np.swapaxes((Ed * Ps[..., None, None]).reshape(len(Ed), 4 * ns, r), 1, 2) @ GEd.reshape(len(Ed), 4 * ns, r)
+        return N, bT @ P_eta + H + aT @ F_eta, bT @ P_v + aT @ F_v, Ps, strain_length
 
     # -- one step ----------------------------------------------------------------------------
     def step(self, n, eta, v, acc, nonlinear, jacobian=True, tol=compiled_reduced_periodic.STAGE_TOL,
