@@ -43,6 +43,7 @@ WIDE_ENTRY_POINTS = {
     "LinkageMechanism": "a general linkage's parts; issue 33 item 5",
     "Member": "a member's fields; issue 33 item 5",
     "KEDResult": "a result record (its fields are outputs, not options)",
+    "ReducedBasis": "a data record made by build_basis (its fields are the basis' arrays and counts, not options)",
     "quasi_static": "mechanism, angles, speed and the model options; issue 33 item 1 (a model built once)",
     "TimeDomain": "the model options, the keywords of the facade of discretization.discretize; issue 33 item 5",
     "periodic_steady_state_reduced": "solver options; issue 33 item 5",

@@ -131,6 +131,7 @@ class ReducedModel:
         self.fr = (terms.f[:, None, :] @ terms.T)[:, 0]
         # Drive torque at the stage points: the reaction part per unit load, the rigid crank's part.
         self.torque_map, self.torque_offset = terms.torque_map, terms.torque_offset
+        self.strains = terms.strains           # gauge strains per unit coordinate (P, n_g, 2, r)
         seg = model.segments
         self.k, self.beta, self.G = seg.stiffness, seg.beta, geometric_matrices(seg.length)
         if basis.axial == "link":
@@ -395,7 +396,7 @@ class ReducedModel:
         Ov[:, 0] = row(g_vel, T) + 2.0 * row(g_acc, Td)
         Oa[:, 0] = row(g_acc, T)
         if n_g:
-            Oe[:, 1:] = np.matmul(self.basis.gauge_maps.reshape(2 * n_g, -1)[None], T)
+            Oe[:, 1:] = self.strains.reshape(len(T), 2 * n_g, -1)
         return O0, Oe, Ov, Oa
 
     def outputs(self, p, eta, v, acc, nonlinear):
@@ -416,7 +417,7 @@ class ReducedModel:
             c = m * self.alpha[p]
             load[iu] += c[iu] * q[iu + 1]
             load[iu + 1] -= c[iu + 1] * q[iu]
-        strains = self.basis.gauge_maps @ q                          # (n_g, 2)
+        strains = self.strains[p] @ eta                              # (n_g, 2)
         if nonlinear and len(self.gauge_segment):
             _, _, _, _, delta = self.second_order(np.array([p]), eta[None], v[None], jacobian=False)
             strains[:, 1] += delta[0, self.gauge_segment] / model.segments.length[self.gauge_segment]

@@ -35,7 +35,8 @@ class StageTerms(NamedTuple):
     ``Tdd`` (P, n, r); ``Mr, Cr, Kr`` (P, r, r); rigid-body loads ``f`` (P, n) [N, N m] in the link
     frames; link angular velocity and acceleration per DOF ``om, alpha`` (P, n) [rad/s, rad/s^2]
     (None without rotating-frame coupling); the drive torque per unit node load ``torque_map``
-    (P, n) and the rigid crank's own part ``torque_offset`` (P,) [N m]."""
+    (P, n) and the rigid crank's own part ``torque_offset`` (P,) [N m]; the gauges' bending and
+    axial strain per unit coordinate ``strains`` (P, n_g, 2, r) (linear theory)."""
 
     T: np.ndarray
     Td: np.ndarray
@@ -48,6 +49,7 @@ class StageTerms(NamedTuple):
     alpha: np.ndarray | None
     torque_map: np.ndarray
     torque_offset: np.ndarray
+    strains: np.ndarray
 
 
 def stage_terms(model: Discretization, basis, th, w, al) -> StageTerms:
@@ -103,8 +105,9 @@ def stage_terms(model: Discretization, basis, th, w, al) -> StageTerms:
         KX[:, iu + 1] += c[:, iu + 1, None] * T[:, iu]
     Kr = on_grid(B[0], b.K) + TT @ KX
     f, offset = _loads(model, motion)
-    return StageTerms(T, Td, Tdd, Mr, Cr, Kr, f, om, alpha, B[0] @ b.torque,
-                      np.broadcast_to(np.asarray(offset, dtype=float), th.shape))
+    offset = np.broadcast_to(np.asarray(offset, dtype=float), th.shape)
+    return StageTerms(T, Td, Tdd, Mr, Cr, Kr, f, om, alpha, B[0] @ b.torque, offset,
+                      on_grid(B[0], b.strain_per_coordinate))
 
 
 def _loads(model: Discretization, motion):
@@ -119,7 +122,7 @@ class StageCoefficients:
     """The speed-free parts of :class:`StageTerms` at the stage ``angle`` [rad] (see the module
     docstring): ``T``, ``T1``, ``T2``; ``Mr``; ``C0, C1``; ``K0, K1, K2, K3``; the link rates per
     unit speed ``om1`` (phi'), ``alpha2`` (phi'') and per unit acceleration ``alpha1`` (phi'), None
-    without rotating-frame coupling; ``torque_map``."""
+    without rotating-frame coupling; ``torque_map``; ``strains``."""
 
     angle: np.ndarray
     T: np.ndarray
@@ -136,6 +139,7 @@ class StageCoefficients:
     alpha2: np.ndarray | None
     alpha1: np.ndarray | None
     torque_map: np.ndarray
+    strains: np.ndarray
 
     @classmethod
     def of(cls, source: Discretization | HoldsModel, basis, th) -> "StageCoefficients":
@@ -147,7 +151,7 @@ class StageCoefficients:
         # The speed-free part is subtracted before the odd and even parts are separated.
         up, down = fwd.Kr - rest.Kr, back.Kr - rest.Kr          # K1 + K2, -K1 + K2
         return cls(th, rest.T, fwd.Td, fwd.Tdd, rest.Mr, rest.Cr, fwd.Cr - rest.Cr, rest.Kr, 0.5 * (up - down),
-                   0.5 * (up + down), acc.Kr - rest.Kr, fwd.om, fwd.alpha, acc.alpha, rest.torque_map)
+                   0.5 * (up + down), acc.Kr - rest.Kr, fwd.om, fwd.alpha, acc.alpha, rest.torque_map, rest.strains)
 
     def matches(self, th) -> bool:
         """Whether the stage angles ``th`` are these (to 1e-12 rad: at a fixed step count per
@@ -169,4 +173,4 @@ class StageCoefficients:
         alpha = None if self.alpha2 is None else self.alpha2 * (w**2)[:, None] + self.alpha1 * al[:, None]
         f, offset = _loads(model, model.mech.motion(np.asarray(th, dtype=float), w, al))
         return StageTerms(self.T, Td, Tdd, self.Mr, Cr, Kr, f, om, alpha, self.torque_map,
-                          np.broadcast_to(np.asarray(offset, dtype=float), self.angle.shape))
+                          np.broadcast_to(np.asarray(offset, dtype=float), self.angle.shape), self.strains)
