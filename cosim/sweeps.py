@@ -174,11 +174,14 @@ CONTINUATION_REACH = 0.1
 def predicted_state(history: list, rpm: float) -> np.ndarray | None:
     """The periodic state at ``rpm`` predicted from solved orbits ``[(rpm, state), ...]`` (the
     last two): the secant through them in speed, or the last one alone; None when the last is
-    farther than :data:`CONTINUATION_REACH` of ``rpm``."""
+    farther than :data:`CONTINUATION_REACH` of ``rpm``. The secant only through neighbours: a
+    worker's blocks come highest first, and a secant from 455 rpm through 405 rpm (another
+    block's orbit, past the fold) to 415 rpm lost the orbit a start from 405 rpm alone finds."""
     if not history or abs(rpm - history[-1][0]) > CONTINUATION_REACH * rpm:
         return None
     (r1, x1) = history[-1]
-    if len(history) < 2 or history[-2][0] == r1 or len(history[-2][1]) != len(x1):
+    if (len(history) < 2 or history[-2][0] == r1 or len(history[-2][1]) != len(x1)
+            or abs(r1 - history[-2][0]) > CONTINUATION_REACH * rpm):
         return x1
     (r0, x0) = history[-2]
     return x1 + (rpm - r1) / (r1 - r0) * (x1 - x0)

@@ -56,6 +56,9 @@ def test_the_secant_predictor_is_exact_for_states_linear_in_speed_and_keeps_its_
     np.testing.assert_allclose(predicted_state([(100.0, x(100.0)), (105.0, x(105.0))], 110.0), x(110.0))
     np.testing.assert_allclose(predicted_state([(105.0, x(105.0))], 110.0), x(105.0))
     assert predicted_state([(100.0, x(100.0))], 300.0) is None and predicted_state([], 300.0) is None
+    # A worker's next block starts far from its last one: no secant through the two (455 rpm,
+    # another block's orbit past the fold, and 405 rpm extrapolated to 415 rpm), the last alone.
+    np.testing.assert_allclose(predicted_state([(455.0, x(455.0)), (405.0, x(405.0))], 415.0), x(405.0))
 
 
 def test_the_block_pool_runs_contiguous_blocks_last_first_and_answers_each_job():

@@ -171,3 +171,20 @@ def test_a_complex_pair_outside_the_unit_circle_is_a_torus():
     pair = 1.2 * np.exp(0.7j)
     s = orbit_stability([0.5, pair, np.conj(pair)])
     assert s["kind"] == "torus" and s["mu_max"] == pytest.approx(1.2) and set(ORBIT_KINDS) >= {s["kind"]}
+
+
+@pytest.mark.parametrize("rpm", [415.0, 445.0])
+def test_a_diverging_newton_revolution_is_reported_as_the_steps_failure(rpm):
+    """FE rig past its fold, solved from the linear start: Newton's revolution diverges. Its
+    report is the step's (it did not converge, with the axial forces it reached), not the
+    structure's refusal of non-finite node loads nor a segment "overflowing cosh; split the link
+    into more segments" (a refactorization at the diverging forces), which read as bad input."""
+    from cosim.overrides import prescribed_speed
+    from tmm_core.errors import ConvergenceError
+    sc = load("crank_rocker_373rpm").with_overrides(prescribed_speed(rpm))
+    with pytest.raises(ConvergenceError) as failed:
+        periodic_steady_state(sc.time_domain(), sc.drive.speed_rad_s, step_s=sc.engine_step_s("tmm"),
+                              start_angle=sc.drive.start_angle_rad)
+    message = str(failed.value)
+    assert "must be finite" not in message and "split the link" not in message, message
+    assert "did not converge" in message, message

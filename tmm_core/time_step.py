@@ -22,7 +22,7 @@ from .anderson import anderson_coefficients
 from .batches import configurations
 from .compiled import time_step as compiled_time_step
 from .discretization import Discretization
-from .errors import ConvergenceError
+from .errors import ConvergenceError, InputError
 from .ked import segment_forces
 from .mechanism import torque_from_terms
 from .post import gauge_strains
@@ -107,19 +107,26 @@ def solve_step(model: Discretization, cfg, k, loads, state, dt, axial_guess=None
         if guess is None or not np.all(np.isfinite(guess)):
             break
         one = cfg.crank.take(k)
-        cfg, k = configurations(model, one.angle, one.speed, one.accel, dt, maps=False, axial_force=guess[None]), 0
+        try:
+            cfg, k = configurations(model, one.angle, one.speed, one.accel, dt, maps=False, axial_force=guess[None]), 0
+        except InputError:
+            # The factorization at these axial forces overflows (a diverging march's forces, e.g.
+            # 1e21 N): the step's failure, not a fault of the input.
+            break
     crank = math.degrees(float(cfg.crank.angle[k]))
+    reached = "" if guess is None else f", axial forces up to {float(np.max(np.abs(guess))):.3g} N"
     raise ConvergenceError(
         f"the second-order (axial_force 'dynamic') step did not converge at crank angle {crank:.6g} deg "
-        f"(after {AXIAL_RESTARTS} refactorizations; last relative changes: displacement {diag[1]:.3g}, axial "
-        f"force {diag[2]:.3g}); the links are near a dynamic instability or the step is too large (reduce "
-        "solver.tmm.step)")
+        f"(after {attempt} refactorizations; last relative changes: displacement {diag[1]:.3g}, axial "
+        f"force {diag[2]:.3g}{reached}); the links are near a dynamic instability or the step is too large "
+        "(reduce solver.tmm.step)")
 
 
 def _iterate(model: Discretization, cfg, k, loads, state, dt, axial_guess):
     """The fixed-point iteration of :func:`solve_step` on one factorization: ``((z, out, P),
-    None, (iterations, 0, 0))`` when converged, else ``(None, last finite P, (iterations,
-    displacement change, axial-force change))``."""
+    None, (iterations, 0, 0))`` when converged, else ``(None, the last finite P of an iterate
+    that was not diverging (None if none), (iterations, displacement change, axial-force
+    change))``."""
     seg = model.segments
     c_a, c_v = model.integrator.coefficients(dt)
     _, h_v = model.integrator.history(state, dt)
@@ -141,11 +148,14 @@ def _iterate(model: Discretization, cfg, k, loads, state, dt, axial_guess):
     for it in range(model.axial_iterations):
         z, P = x[:n], x[n:] / to_len
         f, F, delta = pseudo_loads(seg, z, c_v * z + h_v, P if own_force else P0, P0, shorten, exact)
+        if not np.all(np.isfinite(f)):
+            # An iterate that overflowed (a diverging step): the step's report, not the structure's
+            # refusal of non-finite node loads.
+            break
         z_new, out, N = _solve_one(model, cfg, k, loads + f)
         P_new = N + damping + F
         if not (np.all(np.isfinite(z_new)) and np.all(np.isfinite(P_new))):
             break
-        last_finite = P_new
         dz = float(np.max(np.abs(z_new - z))) / (float(np.max(np.abs(z_new))) + 1e-300)
         dP = float(np.max(np.abs(P_new - P))) / (float(np.max(np.abs(P_new))) + scale_P)
         if dz < model.axial_tolerance and dP < AXIAL_FORCE_TOLERANCE:
@@ -158,6 +168,9 @@ def _iterate(model: Discretization, cfg, k, loads, state, dt, axial_guess):
             return StepSolution(z_new, out, P_new), None, (it + 1, dz, dP)
         if dz > 1e3 or dP > 1e3:       # diverging: refactorize rather than iterate on
             break
+        # The estimate a refactorization starts from: not a diverging one (refactorized at axial
+        # forces of 1e258 N, a step reported a segment overflowing cosh, "split the link").
+        last_finite = P_new
         gx = np.concatenate([z_new, P_new * to_len])
         r = gx - x
         if previous is not None:
