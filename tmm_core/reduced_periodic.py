@@ -472,17 +472,7 @@ def periodic_steady_state_reduced(source: Discretization | HoldsModel, speed_rad
             try:
                 solved = _reduced_newton(model, x0, mono, newton_tolerance, newton_iterations)
             except ConvergenceError as exc:
-                # Where the linear start finds no orbit, Newton from the stalled guess's best
-                # iterate: the branch carried on (tried second, so that where the linear start
-                # finds an orbit the answer is a solve's without a guess; see
-                # tmm_core.periodic._past_linear_start).
-                if fp is None or fp.residual == np.inf:
-                    raise
-                try:
-                    solved = _reduced_newton(model, fp.x, None, newton_tolerance, newton_iterations)
-                except ConvergenceError:
-                    raise exc from None
-                info["start"] = "guess, Newton"
+                solved = _past_newton(model, x0, fp, newton_tolerance, newton_iterations, info, exc)
             info["newton_iterations"] = solved[-1]
         else:
             xN, _, outs = model.revolution(x0, False, outputs=True, jacobian=False)
@@ -493,6 +483,32 @@ def periodic_steady_state_reduced(source: Discretization | HoldsModel, speed_rad
     mult = mult[np.argsort(-np.abs(mult))]
     return PeriodicResult(model.stage_time, model.stage_angle, full.outputs.torque(outs), full.outputs.split(outs),
                           mult, residual, info, x0)
+
+
+def _past_newton(model: ReducedModel, x_lin, fp, tolerance, iterations, info, error):
+    """Where Newton from the linear start ``x_lin`` finds no orbit (``error``): without a guess,
+    Anderson-accelerated revolutions from ``x_lin`` (a march over revolutions, which settles on a
+    stable orbit: Newton's first updates near a resonance left the stage equations' range on the
+    FE rig at 1 % damping, on its flexible crank, on Bahgat-Willmert's rig and on Shin's
+    multiloop linkage, whose full models solve); with a guess, Newton from its stalled
+    revolutions' best iterate ``fp`` (the branch carried on; tried second, so that where the
+    linear start finds an orbit the answer is a solve's without a guess; see
+    tmm_core.periodic._past_linear_start). Returns ``solved`` as :func:`_reduced_newton`, or
+    raises ``error``."""
+    if fp is None:
+        _, solved = _reduced_from_guess(model, x_lin, tolerance, info)
+        if solved is None:
+            raise error
+        info["start"] = "linear, revolutions"
+        return solved
+    if fp.residual == np.inf:
+        raise error
+    try:
+        solved = _reduced_newton(model, fp.x, None, tolerance, iterations)
+    except ConvergenceError:
+        raise error from None
+    info["start"] = "guess, Newton"
+    return solved
 
 
 def _reduced_newton(model: ReducedModel, x0, jac, tolerance, iterations):
