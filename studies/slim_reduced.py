@@ -29,6 +29,12 @@ from pathlib import Path
 
 import numpy as np
 
+from cosim.overrides import prescribed_speed
+from cosim.scenario import load
+from tmm_core.periodic import periodic_steady_state
+from tmm_core.reduced import ReducedOptions
+from tmm_core.reduced_periodic import periodic_steady_state_reduced
+
 RESULTS = Path(__file__).with_suffix(".json")
 FE = "crank_rocker_373rpm"
 #: (scenario, rpm or None for the scenario's own speed): the gate's peak cases.
@@ -40,17 +46,12 @@ MODELS = ("full", "segment", "link")
 
 
 def scenario(name: str, rpm: float | None):
-    from cosim.overrides import prescribed_speed
-    from cosim.scenario import load
     sc = load(name)
     return sc if rpm is None else sc.with_overrides(prescribed_speed(rpm))
 
 
 def solve(sc, model: str):
     """``(result, wall time [s])`` of one periodic steady state of ``sc`` with ``model``."""
-    from tmm_core.periodic import periodic_steady_state
-    from tmm_core.reduced import ReducedOptions
-    from tmm_core.reduced_periodic import periodic_steady_state_reduced
     td = sc.time_domain()
     tic = time.perf_counter()
     if model == "full":

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-from cosim import engines
+from cosim import engines, runs
 from cosim.interrupts import caused_by_interrupt
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -106,8 +106,6 @@ def test_a_ctrl_c_a_library_catches_while_the_engines_load_still_ends_the_run(mo
     engines load (before the run's loop), it was lost, and the run went on and ended with 0 (a
     Ctrl-C at about 1 s of `cosim run`'s start-up, seen once in CI). The run remembers signals
     from its start and ends before it writes anything."""
-    from cosim import runs
-
     real = runs.make_engine
 
     def catching_library(name, **kwargs):

@@ -4,8 +4,10 @@ import math
 import numpy as np
 import pytest
 
+from cosim.overrides import prescribed_speed
 from cosim.scenario import load
 from tmm_core import CrankMotion, TimeDomain
+from tmm_core.errors import ConvergenceError
 from tmm_core.periodic import ORBIT_KINDS, mathieu_multipliers, orbit_stability, periodic_steady_state
 
 
@@ -179,8 +181,6 @@ def test_a_diverging_newton_revolution_is_reported_as_the_steps_failure(rpm):
     report is the step's (it did not converge, with the axial forces it reached), not the
     structure's refusal of non-finite node loads nor a segment "overflowing cosh; split the link
     into more segments" (a refactorization at the diverging forces), which read as bad input."""
-    from cosim.overrides import prescribed_speed
-    from tmm_core.errors import ConvergenceError
     sc = load("crank_rocker_373rpm").with_overrides(prescribed_speed(rpm))
     with pytest.raises(ConvergenceError) as failed:
         periodic_steady_state(sc.time_domain(), sc.drive.speed_rad_s, step_s=sc.engine_step_s("tmm"),

@@ -14,7 +14,8 @@ from tmm_core import Joint, Material, Member, Section, Structure, TimeDomain
 from tmm_core.frequencies import frequency_model, natural_frequencies
 from tmm_core.periodic import periodic_steady_state
 from tmm_core.reduced import ReducedOptions, build_basis, reduced_frequencies
-from tmm_core.reduced_periodic import periodic_steady_state_reduced
+from tmm_core.ked import CrankMotion
+from tmm_core.reduced_periodic import ReducedModel, periodic_steady_state_reduced
 
 ALU = Material("aluminium", 10.3e6 * PSI, 5.292 * SLUG / FOOT**3)
 STRIP = Section.rectangle(INCH, 0.125 * INCH)
@@ -293,12 +294,10 @@ def test_reduced_model_of_an_elastic_crank_agrees_with_the_full_one(beam_column)
 
 def _link_model():
     """The small FE rig of :func:`_small_rig` on a basis with one axial coordinate per link."""
-    from tmm_core.reduced_periodic import ReducedModel
     sc = load("crank_rocker_373rpm").with_overrides({"solver.tmm.segments": 4})
     td = _time_domain(sc)
     options = ReducedOptions(modes=2, positions=24, mode_positions=6, steps=120, axial="link")
     basis = build_basis(td, 0.0, options)
-    from tmm_core.ked import CrankMotion
     crank = CrankMotion.constant_speed(sc.drive.speed_rad_s, step_deg=3.0, revolutions=1.0)
     return ReducedModel(td, crank, basis, backend="numpy"), basis
 
@@ -357,7 +356,6 @@ def test_link_second_order_jacobians_are_the_derivatives():
 
 def test_link_axial_coordinates_refuse_the_compiled_revolution():
     """The prototype has no compiled revolution: asking for one is refused, naming the way out."""
-    from tmm_core.reduced_periodic import ReducedModel
     model, basis = _link_model()
     with pytest.raises(Exception, match="backend='numpy'"):
         ReducedModel(model.model, None, basis, backend="compiled")   # refused before the crank is read
