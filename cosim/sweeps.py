@@ -2,7 +2,7 @@
 
 Every point is a prescribed-speed run of the scenario at one speed (``drive.speed`` replaced,
 steps given as crank angles scale with it), from which the last revolution's peaks are kept. A
-full-model periodic sweep of many speeds continues from speed to speed: its first speed is
+full-model periodic sweep continues from speed to speed: its first speed is
 solved here before the workers fork, and the others run in contiguous blocks, each solve
 starting from the previous orbits (:data:`CONTINUED_MODELS`; the answers are an independent
 solve's to its tolerance). Points run in parallel through a ``concurrent.futures`` executor: a process pool on the
@@ -414,10 +414,12 @@ def run_sweep(scenario: str, rpm, engines=("tmm",), revolutions: float | None = 
     rows, points = [], []
     tic = time.perf_counter()
     try:
-        # Enough speeds per worker to repay the reduced model's speed-free stage matrices and to
-        # continue from speed to speed.
-        many = len(rpms) >= MANY_SPEEDS * (workers or os.cpu_count() or 1)
-        continued = many and sc.tmm.model in CONTINUED_MODELS
+        # The reduced model: enough speeds per worker to repay its speed-free stage matrices. The
+        # full model continues from speed to speed in any sweep (each guess within its reach): a
+        # 7-point sweep solved each speed from the linear start and left 415 and 425 rpm of the FE
+        # rig unsolved, which continuation from 405 rpm solves.
+        continued = sc.tmm.model in CONTINUED_MODELS and len(rpms) > 1
+        many = continued or len(rpms) >= MANY_SPEEDS * (workers or os.cpu_count() or 1)
         futures = _first_point(sc, rpms, tuple(engines), revs, method, continued and not scheduler)
         blocks = len(rpms) - len(futures) if continued else None
         # Interrupts: a SIGTERM that lands while a worker is forked raises its KeyboardInterrupt in
@@ -469,7 +471,7 @@ def run_sweep(scenario: str, rpm, engines=("tmm",), revolutions: float | None = 
 
 def _first_point(sc, rpms, engines: tuple, revolutions, method: str, warm: bool) -> dict:
     """``{future: rpm}`` of the sweep's first speed solved in this process as the workers' warm-up
-    (:func:`warm_up`; a periodic TMM-only sweep of many speeds on local workers), else empty."""
+    (:func:`warm_up`; a continued periodic TMM-only sweep on local workers), else empty."""
     if not (warm and method == "periodic" and engines == ("tmm",)):
         return {}
     future = Future()

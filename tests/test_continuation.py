@@ -130,6 +130,19 @@ def test_a_small_continuation_sweep_matches_independent_solves(tmp_path):
     _compare(summary, path, "full", (305.0, 345.0), 1e-5)
 
 
+def test_a_two_speed_sweep_continues_past_the_fold(tmp_path):
+    """The full model continues in any sweep: 405 then 415 rpm on the FE rig. From the linear
+    start 415 rpm has no orbit (a 7-point sweep left it unsolved); from 405 rpm's orbit it finds
+    an unstable one. The reduced model, solved from its own linear start, also has an unstable
+    orbit there (|mu| = 1.15, docs/validation.md, the slim model's gate)."""
+    _, summary = run_sweep(str(SCENARIO_DIR / "crank_rocker_373rpm.toml"), "405,415", ("tmm",), workers=1,
+                           out=tmp_path / "out", progress=False, record=False, resonance=False)
+    points = {p["rpm"]: p["engines"]["tmm"] for p in summary["points"]}
+    assert points[415.0]["status"] == "completed", points[415.0].get("error")
+    assert points[415.0]["start"].startswith("guess")
+    assert points[415.0]["floquet_max"] > 1.0 and points[415.0]["orbit"] != "stable"
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("model", ["full", "reduced"])
 def test_the_continuation_sweep_equals_independent_solves_at_a_handful_of_speeds(tmp_path, model):

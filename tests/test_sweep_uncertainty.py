@@ -208,6 +208,9 @@ def test_an_interrupted_sweep_writes_the_points_it_finished(tmp_path, monkeypatc
     monkeypatch.setattr(sweep_module, "executor", lambda *a: contextlib.nullcontext(Immediate()))
     monkeypatch.setattr(sweep_module, "as_completed", two_then_ctrl_c)
     monkeypatch.setattr(sweep_module, "SAVE_EVERY_S", 1e9)
+    # Every point through the stand-in executor: no first point solved in this process for a
+    # continued sweep (cosim.sweeps.warm_up).
+    monkeypatch.setattr(sweep_module, "CONTINUED_MODELS", ())
     folder, summary = run_sweep(str(_light(tmp_path)), "100,150,200", ("tmm",), out=tmp_path / "out",
                                 progress=False, record=False, resonance=False)
     written = json.loads((folder / "summary.json").read_text())
