@@ -63,7 +63,7 @@ from pathlib import Path  # noqa: E402
 from . import __version__  # noqa: E402
 from .defaults import MAX_HOURS, SYNTHESIS_LIKE  # noqa: E402
 from .fmi.command import add_parser as add_fmu_parser  # noqa: E402
-from .interrupts import exit_status, interrupt_on_sigterm  # noqa: E402
+from .interrupts import LostInterrupts, exit_status, interrupt_on_sigterm  # noqa: E402
 from .recording.options import add_viewer_arguments  # noqa: E402
 from .runlog import out_folder  # noqa: E402
 from .scenario_files import SCENARIO_DIR, ScenarioFileError, read_with_bases, scenario_names  # noqa: E402
@@ -344,6 +344,17 @@ def _identify_parser(sub) -> None:
 
 def main(argv: list[str] | None = None) -> int:
     interrupt_on_sigterm()
+    with LostInterrupts() as lost:
+        status = _main(argv)
+        if lost.pending() and status == 0:
+            # A Ctrl-C Python could not raise, in a command without its own Interrupts: it ends
+            # the command as a Ctrl-C would have.
+            logging.getLogger("cosim.cli").warning("interrupted")
+            return exit_status()
+        return status
+
+
+def _main(argv: list[str] | None) -> int:
     try:
         parser = build_parser()
         args = parser.parse_args(argv)

@@ -19,6 +19,9 @@ import sys
 
 #: The signals this process has been interrupted by, in order (the exit status follows the last).
 _received: list[int] = []
+#: Interrupts Python could not raise while a command started (before a run's :class:`Interrupts`):
+#: the signal of each, taken by the next :class:`Interrupts` (:class:`LostInterrupts`).
+_lost: list[int] = []
 
 
 def note_signal(signum: int) -> None:
@@ -59,6 +62,38 @@ def interrupt_on_sigterm() -> None:
         signal.signal(signal.SIGTERM, _raise_interrupt)
 
 
+class LostInterrupts:
+    """A command's start (imports, parsing, set-up) with interrupts Python cannot raise kept. A
+    KeyboardInterrupt that lands in a callback Python runs and whose errors it ignores (importlib's
+    module-lock weakref callback while a module loads, a finalizer, an at-fork hook) was printed as
+    "Exception ignored ... Traceback" and dropped: a Ctrl-C at 0.5 s of `cosim run` went unheeded
+    (seen in CI). Within this context such an interrupt is noted quietly; the next
+    :class:`Interrupts` (a run's, a sweep's) raises it at its first check, and :meth:`pending`
+    tells a command that has none."""
+
+    def __enter__(self):
+        _lost.clear()
+        self.unraisable = sys.unraisablehook
+        sys.unraisablehook = self._unraisable
+        return self
+
+    def _unraisable(self, unraisable) -> None:
+        if issubclass(unraisable.exc_type, KeyboardInterrupt):
+            _lost.append(_received[-1] if _received else int(signal.SIGINT))
+            return
+        self.unraisable(unraisable)
+
+    @staticmethod
+    def pending() -> bool:
+        """Whether an interrupt was lost and no :class:`Interrupts` has taken it."""
+        return bool(_lost)
+
+    def __exit__(self, *exc):
+        sys.unraisablehook = self.unraisable
+        _lost.clear()
+        return False
+
+
 class Interrupts:
     """SIGINT and SIGTERM during a run: remembered, then raised as KeyboardInterrupt. An engine
     that swallows the exception in its own solver (exudyn's Newton loop calls Python user
@@ -75,6 +110,9 @@ class Interrupts:
         self.unraisable = None
 
     def __enter__(self):
+        if _lost:                       # lost while the command started (LostInterrupts)
+            self.signal = _lost.pop()
+            _lost.clear()
         for sig in (signal.SIGINT, signal.SIGTERM):
             try:
                 self.previous[sig] = signal.signal(sig, self._handle)
