@@ -32,6 +32,7 @@ from tmm_core.compiled.cache import COMPILE_ESTIMATE_S, cache_is_cold
 
 from .engines import make_engine
 from .master import run_prescribed
+from .children import stop_process
 from .run_guards import tmm_numpy_seconds
 from .scenario import Scenario, load
 
@@ -103,13 +104,7 @@ class KernelWarmup:
 
     def stop(self) -> None:
         """Stop the compilation (the run ended early or failed)."""
-        if self.process.poll() is None:
-            self.process.terminate()
-            try:
-                self.process.wait(timeout=5.0)
-            except subprocess.TimeoutExpired:
-                self.process.kill()
-                self.process.wait()
+        stop_process(self.process, grace_s=5.0)
         self.errors.close()
 
 

@@ -50,6 +50,7 @@ import threading
 import time
 from pathlib import Path
 
+from ..children import stop_process
 from .batch import StepBatcher
 from .recorder import Recorder, checked_arguments
 from .sinks import ViewerOptions, serve_until_interrupted
@@ -252,12 +253,7 @@ class RecorderProcess(Recorder):
 
     def stop_serving(self) -> None:
         """Stop the child's servers; it finishes its file (footer) on SIGTERM."""
-        if self._proc.poll() is None:
-            self._proc.terminate()
-            try:
-                self._proc.wait(timeout=30)
-            except subprocess.TimeoutExpired:
-                self._proc.kill()
+        stop_process(self._proc, grace_s=30)
 
     def _status_lines(self, deadline):
         """The child's JSON status lines until it closes its stdout or the deadline passes."""

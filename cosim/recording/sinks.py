@@ -44,6 +44,7 @@ from pathlib import Path
 from urllib.parse import quote, urlparse
 
 from ..files import clear_link
+from ..children import stop_process
 
 VIEWERS = ("save", "spawn", "connect", "serve", "none")
 DEFAULT_URL = "rerun+http://127.0.0.1:9876/proxy"
@@ -301,9 +302,7 @@ def show_file(path, options: ViewerOptions, save_copy=None) -> list:
         except KeyboardInterrupt:
             pass
         finally:
-            if proc.poll() is None:
-                proc.terminate()
-                proc.wait(timeout=10)
+            stop_process(proc, grace_s=10)
     if options.stdout:
         copy_to_stdout(path)
     for w in warnings:
