@@ -30,7 +30,6 @@ LONG_FUNCTIONS = {
     "tmm_core.compiled.step_data.solve_loads_many": "compiled load solve of many load sets (6 records), one sweep; issue 33",
     "tmm_core.compiled.periodic.push": "compiled linearized step (9 records): the Jacobian of the second-order iteration assembled from its sparse segment blocks (the integrator and history loads are shared helpers)",
     "tmm_core.compiled.reduced_periodic.revolution": "reduced model's Radau IIA revolution (10 records); issue 33 item 4",
-    "tmm_core.compiled.structure.solve_range": "compiled static solve and beam-column iteration (10 records); issue 33",
     "tmm_core.compiled.structure.solve_loads": "compiled load solve of one load set (6 records), one sweep; issue 33",
     "tmm_core.linkage_kinematics.solve": "Shin's module kinematics in closed form; issue 33",
     "tmm_core.linkage_plan.plan_modules": "the module plan of a general linkage; issue 33",

@@ -18,7 +18,10 @@ options. Boundaries: no arithmetic (the kernel modules), no cache policy (kernel
 """
 from __future__ import annotations
 
+import threading
+import warnings
 from typing import NamedTuple
+
 
 from . import dense, integrators, periodic, reduced_periodic, riccati, step_data, structure, time_step
 from . import march as march_kernel     # beside the stage function march() below
@@ -29,8 +32,9 @@ DENSE = ("stumpff", "inv3", "mm3", "ldl_inertia", "segment_blocks", "full6", "co
          "iteration_converged", "iteration_start")
 #: The compiled layer's one LU (tmm_core.compiled.dense): the joint systems' and the reduced model's.
 LU = ("dot", "subtract_rows", "lu_factor", "lu_solve", "lu_solve_many")
-#: The load solve's helpers on many load sets (tmm_core.compiled.step_data).
-MAPS = ("sweep_member", "copy_sweep", "maps_scratch", "solve_loads_many")
+#: The load solve on many load sets and its helpers (tmm_core.compiled.step_data; its scratch,
+#: maps_scratch, is allocated in Python: tmm_core.compiled.structure.range_workspace).
+MAPS = ("sweep_member", "copy_sweep", "solve_loads_many")
 #: The march's own helpers (tmm_core.compiled.march).
 MARCH = ("shape_products", "affine", "anderson_coefficients")
 #: The step's parts the march and the linearized revolutions share: the integrator's history and
@@ -64,21 +68,73 @@ def lu() -> None:
 
 
 def static_solve():
-    """``(solve_range, iteration_start)``: :func:`tmm_core.compiled.structure.solve_range` compiled
-    without the GIL (the Python driver runs a batch's parts on threads), with the factorization,
-    the load solves and the dense helpers bound where they are called, and the beam-column
-    iteration's start (:func:`tmm_core.compiled.dense.iteration_start`)."""
+    """``(solve_range, iteration_start)``: :func:`tmm_core.compiled.structure.solve_range` as a
+    :class:`RangeSolve` (called with the kernel's records but its ``workspace`` and ``kernels``), with the
+    factorization, the load solves and the dense helpers bound where they are called, and the
+    beam-column iteration's start (:func:`tmm_core.compiled.dense.iteration_start`)."""
     if "static" not in _ENTRY:
         numba = numba_module()
         jit = numba.njit(cache=True, error_model="numpy")
         lu()
         _bind(jit, dense, DENSE, into=(riccati, structure))
-        _bind(jit, riccati, ("factor_configuration", "factor_scratch"), into=(structure, time_step))
-        _bind(jit, step_data, MAPS, into=(structure,))
+        _bind(jit, riccati, ("factor_configuration", "factor_scratch"), into=(time_step,))
+        _bind(jit, step_data, MAPS)
         _bind(jit, structure, ("solve_loads",), into=(time_step,))
-        _bind(numba.njit(cache=True, error_model="numpy", nogil=True), structure, ("solve_range",))
-        _ENTRY["static"] = structure.solve_range, dense.iteration_start
+        _ENTRY["static"] = RangeSolve(numba), dense.iteration_start
     return _ENTRY["static"]
+
+
+class RangeSolve:
+    """:func:`tmm_core.compiled.structure.solve_range`, compiled once per type of its records
+    (on disk: numba's cache) with its factorization and load solves passed as first-class
+    functions, and called through that compilation's entry point.
+
+    Why not an ordinary call: a kernel calling another kernel has the callee's machine code
+    generated again inside its own, so ``solve_range`` took as long to compile as its three
+    callees together. Passed as arguments of numba's function type, they are compiled once each,
+    and ``solve_range`` compiles in a fraction of the time. The callees' signatures are spelt
+    out from the records' types (numba cannot infer a function argument's type), and the entry
+    point is called directly: numba's dispatcher would type a function passed to it by its own
+    identity and compile the direct call again."""
+
+    def __init__(self, numba):
+        self._numba = numba
+        self._dispatcher = numba.njit(cache=True, error_model="numpy", nogil=True)(structure.solve_range)
+        self._kernels = (riccati.factor_configuration, step_data.solve_loads_many, structure.solve_loads)
+        self._entries: dict = {}
+        self._lock = threading.Lock()
+
+    def __call__(self, b_start, b_stop, segments, configuration, Fn, joints, outputs, checks, iteration, control):
+        workspace = structure.range_workspace(segments, configuration, Fn, joints, outputs)
+        records = (segments, configuration, Fn, joints, outputs, checks, iteration, control, workspace)
+        key = tuple(self._numba.typeof(r) for r in records)
+        entry = self._entries.get(key)
+        if entry is None:
+            with self._lock:
+                entry = self._entries.get(key) or self._compile(key)
+                self._entries[key] = entry
+        entry(b_start, b_stop, *records, self._kernels)
+
+    def _compile(self, key):
+        """The entry point of ``solve_range`` for the records' types ``key``, its callees compiled
+        first for theirs."""
+        types = self._numba.types
+        segments, configuration, Fn, joints, outputs, checks, _, _, workspace = key
+        _, factors, factor_scratch, load_work, maps_scratch = workspace.types
+        ends, free, count = joints.types
+        counted = types.Tuple((ends, free, types.Array(count.dtype, 1, "C")))
+        load_joints = types.Tuple((segments.types[1], segments.types[5], configuration.types[4], ends, free))
+        signatures = (
+            types.boolean(types.int64, segments, configuration, counted, checks, factors, factor_scratch),
+            types.none(types.int64, Fn, load_joints, outputs, factors, maps_scratch),
+            types.none(types.int64, Fn, load_joints, outputs, factors, load_work))
+        with warnings.catch_warnings():
+            # numba calls its function type experimental; this use of it is tested (test_kernels).
+            warnings.simplefilter("ignore", self._numba.NumbaExperimentalFeatureWarning)
+            for kernel, signature in zip(self._kernels, signatures):
+                kernel.compile(signature)
+            kernels = types.Tuple(tuple(types.FunctionType(s) for s in signatures))
+            return self._dispatcher.compile((types.int64, types.int64) + key + (kernels,))
 
 
 def factored():

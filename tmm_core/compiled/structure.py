@@ -56,59 +56,27 @@ import numpy as np
 
 from .. import matrices
 from .dense import copy_states, iteration_converged, lu_solve_many, state_change
-from .riccati import factor_configuration, factor_scratch
-from .step_data import maps_scratch, solve_loads_many
+from .riccati import factor_scratch
+from .step_data import maps_scratch
 
 
 INV_FACT = np.array(matrices.INV_FACT)        # the Stumpff series' 1/k! (the numpy path's table)
 
 
-def solve_range(b_start, b_stop, segments, configuration, Fn, joints, outputs, checks, iteration, control):
-    """Factorize the configurations ``b_start <= b < b_stop`` of a batch once each and solve
-    them for ``R`` sets of node loads (see the module docstring); or, with
-    ``iteration = (tol, max_iter, count from P)`` and ``max_iter > 1``, iterate each one on its
-    segment axial forces (beam-column: the loop of :func:`tmm_core.statics.solve_static`, one
-    configuration at a time).
-
-    Per segment (``seg_off`` delimits the members): length ``L``, ``EA``, ``EI``, ``rigid``;
-    per configuration: ``factor (B, S)`` (stiffness factor), ``P (B, S)`` axial forces,
-    ``qloc (B, S, 2)`` local distributed loads (axial, transverse), ``Kn (B, Nn, 3, 3)`` local
-    node stiffness (member ``i`` has nodes ``seg_off[i] + i ...``; rows in conjugate order);
-    ``Fn (B or 1, R, Nn, 3)`` local node loads of each load set; ``angle (B, M)`` member angles;
-    ``ends (M, 6)`` joint DOFs of the member ends; ``free`` the free joint DOFs; ``count (M,)``
-    count the members' interior inertia.
-    Outputs: ``states (B, R, Nn, 2, 6)``, joint displacements ``q_out (B, R, nd)``, joint forces
-    ``reaction (B, R, nd)`` (applied by the supports at fixed DOFs), ``negative (B, 2)`` inertia
-    (member interiors, joint system), ``pivots (B, 2)`` smallest and largest pivot magnitude of
-    the scaled joint stiffness, ``status (B,)`` 0 ok, 1 a joint DOF without stiffness,
-    2 a singular block or joint system. Compact outputs (for many load sets, when ``states`` has
-    no load-set entries; the load set last, as the columns of a map): ``zout (B, 3 Nn, R)`` node
-    displacements (u, w, theta), ``nout (B, S, R)`` segment axial forces (mean of the two end
-    values), ``gstate (B, G, 6, R)`` the right-side state at the nodes ``gnode (G,)``.
-    Iteration (``R`` = 1, every station state): it starts from the linear solution ``start
-    (B, Nn, 2, 6)`` (the first solve), with ``P`` its axial forces, and returns the last axial
-    forces in ``P``; ``weights (6,)`` and ``scales (2,)`` of the change
-    (:func:`tmm_core.compiled.dense.state_change`); ``iterations (B,)`` solves made (the first
-    included), ``last_change (B,)``; ``status`` 3 a non-finite iterate, 4 not converged in
-    ``max_iter`` solves; ``count`` the members to count, or with ``count from P`` recounted
-    before every solve (the members in compression).
-
-    Records (tuples of arrays, unpacked below): ``segments = (inv_fact, seg_off, L, EA, EI,
-    rigid)``, ``configuration = (factor, P, qloc, Kn, angle)``, ``joints = (ends, free, count)``,
-    ``outputs = (states, q_out, reaction, zout, nout, gnode, gstate)``, ``checks = (negative,
-    pivots, status)``, ``control = (weights, start, scales, iterations, last_change)``."""
-    inv_fact, seg_off, L, EA, EI, rigid = segments
-    factor, P, qloc, Kn, angle = configuration
-    ends, free, count = joints
-    states, q_out, reaction, zout, nout, gnode, gstate = outputs
-    negative, pivots, status = checks
-    weights, start, scales, iterations, last_change = control
+def range_workspace(segments, configuration, Fn, joints, outputs):
+    """The scratch record of :func:`solve_range` for one range of a batch (its records as that
+    kernel's): ``(many, factors, factor_scratch, load_work, maps_scratch)``, ``many`` whether the
+    load sets go to the maps' solve (:func:`tmm_core.compiled.step_data.solve_loads_many`: many
+    load sets with compact outputs only), then the records the factorization and the load solves
+    take. Called from Python (the binding's ``RangeSolve``) with numpy, once per range: inside the
+    kernel its fifty allocations took longer to compile than the loop that uses them, and the
+    binding reads the callees' signatures off the records' types."""
+    seg_off = segments[1]
+    Kn, free = configuration[3], joints[1]
+    states, q_out, zout = outputs[0], outputs[1], outputs[3]
     R = Fn.shape[1]
-    full = states.shape[1] > 0
-    compact = zout.shape[1] > 0
-    M = seg_off.shape[0] - 1
-    nd = q_out.shape[2]
-    nf = free.shape[0]
+    many = zout.shape[1] > 0 and R > 1 and states.shape[1] == 0
+    M, nd, nf = seg_off.shape[0] - 1, q_out.shape[2], free.shape[0]
     nmax = 0
     for i in range(M):
         nmax = max(nmax, seg_off[i + 1] - seg_off[i])
@@ -157,13 +125,65 @@ def solve_range(b_start, b_stop, segments, configuration, Fn, joints, outputs, c
     zl = np.zeros(6)
     qe = np.zeros(6)
     stn = np.zeros((Kn.shape[1], 2, 6))
-    # Many load sets with compact outputs (the maps): the load solve vectorized across them.
-    many = compact and R > 1 and not full
-    R_many = R if many else 0
-    scratch = maps_scratch(M, mmax, nd, nf, Kn.shape[1], R_many)
     factors = (lead, prefix, lcol, B0, T220, SP, TL, Gis, Xs, BGis, HGis, Cs, Ds, Af, Bf, firsts, Kfull, lu, piv)
-    load_joints = (seg_off, rigid, angle, ends, free)
     load_work = (pcol, ys, cs, af, t6, t1, t2, a, c, y, v3, rfull, xf, qv, zl, zs, ze, qe, S0, zj, stn, zi, fi)
+    return many, factors, scratch_factor, load_work, maps_scratch(M, mmax, nd, nf, Kn.shape[1], R if many else 0)
+
+
+def solve_range(b_start, b_stop, segments, configuration, Fn, joints, outputs, checks, iteration, control,
+                workspace, kernels):
+    """Factorize the configurations ``b_start <= b < b_stop`` of a batch once each and solve
+    them for ``R`` sets of node loads (see the module docstring); or, with
+    ``iteration = (tol, max_iter, count from P)`` and ``max_iter > 1``, iterate each one on its
+    segment axial forces (beam-column: the loop of :func:`tmm_core.statics.solve_static`, one
+    configuration at a time).
+
+    Per segment (``seg_off`` delimits the members): length ``L``, ``EA``, ``EI``, ``rigid``;
+    per configuration: ``factor (B, S)`` (stiffness factor), ``P (B, S)`` axial forces,
+    ``qloc (B, S, 2)`` local distributed loads (axial, transverse), ``Kn (B, Nn, 3, 3)`` local
+    node stiffness (member ``i`` has nodes ``seg_off[i] + i ...``; rows in conjugate order);
+    ``Fn (B or 1, R, Nn, 3)`` local node loads of each load set; ``angle (B, M)`` member angles;
+    ``ends (M, 6)`` joint DOFs of the member ends; ``free`` the free joint DOFs; ``count (M,)``
+    count the members' interior inertia.
+    Outputs: ``states (B, R, Nn, 2, 6)``, joint displacements ``q_out (B, R, nd)``, joint forces
+    ``reaction (B, R, nd)`` (applied by the supports at fixed DOFs), ``negative (B, 2)`` inertia
+    (member interiors, joint system), ``pivots (B, 2)`` smallest and largest pivot magnitude of
+    the scaled joint stiffness, ``status (B,)`` 0 ok, 1 a joint DOF without stiffness,
+    2 a singular block or joint system. Compact outputs (for many load sets, when ``states`` has
+    no load-set entries; the load set last, as the columns of a map): ``zout (B, 3 Nn, R)`` node
+    displacements (u, w, theta), ``nout (B, S, R)`` segment axial forces (mean of the two end
+    values), ``gstate (B, G, 6, R)`` the right-side state at the nodes ``gnode (G,)``.
+    Iteration (``R`` = 1, every station state): it starts from the linear solution ``start
+    (B, Nn, 2, 6)`` (the first solve), with ``P`` its axial forces, and returns the last axial
+    forces in ``P``; ``weights (6,)`` and ``scales (2,)`` of the change
+    (:func:`tmm_core.compiled.dense.state_change`); ``iterations (B,)`` solves made (the first
+    included), ``last_change (B,)``; ``status`` 3 a non-finite iterate, 4 not converged in
+    ``max_iter`` solves; ``count`` the members to count, or with ``count from P`` recounted
+    before every solve (the members in compression).
+
+    Records (tuples of arrays, unpacked below): ``segments = (inv_fact, seg_off, L, EA, EI,
+    rigid)``, ``configuration = (factor, P, qloc, Kn, angle)``, ``joints = (ends, free, count)``,
+    ``outputs = (states, q_out, reaction, zout, nout, gnode, gstate)``, ``checks = (negative,
+    pivots, status)``, ``control = (weights, start, scales, iterations, last_change)``.
+
+    ``workspace`` from :func:`range_workspace` (one per range: the threads' ranges each have
+    their own); ``kernels = (factor_configuration, solve_loads_many, solve_loads)``: the factorization and the
+    two load solves, passed as numba first-class functions (the binding compiles each once, for
+    the records' types). A kernel that calls another directly has the callee's machine code
+    generated again inside its own: passed as arguments, this kernel compiles in a fraction of
+    the time (the first run's compilation, ``docs/benchmarks.md``)."""
+    inv_fact, seg_off, L, EA, EI, rigid = segments
+    factor, P, qloc, Kn, angle = configuration
+    ends, free, count = joints
+    states, q_out, reaction, zout, nout, gnode, gstate = outputs
+    negative, pivots, status = checks
+    weights, start, scales, iterations, last_change = control
+    M = seg_off.shape[0] - 1
+    # Many load sets with compact outputs (the maps): the load solve vectorized across them.
+    many, factors, scratch_factor, load_work, scratch = workspace
+    stn = load_work[20]
+    load_joints = (seg_off, rigid, angle, ends, free)
+    factor_configuration, solve_loads_many, solve_loads = kernels
 
     tol, max_iter, recount = iteration
     cnt = count.copy()
