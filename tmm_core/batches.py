@@ -67,7 +67,7 @@ def configurations(model: Discretization, angle, speed, accel, dt, maps: bool | 
     factors, _ = model.link_factor(c_v, dt)
     loads_local = rigid_body_loads(mech, motion, model.gravity, frame="local")
     P = _axial_estimate(model, (angle, speed, accel), motion, loads_local, axial_force)
-    with_maps = _with_maps(model, len(angle), maps)
+    keep_maps = with_maps(model, len(angle), maps)
     joints_flat = mech.joint_positions(motion)
     joints = {k: v[:, None, :] for k, v in joints_flat.items()}
     # Batch (B, 1): the second axis carries the unit loads. Gravity acts through the lumped
@@ -86,13 +86,13 @@ def configurations(model: Discretization, angle, speed, accel, dt, maps: bool | 
         # budget. The numpy factor is built only if a step asks for it (ConfigurationBatch.factor).
         prep = compiled_statics.prepare(model.structure, LoadCase(joints_flat, {}, {}, Kn, frame="local"),
                                         stiffness_factor=factors)
-        if not with_maps and compiled_statics.stored_bytes(prep) > model.max_map_bytes:
+        if not keep_maps and compiled_statics.stored_bytes(prep) > model.max_map_bytes:
             prep = None
     step_factors, step_maps, factor = None, None, None
     drive = mech.drive_torque_terms(motion, model.gravity)
     if prep is not None:
         P_stacked = compiled_statics.stack_segments(prep, P or {})
-        if with_maps:
+        if keep_maps:
             step_maps, negative = step_data.compiled_maps(model, prep, P_stacked, drive)
         else:
             step_factors, negative = step_data.compiled_factors(model, prep, P_stacked, drive)
@@ -107,7 +107,7 @@ def configurations(model: Discretization, angle, speed, accel, dt, maps: bool | 
             f"not positive definite at crank angle {math.degrees(float(angle[np.argmax(indefinite)])):.6g} deg: "
             "the links buckle even with their inertia; the transfer-matrix model cannot continue (a smaller step "
             "adds inertia)")
-    if prep is None and with_maps:
+    if prep is None and keep_maps:
         step_maps = step_data.numpy_maps(model, factor, drive)
     P0 = None if P is None else np.concatenate([P[l.name] for l in model.links], axis=-1)
     crank = CrankStates(np.asarray(angle, float), np.asarray(speed, float), np.asarray(accel, float))
@@ -141,7 +141,7 @@ def _axial_estimate(model: Discretization, states, motion, loads_local, axial_fo
     return None
 
 
-def _with_maps(model: Discretization, B: int, maps) -> bool:
+def with_maps(model: Discretization, B: int, maps) -> bool:
     """Whether a batch of ``B`` configurations gets the dense maps (``maps`` as
     :func:`configurations`): asked for or "auto" below the size limit, within max_map_bytes."""
     n_rows = model.n_dof + model.outputs.size + (len(model.segments.length) if model.axial_force == "dynamic" else 0)

@@ -8,11 +8,12 @@ from rest (:func:`rest_acceleration`) or quasi-static (:func:`quasi_static_start
 """
 from __future__ import annotations
 
+import dataclasses
 from typing import Mapping
 
 import numpy as np
 
-from .batches import configurations
+from .batches import configurations, with_maps
 from .compiled import binding as kernel_binding
 from .discretization import Discretization
 from .errors import InputError, require_positive
@@ -38,6 +39,8 @@ class March:
                 if np.shape(initial.get(key)) != (model.n_dof,):
                     raise InputError(f"initial['{key}'] must have shape ({model.n_dof},)")
         self.model, self.dt = model, dt
+        if model.compiled:
+            _compile_march_ahead(model, dt, angle, speed, accel)
         integ = model.integrator
         c_a, c_v = integ.coefficients(dt)
         _, visco = model.link_factor(c_v, dt)
@@ -121,30 +124,23 @@ class March:
         return (zs, outs, Ps) if record_axial else (zs, outs)
 
     def _compiled(self, cfg, indices, record_z, record_axial=False):
-        model, n, integ = self.model, self.model.n_dof, self.model.integrator
-        data = kernel_data(model, cfg)
-        slots, Hc, Gc, ez = linear_maps(integ, self.dt)
-        _, c_v = integ.coefficients(self.dt)
+        model = self.model
+        dynamic = model.axial_force == "dynamic"
+        integrator, data, on_factors, kernel, settings, slots = self._kernel_records(cfg)
         S = self._stacked_state(slots)
         seg = model.segments
-        dynamic = model.axial_force == "dynamic"
         P = np.array(self.axial if self.axial is not None else
                      (cfg.P0[indices[0]] if dynamic else np.zeros(len(seg.length))), dtype=float)
+        n = model.n_dof
         outs = np.empty((len(indices), self.n_out))
         zs = np.empty((len(indices), n)) if record_z else np.empty((0, n))
         Ps = np.empty((len(indices), len(seg.length))) if record_axial else np.empty((0, len(seg.length)))
         iterations = np.zeros(len(indices), dtype=np.int64)
-        # The compiled march's records (tmm_core.compiled.march.march).
-        integrator = (Hc, Gc, ez, np.array([slots.index(key) for key in "dva"]), self.dt, c_v)
-        kernel = model.kernel_model()
-        settings = (model.coupling.coriolis, model.has_kv, dynamic, "shortening" in model.dynamic_terms,
-                    "axial_force" in model.dynamic_terms, model.axial_tolerance, AXIAL_FORCE_TOLERANCE,
-                    model.axial_iterations, ANDERSON_DEPTH)
         j = 0
         while j < len(indices):
             recorded = (outs[j:], zs[j:] if record_z else zs, Ps[j:] if record_axial else Ps, iterations[j:])
-            done = kernel_binding.march()(integrator, indices[j:], data[:6], data[6], kernel, settings,
-                                          (S, P), recorded)
+            done = kernel_binding.march()(integrator, indices[j:], data, on_factors, kernel, settings, (S, P),
+                                          recorded)
             self.state = {key: S[i].copy() for i, key in enumerate(slots)}
             self.axial = P.copy() if dynamic else self.axial
             j += done
@@ -165,6 +161,30 @@ class March:
         zs = zs if record_z else None
         return (zs, outs, Ps) if record_axial else (zs, outs)
 
+    def _kernel_records(self, cfg):
+        """The compiled march's records for the batch ``cfg`` that do not change from block to
+        block (:func:`tmm_core.compiled.march.march`): ``(integrator, maps, on_factors, model,
+        settings)``, and the integrator's state slots in the order of its stacked state."""
+        model, integ = self.model, self.model.integrator
+        data = kernel_data(model, cfg)
+        slots, Hc, Gc, ez = linear_maps(integ, self.dt)
+        _, c_v = integ.coefficients(self.dt)
+        integrator = (Hc, Gc, ez, np.array([slots.index(key) for key in "dva"]), self.dt, c_v)
+        settings = (model.coupling.coriolis, model.has_kv, model.axial_force == "dynamic",
+                    "shortening" in model.dynamic_terms, "axial_force" in model.dynamic_terms, model.axial_tolerance,
+                    AXIAL_FORCE_TOLERANCE, model.axial_iterations, ANDERSON_DEPTH)
+        return integrator, data[:6], data[6], model.kernel_model(), settings, slots
+
+    def kernel_arguments(self, cfg) -> tuple:
+        """The compiled march's arguments for one step of the batch ``cfg``, as :meth:`step_many`
+        passes them (nothing recorded but the outputs): what its signature is read from."""
+        integrator, data, on_factors, kernel, settings, slots = self._kernel_records(cfg)
+        n_seg = len(self.model.segments.length)
+        recorded = (np.empty((1, self.n_out)), np.empty((0, self.model.n_dof)), np.empty((0, n_seg)),
+                    np.zeros(1, dtype=np.int64))
+        return (integrator, np.zeros(1, dtype=np.int64), data, on_factors, kernel, settings,
+                (self._stacked_state(slots), np.zeros(n_seg)), recorded)
+
     def _stacked_state(self, slots):
         """The integrator's state arrays stacked ``(K, n_dof)``, as the compiled march holds them."""
         return np.stack([np.asarray(self.state[key], dtype=float) for key in slots])
@@ -176,6 +196,22 @@ class March:
         self.state = model.integrator.advance(self.state, z, self.dt)
         self.z, self.out = z, out
         return z, out
+
+
+def _compile_march_ahead(model: Discretization, dt, angle, speed, accel) -> None:
+    """On a first run (the compiled march not in the cache), have a second process compile the
+    march while this one compiles the static solve (:func:`tmm_core.compiled.binding.compile_ahead`).
+    The march's signature is read off a numpy twin of the model at the crank state (one
+    configuration with its maps: the arrays the compiled march reads have the same types
+    whichever backend made them, :func:`tmm_core.time_step.kernel_data`). Only where the run will
+    march on maps: a large model marches on stored factorizations, another signature."""
+    if not (kernel_binding.ahead_pays("march") and with_maps(model, 1, "auto")):
+        return
+    twin = March(dataclasses.replace(model, backend="numpy"), dt, angle, speed, accel, "rest", None)
+    if twin.has_visco:          # the viscoelastic step is numpy's alone
+        return
+    cfg = configurations(twin.model, np.array([angle]), np.array([speed]), np.array([accel]), dt, maps=True)
+    kernel_binding.compile_ahead("march", twin.kernel_arguments(cfg))
 
 
 def begin(model: Discretization, dt: float, angle: float, speed: float, acceleration: float = 0.0, *,

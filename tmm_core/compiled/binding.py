@@ -18,12 +18,13 @@ options. Boundaries: no arithmetic (the kernel modules), no cache policy (kernel
 """
 from __future__ import annotations
 
+import contextlib
 import threading
 import warnings
 from typing import NamedTuple
 
 
-from . import dense, integrators, periodic, reduced_periodic, riccati, step_data, structure, time_step
+from . import ahead, dense, integrators, periodic, reduced_periodic, riccati, step_data, structure, time_step
 from . import march as march_kernel     # beside the stage function march() below
 from .cache import numba_module
 
@@ -128,13 +129,65 @@ class RangeSolve:
             types.boolean(types.int64, segments, configuration, counted, checks, factors, factor_scratch),
             types.none(types.int64, Fn, load_joints, outputs, factors, maps_scratch),
             types.none(types.int64, Fn, load_joints, outputs, factors, load_work))
-        with warnings.catch_warnings():
-            # numba calls its function type experimental; this use of it is tested (test_kernels).
-            warnings.simplefilter("ignore", self._numba.NumbaExperimentalFeatureWarning)
-            for kernel, signature in zip(self._kernels, signatures):
-                kernel.compile(signature)
+        # On a first run the maps' solve compiles in a second process while this one compiles the
+        # factorization and the one-load solve (about 6 s against 8 s on a 2-core machine).
+        if ahead_pays("solve_loads_many"):
+            ahead.start([("solve_loads_many", signatures[1])])
+        factor, many, one = self._kernels
+        with _quiet_function_types(self._numba):
+            factor.compile(signatures[0])
+            one.compile(signatures[2])
+            ahead.wait("solve_loads_many")
+            many.compile(signatures[1])         # from the cache if the helper compiled it
             kernels = types.Tuple(tuple(types.FunctionType(s) for s in signatures))
             return self._dispatcher.compile((types.int64, types.int64) + key + (kernels,))
+
+
+#: The kernels a helper process can compile ahead (:mod:`tmm_core.compiled.ahead`): name ->
+#: (the file stem of its module, the kernel's name there), as the cache names their files.
+AHEAD = {"solve_loads_many": ("step_data", "solve_loads_many"), "march": ("march", "march")}
+
+
+def dispatcher(name: str):
+    """The compiled kernel ``name`` of :data:`AHEAD`, its stage bound (numba's dispatcher)."""
+    if name == "solve_loads_many":
+        static_solve()
+        return step_data.solve_loads_many
+    if name == "march":
+        return march()
+    raise KeyError(f"no kernel {name!r} is compiled ahead; known: {sorted(AHEAD)}")
+
+
+def ahead_pays(name: str) -> bool:
+    """Whether compiling kernel ``name`` of :data:`AHEAD` in a helper process saves time now
+    (:func:`tmm_core.compiled.ahead.worth_it`: a first run on two cores or more)."""
+    return ahead.worth_it(*AHEAD[name])
+
+
+def compile_ahead(name: str, arguments: tuple) -> None:
+    """Have a helper process compile kernel ``name`` of :data:`AHEAD` for the types of
+    ``arguments`` (as it will be called), if that pays (:func:`ahead_pays`); the kernel's stage
+    waits for it."""
+    if ahead_pays(name):
+        numba = numba_module()
+        ahead.start([(name, tuple(numba.typeof(a) for a in arguments))])
+
+
+def compile_requests(requests) -> None:
+    """Compile each ``(name, signature)`` of ``requests`` into the cache: the helper process of
+    :mod:`tmm_core.compiled.ahead` (``python -m tmm_core.compiled``)."""
+    with _quiet_function_types(numba_module()):
+        for name, signature in requests:
+            dispatcher(name).compile(signature)
+
+
+@contextlib.contextmanager
+def _quiet_function_types(numba):
+    """Numba's warning that its first-class function type is experimental, silenced: the one use
+    of it (:class:`RangeSolve`) is held equal to the numpy path by tests/test_kernels.py."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", numba.NumbaExperimentalFeatureWarning)
+        yield
 
 
 def factored():
@@ -181,7 +234,9 @@ def linearized() -> Linearized:
 
 def march():
     """:func:`tmm_core.compiled.march.march`, compiled with its helpers, the step's shared parts and
-    the stored-factorization solve."""
+    the stored-factorization solve (once a helper compiling it ahead has ended: it is then
+    loaded from the cache)."""
+    ahead.wait("march")
     if "march" not in _ENTRY:
         numba = numba_module()
         factored()
