@@ -18,7 +18,6 @@ options. Boundaries: no arithmetic (the kernel modules), no cache policy (kernel
 """
 from __future__ import annotations
 
-import contextlib
 import threading
 import warnings
 from typing import NamedTuple
@@ -100,7 +99,12 @@ class RangeSolve:
 
     def __init__(self, numba):
         self._numba = numba
-        self._dispatcher = numba.njit(cache=True, error_model="numpy", nogil=True)(structure.solve_range)
+        # Numba warns, when it compiles or calls a kernel taking a function, that its function
+        # type is experimental; this one use of it is held equal to the numpy path by
+        # tests/test_kernels.py. Only that message is silenced.
+        warnings.filterwarnings("ignore", "First-class function type", numba.NumbaExperimentalFeatureWarning)
+        #: The kernel's dispatcher (compiled by :meth:`_compile`, or ahead by a helper).
+        self.dispatcher = numba.njit(cache=True, error_model="numpy", nogil=True)(structure.solve_range)
         self._kernels = (riccati.factor_configuration, step_data.solve_loads_many, structure.solve_loads)
         self._entries: dict = {}
         self._lock = threading.Lock()
@@ -129,30 +133,37 @@ class RangeSolve:
             types.boolean(types.int64, segments, configuration, counted, checks, factors, factor_scratch),
             types.none(types.int64, Fn, load_joints, outputs, factors, maps_scratch),
             types.none(types.int64, Fn, load_joints, outputs, factors, load_work))
-        # On a first run the maps' solve compiles in a second process while this one compiles the
-        # factorization and the one-load solve (about 6 s against 8 s on a 2-core machine).
+        kernels = types.Tuple(tuple(types.FunctionType(s) for s in signatures))
+        requests = {"solve_loads_many": signatures[1], "solve_loads": signatures[2],
+                    "solve_range": (types.int64, types.int64) + key + (kernels,)}
+        # On a first run helpers compile the load solves and this kernel (which needs only its
+        # callees' signatures) while this process compiles the factorization: two processes, so
+        # that the three run side by side with the march's helper on two cores.
         if ahead_pays("solve_loads_many"):
-            ahead.start([("solve_loads_many", signatures[1])])
-        factor, many, one = self._kernels
-        with _quiet_function_types(self._numba):
-            factor.compile(signatures[0])
-            one.compile(signatures[2])
-            ahead.wait("solve_loads_many")
-            many.compile(signatures[1])         # from the cache if the helper compiled it
-            kernels = types.Tuple(tuple(types.FunctionType(s) for s in signatures))
-            return self._dispatcher.compile((types.int64, types.int64) + key + (kernels,))
+            ahead.start([("solve_loads_many", requests["solve_loads_many"])])
+        if ahead_pays("solve_range"):
+            ahead.start([(name, requests[name]) for name in ("solve_loads", "solve_range")])
+        compiled = dict(zip(("factor_configuration", "solve_loads_many", "solve_loads"), self._kernels),
+                        solve_range=self.dispatcher)
+        self._kernels[0].compile(signatures[0])
+        for name, signature in requests.items():
+            ahead.wait(name)
+            entry = compiled[name].compile(signature)     # from the cache if a helper compiled it
+        return entry
 
 
 #: The kernels a helper process can compile ahead (:mod:`tmm_core.compiled.ahead`): name ->
 #: (the file stem of its module, the kernel's name there), as the cache names their files.
-AHEAD = {"solve_loads_many": ("step_data", "solve_loads_many"), "march": ("march", "march")}
+AHEAD = {"solve_loads_many": ("step_data", "solve_loads_many"), "solve_loads": ("structure", "solve_loads"),
+         "solve_range": ("structure", "solve_range"), "march": ("march", "march")}
 
 
 def dispatcher(name: str):
     """The compiled kernel ``name`` of :data:`AHEAD`, its stage bound (numba's dispatcher)."""
-    if name == "solve_loads_many":
-        static_solve()
-        return step_data.solve_loads_many
+    if name in ("solve_loads_many", "solve_loads", "solve_range"):
+        range_solve, _ = static_solve()
+        return range_solve.dispatcher if name == "solve_range" else getattr(
+            step_data if name == "solve_loads_many" else structure, name)
     if name == "march":
         return march()
     raise KeyError(f"no kernel {name!r} is compiled ahead; known: {sorted(AHEAD)}")
@@ -176,18 +187,8 @@ def compile_ahead(name: str, arguments: tuple) -> None:
 def compile_requests(requests) -> None:
     """Compile each ``(name, signature)`` of ``requests`` into the cache: the helper process of
     :mod:`tmm_core.compiled.ahead` (``python -m tmm_core.compiled``)."""
-    with _quiet_function_types(numba_module()):
-        for name, signature in requests:
-            dispatcher(name).compile(signature)
-
-
-@contextlib.contextmanager
-def _quiet_function_types(numba):
-    """Numba's warning that its first-class function type is experimental, silenced: the one use
-    of it (:class:`RangeSolve`) is held equal to the numpy path by tests/test_kernels.py."""
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", numba.NumbaExperimentalFeatureWarning)
-        yield
+    for name, signature in requests:
+        dispatcher(name).compile(signature)
 
 
 def factored():
