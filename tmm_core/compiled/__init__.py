@@ -6,8 +6,9 @@ test (the pairs are listed in ``docs/architecture.md`` and ``tests/test_architec
 ``dense`` holds the small dense algebra the numpy references leave to numpy and scipy (3x3
 products and inverses, LU, LDL^T inertia) and the Stumpff series of :mod:`tmm_core.matrices`;
 ``binding`` compiles the kernels and binds them where their callers look them up (the one
-registry); ``cache`` keys numba's on-disk cache by every compiled source; ``statics`` is the
-Python driver of the compiled structure solve (layout, threads, checks).
+registry); ``cache`` keys numba's on-disk cache by every compiled source; ``ahead`` compiles
+kernels ahead in helper processes on a first run (``python -m tmm_core.compiled``); ``statics``
+is the Python driver of the compiled structure solve (layout, threads, checks).
 
 Importing this package imports no numba: kernels compile (or load from the cache) on first use.
 """

@@ -10,7 +10,8 @@ itself, and the folders of other keys beside the package are removed. Every kern
 :func:`numba_module`, which points numba's cache there before the first kernel is made.
 
 The first run on a machine (or after the kernels' source changed) compiles them, which takes
-about 35 s on a small machine; :func:`cache_is_cold` lets a caller say so before it starts
+about 17 s on a 2-core machine (helper processes compile some of them side by side:
+:mod:`tmm_core.compiled.ahead`); :func:`cache_is_cold` lets a caller say so before it starts
 instead of sitting silent.
 
 Owns: the compiled layer's cache folder and key, the cold-cache check and the compile-time
@@ -29,12 +30,13 @@ from pathlib import Path
 
 #: Time [s] of compiling the time-domain kernels when numba's cache is empty, on an idle 2-core
 #: machine: the first run's warm-up process of the FE rig (``tests/benchmarks/bench_compile.py``)
-#: took 35-37 s whole (compiling is single-threaded); longer on a loaded one.
-COMPILE_ESTIMATE_S = 35.0
+#: took 16.8-16.9 s whole, its helper processes included; longer on a loaded one (beside a first
+#: run's numpy engine, about 19 s).
+COMPILE_ESTIMATE_S = 17.0
 #: Time [s] of compiling the kernels of a periodic sweep (the periodic solver's linearized
 #: revolutions as well) on an empty cache: a 2-point full-model sweep of the FE rig (241 and 373
-#: rpm, one worker) took 56 s whole, of which about 1.5 s are the points.
-PERIODIC_COMPILE_ESTIMATE_S = 55.0
+#: rpm, one worker) took 34.6 s whole, of which about 1.5 s are the points.
+PERIODIC_COMPILE_ESTIMATE_S = 33.0
 
 HERE = Path(__file__).resolve().parent
 #: The package the compiled sources are named relative to (tmm_core).

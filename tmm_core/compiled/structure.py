@@ -25,8 +25,8 @@ sliders. :func:`tmm_core.compiled.statics.supported` says whether a structure qu
 callers use the numpy path otherwise. Kernels are compiled on first use and cached on disk (numba
 ``cache=True``).
 
-Modules: this one holds the kernel (:func:`solve_range` and its load-solve phase
-:func:`solve_loads`); :mod:`tmm_core.compiled.riccati` the factorization phase,
+Modules: this one holds the kernel (:func:`solve_range`, its load-solve phase :func:`solve_loads`
+and its scratch, :func:`range_workspace`); :mod:`tmm_core.compiled.riccati` the factorization phase,
 :mod:`tmm_core.compiled.step_data` the load solve of many load sets with compact outputs (the maps,
 vectorized across the load sets: 3x faster there), :mod:`tmm_core.compiled.dense` the small dense
 helpers, :mod:`tmm_core.compiled.statics` the Python driver (layout, checks, the compiled
