@@ -22,7 +22,6 @@ import threading
 import warnings
 from typing import NamedTuple
 
-
 from . import ahead, dense, integrators, periodic, reduced_periodic, riccati, step_data, structure, time_step
 from . import march as march_kernel     # beside the stage function march() below
 from .cache import numba_module
@@ -122,7 +121,8 @@ class RangeSolve:
 
     def _compile(self, key):
         """The entry point of ``solve_range`` for the records' types ``key``, its callees compiled
-        first for theirs."""
+        first for theirs (on a first run, all but the factorization by helper processes, and then
+        loaded from the cache)."""
         types = self._numba.types
         segments, configuration, Fn, joints, outputs, checks, _, _, workspace = key
         _, factors, factor_scratch, load_work, maps_scratch = workspace.types
