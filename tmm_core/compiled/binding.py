@@ -22,6 +22,8 @@ import threading
 import warnings
 from typing import NamedTuple
 
+import numpy as np
+
 from . import ahead, dense, integrators, periodic, reduced_periodic, riccati, step_data, structure, time_step
 from . import march as march_kernel     # beside the stage function march() below
 from .cache import numba_module
@@ -111,12 +113,15 @@ class RangeSolve:
     def __call__(self, b_start, b_stop, segments, configuration, Fn, joints, outputs, checks, iteration, control):
         workspace = structure.range_workspace(segments, configuration, Fn, joints, outputs)
         records = (segments, configuration, Fn, joints, outputs, checks, iteration, control, workspace)
-        key = tuple(self._numba.typeof(r) for r in records)
-        entry = self._entries.get(key)
+        # numba.typeof of the records takes about 1 ms (a hundred arrays), as long as a small solve:
+        # the entry is looked up by their fingerprint, and typed only for a new one.
+        fingerprint = _fingerprint(records)
+        entry = self._entries.get(fingerprint)
         if entry is None:
             with self._lock:
-                entry = self._entries.get(key) or self._compile(key)
-                self._entries[key] = entry
+                entry = self._entries.get(fingerprint) or self._compile(
+                    tuple(self._numba.typeof(r) for r in records))
+                self._entries[fingerprint] = entry
         entry(b_start, b_stop, *records, self._kernels)
 
     def _compile(self, key):
@@ -150,6 +155,17 @@ class RangeSolve:
             ahead.wait(name)
             entry = compiled[name].compile(signature)     # from the cache if a helper compiled it
         return entry
+
+
+def _fingerprint(value):
+    """What numba's type of ``value`` (arrays, scalars and nested tuples of them) depends on,
+    cheaply: an array's dtype, dimensions, layout and writeability, a scalar's Python type."""
+    if isinstance(value, tuple):
+        return tuple(_fingerprint(v) for v in value)
+    if isinstance(value, np.ndarray):
+        flags = value.flags
+        return value.dtype.num, value.ndim, flags.c_contiguous, flags.f_contiguous, flags.writeable
+    return type(value)
 
 
 #: The kernels a helper process can compile ahead (:mod:`tmm_core.compiled.ahead`): name ->
