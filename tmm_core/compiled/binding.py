@@ -18,6 +18,7 @@ options. Boundaries: no arithmetic (the kernel modules), no cache policy (kernel
 """
 from __future__ import annotations
 
+import contextlib
 import threading
 import warnings
 from typing import NamedTuple
@@ -100,10 +101,6 @@ class RangeSolve:
 
     def __init__(self, numba):
         self._numba = numba
-        # Numba warns, when it compiles or calls a kernel taking a function, that its function
-        # type is experimental; this one use of it is held equal to the numpy path by
-        # tests/test_kernels.py. Only that message is silenced.
-        warnings.filterwarnings("ignore", "First-class function type", numba.NumbaExperimentalFeatureWarning)
         #: The kernel's dispatcher (compiled by :meth:`_compile`, or ahead by a helper).
         self.dispatcher = numba.njit(cache=True, error_model="numpy", nogil=True)(structure.solve_range)
         self._kernels = (riccati.factor_configuration, step_data.solve_loads_many, structure.solve_loads)
@@ -118,7 +115,7 @@ class RangeSolve:
         fingerprint = _fingerprint(records)
         entry = self._entries.get(fingerprint)
         if entry is None:
-            with self._lock:
+            with self._lock, _quiet_function_types(self._numba):
                 entry = self._entries.get(fingerprint) or self._compile(
                     tuple(self._numba.typeof(r) for r in records))
                 self._entries[fingerprint] = entry
@@ -203,8 +200,19 @@ def compile_ahead(name: str, arguments: tuple) -> None:
 def compile_requests(requests) -> None:
     """Compile each ``(name, signature)`` of ``requests`` into the cache: the helper process of
     :mod:`tmm_core.compiled.ahead` (``python -m tmm_core.compiled``)."""
-    for name, signature in requests:
-        dispatcher(name).compile(signature)
+    with _quiet_function_types(numba_module()):
+        for name, signature in requests:
+            dispatcher(name).compile(signature)
+
+
+@contextlib.contextmanager
+def _quiet_function_types(numba):
+    """Numba's warning, when it compiles a kernel taking a function, that its function type is
+    experimental, silenced (the call does not warn): the one use of it, :class:`RangeSolve`, is
+    held equal to the numpy path by tests/test_kernels.py."""
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", "First-class function type", numba.NumbaExperimentalFeatureWarning)
+        yield
 
 
 def factored():
