@@ -122,13 +122,14 @@ def test_numba_caches_the_kernels_in_the_keyed_folder():
 
 def test_the_kernels_compile_from_the_keyed_sources_only():
     """Every module of ``tmm_core/compiled`` but the Python drivers is a keyed source, and the
-    keyed sources import nothing else of tmm_core at module level but keyed sources, the errors
-    and the cache's own module (whose code numba does not compile)."""
+    keyed sources import nothing else of tmm_core at module level but keyed sources, the errors,
+    the cache's own module and the helper processes' (whose code numba does not compile)."""
     import ast
 
     from tmm_core.compiled import cache as kernel_cache
     names = set(kernel_cache.COMPILED_SOURCES)
-    drivers = {"compiled/__init__.py", "compiled/cache.py", "compiled/statics.py"}
+    drivers = {"compiled/__init__.py", "compiled/__main__.py", "compiled/ahead.py", "compiled/cache.py",
+               "compiled/statics.py"}
     found = {p.relative_to(kernel_cache.ROOT).as_posix() for p in kernel_cache.HERE.glob("*.py")}
     assert found - drivers <= names
     for name in names:
@@ -139,7 +140,7 @@ def test_the_kernels_compile_from_the_keyed_sources_only():
                 package = ("compiled/" if inside and node.level == 1 else "")
                 targets = [node.module] if node.module else [a.name for a in node.names]
                 for target in targets:
-                    allowed = f"{package}{target}.py" in names or target in ("errors", "cache")
+                    allowed = f"{package}{target}.py" in names or target in ("errors", "cache", "ahead")
                     assert allowed, (name, node.level, target)
 
 
