@@ -29,9 +29,12 @@ class March:
     ('rest' or 'quasi_static') or an ``initial`` state; :meth:`advance` takes the crank state at
     the end of the next step. ``z`` holds the current nodal displacements (stacked, local) and
     ``out`` the current outputs (drive torque [N m], then bending and axial strain per gauge).
+    ``outputs_at_start`` False: the outputs at the start from rest or an ``initial`` state are
+    not computed (NaN): a periodic revolution reads those of its steps only, and the quasi-static
+    solve they take was a third of a revolution's time.
     """
 
-    def __init__(self, model: Discretization, dt, angle, speed, accel, start, initial):
+    def __init__(self, model: Discretization, dt, angle, speed, accel, start, initial, outputs_at_start=True):
         if start not in ("rest", "quasi_static"):
             raise InputError(f"start must be 'rest' or 'quasi_static', got {start!r}")
         if initial is not None:
@@ -60,7 +63,9 @@ class March:
         self.state = integ.initial(d0, v0, a0, previous)
         # Outputs of step 0: the quasi-static state for a quasi-static start; from rest the links
         # are undeformed (zero strain) and the drive torque is the rigid-body one.
-        if start != "quasi_static" or initial is not None:
+        if (start != "quasi_static" or initial is not None) and not outputs_at_start:
+            out = np.full(model.outputs.size, np.nan)
+        elif start != "quasi_static" or initial is not None:
             qs0 = quasi_static(model.mech, a1, speed, accel, beam_column=model.beam_column, gravity=model.gravity,
                                gauges=model.gauges, backend=model.backend)
             out = np.concatenate([qs0.drive_torque] + [np.r_[b, a] for b, a in qs0.gauges.values()])
@@ -215,11 +220,13 @@ def _compile_march_ahead(model: Discretization, dt, angle, speed, accel) -> None
 
 
 def begin(model: Discretization, dt: float, angle: float, speed: float, acceleration: float = 0.0, *,
-          start: str = "rest", initial: Mapping[str, np.ndarray] | None = None) -> March:
+          start: str = "rest", initial: Mapping[str, np.ndarray] | None = None,
+          outputs_at_start: bool = True) -> March:
     """Start an incremental march of ``model`` at a crank state (angle [rad], speed [rad/s],
-    acceleration [rad/s^2]) with step ``dt`` [s]; see :class:`March` (``start``, ``initial``)."""
+    acceleration [rad/s^2]) with step ``dt`` [s]; see :class:`March` (``start``, ``initial``,
+    ``outputs_at_start``)."""
     return March(model, float(require_positive("time step dt_s", dt)), float(angle), float(speed),
-                 float(acceleration), start, initial)
+                 float(acceleration), start, initial, outputs_at_start)
 
 
 def rest_acceleration(model: Discretization, loads, motion):

@@ -327,7 +327,8 @@ def _revolution(model: Discretization, cfg, keys, x0, N, dt):
     _, c_v = model.integrator.coefficients(dt)
     march = begin(model, dt, *cfg.crank.at(0),
                   initial={"d": state["d"], "v": state["v"], "a": state["a"],
-                           "previous": (state.get("d1", state["d"]), state.get("d2", state["d"]))})
+                           "previous": (state.get("d1", state["d"]), state.get("d2", state["d"]))},
+                  outputs_at_start=False)
     march.state = state
     indices = np.arange(1, N + 1) % N
     zs, outs, Ps = march.step_many(cfg, indices, record_axial=True)
