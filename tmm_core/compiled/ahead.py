@@ -32,8 +32,6 @@ from .cache import AVAILABLE, ROOT, cache_dir
 #: The longest wait [s] for a helper before the caller compiles the kernel itself (a loaded
 #: machine: the helper's kernels compile in 5-10 s idle).
 WAIT_LIMIT_S = 120.0
-#: The grace [s] a helper gets to end on SIGTERM before SIGKILL.
-STOP_GRACE_S = 2.0
 
 _pending: dict[str, subprocess.Popen] = {}     # kernel name -> the helper compiling it
 _lock = threading.Lock()
@@ -98,14 +96,12 @@ def wait(name: str) -> None:
 
 
 def _stop(process: subprocess.Popen) -> None:
-    """End a helper: SIGTERM, then SIGKILL after :data:`STOP_GRACE_S`; reaped either way."""
+    """End a helper at once (SIGKILL) and reap it. It holds nothing to save: numba writes each
+    cache file under a temporary name and renames it when complete, and SIGTERM would end it as
+    abruptly."""
     if process.poll() is None:
-        process.terminate()
-        try:
-            process.wait(timeout=STOP_GRACE_S)
-        except subprocess.TimeoutExpired:
-            process.kill()
-            process.wait()
+        process.kill()
+        process.wait()
 
 
 @atexit.register
