@@ -30,8 +30,8 @@ from pathlib import Path
 
 #: Time [s] of compiling the time-domain kernels when numba's cache is empty, on an idle 2-core
 #: machine: the first run's warm-up process of the FE rig (``tests/benchmarks/bench_compile.py``)
-#: took 16.8-17.2 s whole, its helper processes included; longer on a loaded one (beside a first
-#: run's numpy engine, about 19 s).
+#: took 15.6-18.8 s whole (median 16.9 s), its helper processes included; longer on a loaded one
+#: (beside a first run's numpy engine, about 19 s).
 COMPILE_ESTIMATE_S = 17.0
 #: Time [s] of compiling the kernels of a periodic sweep (the periodic solver's linearized
 #: revolutions as well) on an empty cache: a 2-point full-model sweep of the FE rig (241 and 373
