@@ -147,3 +147,21 @@ def test_on_an_empty_cache_the_maps_solve_is_compiled_by_a_helper_and_equals_num
     assert "factor_configuration" in result["compiled"]       # the run's own share
     assert list(tmp_path.rglob("step_data.solve_loads_many-*.nbi")) and list(tmp_path.rglob("march.march-*.nbi"))
     np.testing.assert_allclose(result["out"]["compiled"], result["out"]["numpy"], rtol=1e-10, atol=1e-9)
+
+
+def test_a_kernel_this_process_holds_starts_no_helper(monkeypatch):
+    """Where numba cannot write its cache the cache stays empty; a kernel compiled or loaded in
+    this process must not send every later march (one per periodic revolution) to a helper."""
+    from cosim.scenario import load
+    from tmm_core import CrankMotion, TimeDomain
+    from tmm_core.compiled import binding
+    sc = load("crank_rocker_373rpm")
+    td = TimeDomain(sc.mechanism, backend="compiled", gauges=sc.gauges)
+    crank = CrankMotion.constant_speed(sc.drive.speed_rad_s, step_deg=2.0, revolutions=0.05)
+    td.run(crank, start="quasi_static")                    # the march compiled or loaded here
+    started = []
+    monkeypatch.setattr(ahead, "worth_it", lambda source, name: True)       # as on an empty cache
+    monkeypatch.setattr(ahead, "start", lambda requests: started.append(requests))
+    td.run(crank, start="quasi_static")
+    assert binding.march().overloads and not started
+    assert not binding.ahead_pays("march") and not binding.ahead_pays("solve_loads_many")

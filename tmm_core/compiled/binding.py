@@ -192,8 +192,17 @@ def dispatcher(name: str):
 
 def ahead_pays(name: str) -> bool:
     """Whether compiling kernel ``name`` of :data:`AHEAD` in a helper process saves time now
-    (:func:`tmm_core.compiled.ahead.worth_it`: a first run on two cores or more)."""
-    return ahead.worth_it(*AHEAD[name])
+    (:func:`tmm_core.compiled.ahead.worth_it`: a first run on two cores or more), and this process
+    has not compiled or loaded it already (where numba cannot write its cache, the cache would
+    stay empty and every march would start a helper)."""
+    return not _compiled_here(name) and ahead.worth_it(*AHEAD[name])
+
+
+def _compiled_here(name: str) -> bool:
+    """Whether this process holds a compilation of kernel ``name`` of :data:`AHEAD`."""
+    if name == "march":
+        return "march" in _ENTRY and bool(_ENTRY["march"].overloads)
+    return "static" in _ENTRY and bool(dispatcher(name).overloads)
 
 
 def compile_ahead(name: str, arguments: tuple) -> None:
