@@ -162,32 +162,23 @@ class ReducedModel:
         if self.basis.axial == "link":
             return self._second_order_links(Ed, GEd, Edd, a, ad, eta, v, jacobian)
         k, beta = self.k, self.beta
-        col = lambda x: x[:, None, :, None]  # noqa: E731  (k, r) -> (k, 1, r, 1) against (k, s, 4, r)
-        d = (Ed @ col(eta))[..., 0]                                   # (k, s, 4)
-        dd = (Ed @ col(v) + Edd @ col(eta))[..., 0]
-        Gd = (GEd @ col(eta))[..., 0]
+        d, dd, Gd, b = _bending(Ed, GEd, Edd, eta, v)
         delta = 0.5 * np.sum(d * Gd, axis=-1)                         # (k, s)
         rate = np.sum(dd * Gd, axis=-1)
         F = k * (delta + beta * rate)
         e = (a @ eta[:, :, None])[..., 0]
         ed = (a @ v[:, :, None] + ad @ eta[:, :, None])[..., 0]
         Pax = k * (e + beta * ed) + F
-        b = (np.swapaxes(GEd, -1, -2) @ d[..., None])[..., 0]          # dDelta/deta (k, s, r)
         aT = np.swapaxes(a, 1, 2)
         N = (np.swapaxes(b, 1, 2) @ Pax[..., None] + aT @ F[..., None])[..., 0]
         if not jacobian:
             return N, None, None, Pax, delta
-        # dDelta'/deta = Edd^T G d + Ed^T G dd ; G dd = GEd v + G Edd eta
-        rate_eta = (np.swapaxes(Edd, -1, -2) @ Gd[..., None])[..., 0] + \
-            (np.swapaxes(GEd, -1, -2) @ dd[..., None])[..., 0]
-        F_eta = k[:, None] * (b + beta[:, None] * rate_eta)
+        F_eta = k[:, None] * (b + beta[:, None] * _shortening_rate_jacobian(GEd, Edd, dd, Gd))
         F_v = (k * beta)[:, None] * b
         P_eta = k[:, None] * (a + beta[:, None] * ad) + F_eta
         P_v = (k * beta)[:, None] * a + F_v
-        ns, r = Ed.shape[1], Ed.shape[-1]
-        H = np.swapaxes((Ed * Pax[..., None, None]).reshape(len(P), 4 * ns, r), 1, 2) @ GEd.reshape(len(P), 4 * ns, r)
         bT = np.swapaxes(b, 1, 2)
-        return N, bT @ P_eta + H + aT @ F_eta, bT @ P_v + aT @ F_v, Pax, delta
+        return N, bT @ P_eta + _geometric_stiffness(Ed, GEd, Pax) + aT @ F_eta, bT @ P_v + aT @ F_v, Pax, delta
 
     def _second_order_links(self, Ed, GEd, Edd, a, ad, eta, v, jacobian):
         """:meth:`second_order` with the axial force uniform along each link (``ReducedOptions.axial
@@ -199,10 +190,7 @@ class ReducedModel:
         segment's length, as the per-segment model adds its shortening: with one segment per link
         the two are the same)."""
         S, c, beta = self.links_of, self.compliance, self.link_beta
-        col = lambda x: x[:, None, :, None]  # noqa: E731  (k, r) -> (k, 1, r, 1) against (k, s, 4, r)
-        d = (Ed @ col(eta))[..., 0]                                   # (k, s, 4)
-        dd = (Ed @ col(v) + Edd @ col(eta))[..., 0]
-        Gd = (GEd @ col(eta))[..., 0]
+        d, dd, Gd, b_s = _bending(Ed, GEd, Edd, eta, v)               # b_s: dDelta_s/deta (k, s, r)
         delta = S @ (0.5 * np.sum(d * Gd, axis=-1))[..., None]        # (k, l, 1): per link
         rate = S @ np.sum(dd * Gd, axis=-1)[..., None]
         F = (delta + beta[:, None] * rate)[..., 0] / c               # (k, l)
@@ -210,7 +198,6 @@ class ReducedModel:
         e = (al @ eta[:, :, None])[..., 0]
         ed = (al @ v[:, :, None] + ald @ eta[:, :, None])[..., 0]
         Pl = (e + beta * ed) / c + F
-        b_s = (np.swapaxes(GEd, -1, -2) @ d[..., None])[..., 0]        # dDelta_s/deta (k, s, r)
         b = S @ b_s                                                   # (k, l, r)
         aT, bT = np.swapaxes(al, 1, 2), np.swapaxes(b, 1, 2)
         N = (bT @ Pl[..., None] + aT @ F[..., None])[..., 0]
@@ -218,15 +205,12 @@ class ReducedModel:
         strain_length = ((delta[..., 0] / c) @ S) / self.k            # Delta_l / (c_l k_s)
         if not jacobian:
             return N, None, None, Ps, strain_length
-        rate_eta = S @ ((np.swapaxes(Edd, -1, -2) @ Gd[..., None])[..., 0]
-                        + (np.swapaxes(GEd, -1, -2) @ dd[..., None])[..., 0])
+        rate_eta = S @ _shortening_rate_jacobian(GEd, Edd, dd, Gd)
         F_eta = (b + beta[:, None] * rate_eta) / c[:, None]
         F_v = (beta / c)[:, None] * b
         P_eta = (al + beta[:, None] * ald) / c[:, None] + F_eta
         P_v = (beta / c)[:, None] * al + F_v
-        ns, r = Ed.shape[1], Ed.shape[-1]
-        H = np.swapaxes((Ed * Ps[..., None, None]).reshape(len(Ed), 4 * ns, r), 1, 2) @ GEd.reshape(len(Ed), 4 * ns, r)
-        return N, bT @ P_eta + H + aT @ F_eta, bT @ P_v + aT @ F_v, Ps, strain_length
+        return N, bT @ P_eta + _geometric_stiffness(Ed, GEd, Ps) + aT @ F_eta, bT @ P_v + aT @ F_v, Ps, strain_length
 
     # -- one step ----------------------------------------------------------------------------
     def step(self, n, eta, v, acc, nonlinear, jacobian=True, tol=compiled_reduced_periodic.STAGE_TOL,
@@ -483,6 +467,31 @@ def periodic_steady_state_reduced(source: Discretization | HoldsModel, speed_rad
     mult = mult[np.argsort(-np.abs(mult))]
     return PeriodicResult(model.stage_time, model.stage_angle, full.outputs.torque(outs), full.outputs.split(outs),
                           mult, residual, info, x0)
+
+
+def _bending(Ed, GEd, Edd, eta, v):
+    """Per segment at the stages (``Ed``, ``GEd``, ``Edd`` (k, s, 4, r) as
+    :meth:`ReducedModel.second_order` reads them; ``eta``, ``v`` (k, r)): the bending DOFs ``d``,
+    their rates ``dd`` and ``G d`` (k, s, 4), and the shortening's derivative ``dDelta/deta = Ed^T
+    G d`` (k, s, r)."""
+    col = lambda x: x[:, None, :, None]  # noqa: E731  (k, r) -> (k, 1, r, 1) against (k, s, 4, r)
+    d = (Ed @ col(eta))[..., 0]
+    dd = (Ed @ col(v) + Edd @ col(eta))[..., 0]
+    Gd = (GEd @ col(eta))[..., 0]
+    return d, dd, Gd, (np.swapaxes(GEd, -1, -2) @ d[..., None])[..., 0]
+
+
+def _shortening_rate_jacobian(GEd, Edd, dd, Gd):
+    """``dDelta'/deta = Edd^T G d + Ed^T G dd`` per segment (k, s, r) (``G dd = GEd v + G Edd
+    eta``), from :func:`_bending`'s ``dd`` and ``G d``."""
+    return (np.swapaxes(Edd, -1, -2) @ Gd[..., None])[..., 0] + (np.swapaxes(GEd, -1, -2) @ dd[..., None])[..., 0]
+
+
+def _geometric_stiffness(Ed, GEd, P):
+    """``sum_s P_s Ed_s^T G Ed_s`` (k, r, r): the second-order term's stiffness at the segments'
+    axial forces ``P`` (k, s) [N]."""
+    k, ns, r = len(Ed), Ed.shape[1], Ed.shape[-1]
+    return np.swapaxes((Ed * P[..., None, None]).reshape(k, 4 * ns, r), 1, 2) @ GEd.reshape(k, 4 * ns, r)
 
 
 def _past_newton(model: ReducedModel, x_lin, fp, tolerance, iterations, info, error):
