@@ -212,7 +212,8 @@ def _compile_march_ahead(model: Discretization, dt, angle, speed, accel) -> None
     march on maps: a large model marches on stored factorizations, another signature."""
     if not (kernel_binding.ahead_pays("march") and with_maps(model, 1, "auto")):
         return
-    twin = March(dataclasses.replace(model, backend="numpy"), dt, angle, speed, accel, "rest", None)
+    twin = March(dataclasses.replace(model, backend="numpy"), dt, angle, speed, accel, "rest", None,
+                 outputs_at_start=False)          # its start outputs are not read
     if twin.has_visco:          # the viscoelastic step is numpy's alone
         return
     cfg = configurations(twin.model, np.array([angle]), np.array([speed]), np.array([accel]), dt, maps=True)
