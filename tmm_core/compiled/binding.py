@@ -143,23 +143,15 @@ class RangeSolve:
         # that the three run side by side with the march's helper on two cores.
         compiled = dict(zip(("factor_configuration", "solve_loads_many", "solve_loads"), self._kernels),
                         solve_range=self.dispatcher)
-        # (A signature this process has compiled or loaded needs no helper, nor a look at the cache.)
-        if not _loaded(compiled["solve_range"], requests["solve_range"]):
-            if ahead_pays("solve_loads_many"):
-                ahead.start([("solve_loads_many", requests["solve_loads_many"])])
-            if ahead_pays("solve_range"):
-                ahead.start([(name, requests[name]) for name in ("solve_loads", "solve_range")])
+        if ahead_pays("solve_loads_many"):
+            ahead.start([("solve_loads_many", requests["solve_loads_many"])])
+        if ahead_pays("solve_range"):
+            ahead.start([(name, requests[name]) for name in ("solve_loads", "solve_range")])
         self._kernels[0].compile(signatures[0])
         for name, signature in requests.items():
             ahead.wait(name)
             entry = compiled[name].compile(signature)     # from the cache if a helper compiled it
         return entry
-
-
-def _loaded(kernel, signature) -> bool:
-    """Whether numba's dispatcher ``kernel`` holds a compilation for ``signature`` (argument types,
-    or a signature with a return type) in this process."""
-    return tuple(getattr(signature, "args", signature)) in kernel.overloads
 
 
 def _fingerprint(value):
