@@ -131,16 +131,29 @@ def state_at(result: MemberResult, x, distributed=(0.0, 0.0)) -> np.ndarray:
     return np.einsum("...ij,...j->...i", T[..., :6, :6], S) + T[..., :6, 6]
 
 
-def gauge_strains(result: MemberResult, gauge: Gauge, distributed=(0.0, 0.0)):
-    """``(bending, axial)`` strain [-] at a gauge, arrays over the batch dimensions."""
+def gauge_strains(result: MemberResult, gauge: Gauge, distributed=(0.0, 0.0), axial_sampling=None):
+    """``(bending, axial)`` strain [-] at a gauge, arrays over the batch dimensions.
+
+    ``axial_sampling = ((j, k), (w_j, w_k))`` reads the axial strain as ``w_j`` times segment
+    ``j``'s plus ``w_k`` times segment ``k``'s (each its axial force over its stiffness), as a
+    lumped-mass model needs (:func:`tmm_core.discretization.axial_sampling`); without it, the
+    axial force at the gauge's position."""
     m = result.member
     S = state_at(result, gauge.position_m, distributed)
     j = int(np.clip(np.searchsorted(m.stations, gauge.position_m, side="right") - 1, 0, m.n_segments - 1))
-    f = result.stiffness_factor
-    fj = np.asarray(f)[..., j] if np.ndim(f) else f
     sec, mat = m.sections[j], m.materials[j]
-    curvature = S[..., 3] / (mat.E_Pa * sec.inertia_m4 * fj)
+    curvature = S[..., 3] / (mat.E_Pa * sec.inertia_m4 * _stiffness_factor(result, j))
     sign = -1.0 if gauge.face == "top" else 1.0      # sigma = N/A - M y / I
     bending = sign * curvature * 0.5 * sec.depth_m
-    axial = S[..., 5] / (mat.E_Pa * sec.area_m2 * fj)
+    if axial_sampling is None:
+        return bending, S[..., 5] / (mat.E_Pa * sec.area_m2 * _stiffness_factor(result, j))
+    axial = sum(w * result.state[..., s, 1, 5] / (m.materials[s].E_Pa * m.sections[s].area_m2
+                                                  * _stiffness_factor(result, s))
+                for s, w in zip(*axial_sampling) if w != 0.0)
     return bending, axial
+
+
+def _stiffness_factor(result: MemberResult, j: int):
+    """The stiffness factor of segment ``j`` of a result (a scalar or an array over its batch)."""
+    f = result.stiffness_factor
+    return np.asarray(f)[..., j] if np.ndim(f) else f

@@ -169,7 +169,8 @@ def unit_responses(model: Discretization, angles):
     z = np.concatenate([sol.members[l.name].state[..., 0, :3].reshape(B, n + 1, -1) for l in model.links], axis=-1)
     joint, arm, _ = mech.drive_torque_terms(motion)
     torque = torque_from_terms(sol.reactions, joint, arm, np.zeros(B))
-    gs = [np.stack(gauge_strains(sol.members[g.link], g), -1) for g in model.gauges]       # (B, n+1, 2) each
+    gs = [np.stack(gauge_strains(sol.members[g.link], g, axial_sampling=model.gauge_axial_sampling(k)), -1)
+          for k, g in enumerate(model.gauges)]                                        # (B, n+1, 2) each
     gauges = np.stack([g[:, :-1] - g[:, -1:] for g in gs], 1) if gs else np.zeros((B, 0, n, 2))
     return (np.swapaxes(z[:, :-1] - z[:, -1:], 1, 2), torque[:, :-1] - torque[:, -1:],
             np.swapaxes(gauges, -1, -2))

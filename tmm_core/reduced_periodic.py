@@ -143,8 +143,6 @@ class ReducedModel:
         self._segment_maps = None              # built on first use (numpy path only)
         self.A2 = RADAU_A @ RADAU_A
         self.stage_acc = None                  # stage accelerations of the last revolution (guesses)
-        # Gauge segments (for the shortening part of the axial strain).
-        self.gauge_segment = model.gauge_segment
 
     # -- the second-order term -----------------------------------------------------------------
     def second_order(self, P, eta, v, jacobian=True):
@@ -334,7 +332,7 @@ class ReducedModel:
         """The records the compiled revolution reads (built once): ``(stages, segments,
         output_maps)``, the stage matrices and basis ``(Mr, Cr, Kr, fr, T, Td)``, the segment data
         ``(seg_w, seg_u, G, k, beta)`` and the output maps (:meth:`output_maps`) with the gauges'
-        segments and lengths."""
+        axial sampling (:meth:`tmm_core.discretization.Discretization.kernel_model`'s last entry)."""
         if self._kernel_args is None:
             seg = self.model.segments
             c = np.ascontiguousarray
@@ -342,8 +340,7 @@ class ReducedModel:
             segments = (np.stack([seg.start + 1, seg.start + 2, seg.end + 1, seg.end + 2], axis=1).astype(np.int64),
                         np.stack([seg.start, seg.end], axis=1).astype(np.int64), c(self.G, dtype=float),
                         c(self.k, dtype=float), c(self.beta, dtype=float))
-            output_maps = (*self.output_maps(), self.gauge_segment.astype(np.int64),
-                           c(seg.length[self.gauge_segment], dtype=float))
+            output_maps = (*self.output_maps(), *self.model.kernel_model()[-1])
             self._kernel_args = (stages, segments, output_maps)
         return self._kernel_args
 
@@ -402,9 +399,9 @@ class ReducedModel:
             load[iu] += c[iu] * q[iu + 1]
             load[iu + 1] -= c[iu + 1] * q[iu]
         strains = self.strains[p] @ eta                              # (n_g, 2)
-        if nonlinear and len(self.gauge_segment):
+        if nonlinear and len(model.gauges):
             _, _, _, _, delta = self.second_order(np.array([p]), eta[None], v[None], jacobian=False)
-            strains[:, 1] += delta[0, self.gauge_segment] / model.segments.length[self.gauge_segment]
+            strains[:, 1] += model.gauge_shortening_strain(delta[0])
         return np.concatenate([[self.torque_map[p] @ load + self.torque_offset[p]], strains.ravel()])
 
 

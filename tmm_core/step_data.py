@@ -70,7 +70,7 @@ def _compiled_maps(model: Discretization, prep, P, drive):
     maps = StepMaps.empty(B, n, model.outputs.size, len(model.segments.length) if axial else None)
     negative = np.empty(B, dtype=int)
     gauge_at = gauge_nodes(model, lay)
-    chunk = max(1, int(MAP_CHUNK_BYTES // (8.0 * (n + 1) * (2 * n + 6 * len(model.gauges) + 8))))
+    chunk = max(1, int(MAP_CHUNK_BYTES // (8.0 * (n + 1) * (2 * n + 6 * len(gauge_at) + 8))))
     for c0 in range(0, B, chunk):
         sl = slice(c0, min(B, c0 + chunk))
         part = compiled_statics.Prepared(prep.structure, prep.case, lay, prep.angle[sl],
@@ -124,11 +124,12 @@ def output_functionals(model: Discretization, part, P, sl, drive, nd, G):
     """The outputs (:class:`tmm_core.configuration_batch.OutputLayout`) of the configurations
     ``sl`` of a batch (``part``: their :class:`compiled_statics.Prepared`, ``P (b, S)`` their
     axial forces) as affine functionals of a solution's ``y``, its joint forces ``(nd,)`` [N, N m]
-    then the right-side states ``(G, 6)`` at the gauge nodes: augmented ``(b, n_out, ny + 1)``
-    (``outputs = Ocx[:, :, :-1] @ y + Ocx[:, :, -1]``). The drive torque reads only the joint
-    forces and gauge k only its own state, so each is evaluated on its own unit inputs and zero
-    (nd + 1, and 7 a gauge) and the other coefficients are zero: evaluating every output on all
-    ny + 1 inputs cost the Watt six-bar's set-up ~7 ms of its ~30 at 360 configurations."""
+    then the right-side states ``(G, 6)`` at the gauge nodes (:func:`gauge_nodes`: two a gauge):
+    augmented ``(b, n_out, ny + 1)`` (``outputs = Ocx[:, :, :-1] @ y + Ocx[:, :, -1]``). The drive
+    torque reads only the joint forces and gauge k only its own states, so each is evaluated on
+    its own unit inputs and zero (nd + 1, and 7 a gauge) and the other coefficients are zero:
+    evaluating every output on all ny + 1 inputs cost the Watt six-bar's set-up ~7 ms of its ~30
+    at 360 configurations."""
     b = len(P)
     lay = part.layout
     Ocx = np.zeros((b, model.outputs.size, nd + 6 * G + 1))
@@ -145,9 +146,15 @@ def output_functionals(model: Discretization, part, P, sl, drive, nd, G):
         seg = slice(lay.seg_off[i], lay.seg_off[i + 1])
         res = MemberResult(m, part.angle[:, i, None], part.origin[m.name][:, None], state, P[:, None, seg],
                            np.zeros((1, 1, m.n_segments)), part.factor[:, None, seg])
-        cols = slice(nd + 6 * k, nd + 6 * k + 6)
-        for pick, strain in zip((model.outputs.bending, model.outputs.axial), gauge_strains(res, g)):
-            _affine_rows(pick(rows, k), cols, strain)
+        first = nd + 12 * k
+        bending, _ = gauge_strains(res, g)
+        _affine_rows(model.outputs.bending(rows, k), slice(first, first + 6), bending)
+        # The axial strain: each of its two segments' axial force (component 5 of the state at the
+        # node that starts it) over that segment's stiffness, weighted; no offset.
+        axial = model.outputs.axial(rows, k)
+        for c, (j, w) in enumerate(zip(*model.gauge_axial_sampling(k))):
+            EA = m.materials[j].E_Pa * m.sections[j].area_m2
+            axial[:, first + 6 * c + 5] += w / (EA * part.factor[:, lay.seg_off[i] + j])
     return Ocx
 
 
@@ -159,15 +166,13 @@ def _affine_rows(out, cols, values):
 
 
 def gauge_nodes(model: Discretization, lay) -> list:
-    """The compiled node whose right-side state each gauge of ``model`` reads (the node that starts
-    the gauge's segment)."""
-    members = {m.name: (i, m) for i, m in enumerate(model.structure.members)}
-    out = []
-    for g in model.gauges:
-        i, m = members[g.link]
-        j = int(np.clip(np.searchsorted(m.stations, g.position_m, side="right") - 1, 0, m.n_segments - 1))
-        out.append(int(lay.node_off[i]) + j)
-    return out
+    """The compiled nodes whose right-side states the outputs read, two a gauge of ``model``: the
+    node that starts the gauge's segment (its bending strain and the first segment of its axial
+    strain) and the node that starts the second segment of its axial strain
+    (:func:`tmm_core.discretization.axial_sampling`)."""
+    members = {m.name: i for i, m in enumerate(model.structure.members)}
+    return [int(lay.node_off[members[g.link]]) + j
+            for k, g in enumerate(model.gauges) for j in model.gauge_axial_sampling(k)[0]]
 
 
 def numpy_maps(model: Discretization, factor, drive):
@@ -196,7 +201,8 @@ def numpy_maps(model: Discretization, factor, drive):
         z = np.concatenate([sol.members[l.name].state[..., 0, :3].reshape(sl.stop - sl.start, model.n_dof + 1, -1)
                             for l in model.links], axis=-1)                 # (b, loads+1, n_dof)
         torque = torque_from_terms(sol.reactions, *terms_at(drive, sl))   # (b, loads+1)
-        g_out = [np.stack(gauge_strains(sol.members[g.link], g), -1) for g in model.gauges]
+        g_out = [np.stack(gauge_strains(sol.members[g.link], g, axial_sampling=model.gauge_axial_sampling(k)), -1)
+                 for k, g in enumerate(model.gauges)]
         outs = np.concatenate([torque[..., None]] + g_out, axis=-1) if g_out else torque[..., None]
         maps.Z[sl] = np.swapaxes(z[:, :-1] - z[:, -1:], 1, 2)
         maps.z0[sl] = z[:, -1]

@@ -159,12 +159,12 @@ def _iterate(model: Discretization, cfg, k, loads, state, dt, axial_guess):
         dz = float(np.max(np.abs(z_new - z))) / (float(np.max(np.abs(z_new))) + 1e-300)
         dP = float(np.max(np.abs(P_new - P))) / (float(np.max(np.abs(P_new))) + scale_P)
         if dz < model.axial_tolerance and dP < AXIAL_FORCE_TOLERANCE:
-            if len(model.gauge_segment) and shorten:
+            if len(model.gauges) and shorten:
                 # Gauge axial strain = the full axial strain, with the shortening from bending.
                 delta = shape_products(seg, z_new)[0] if not exact else \
                     pseudo_loads(seg, z_new, c_v * z_new + h_v, P_new, P0, True, True)[2]
                 out = out.copy()
-                out[model.outputs.axial_columns] += delta[model.gauge_segment] / seg.length[model.gauge_segment]
+                out[model.outputs.axial_columns] += model.gauge_shortening_strain(delta)
             return StepSolution(z_new, out, P_new), None, (it + 1, dz, dP)
         if dz > 1e3 or dP > 1e3:       # diverging: refactorize rather than iterate on
             break
@@ -216,8 +216,8 @@ def _response(model: Discretization, sol, drive):
     (:meth:`FourBarMechanism.drive_torque_terms`)."""
     z = np.concatenate([sol.members[l.name].state[..., 0, :3].reshape(-1) for l in model.links])
     out = [np.reshape(torque_from_terms(sol.reactions, *drive), ())]
-    for g in model.gauges:
-        b, a = gauge_strains(sol.members[g.link], g)
+    for k, g in enumerate(model.gauges):
+        b, a = gauge_strains(sol.members[g.link], g, axial_sampling=model.gauge_axial_sampling(k))
         out += [b.reshape(()), a.reshape(())]
     N = np.concatenate([segment_forces(sol.members[l.name]).reshape(-1) for l in model.links])
     return StepSolution(z, np.array(out), N)

@@ -125,14 +125,16 @@ def march(integrator, idx, maps, on_factors, model, settings, state, recorded):
     velocity coefficient; ``maps = (Zx, Ox, Ax, P0, rigid, omega)`` and ``on_factors = (flayout,
     fstored, fwork, Ocx)`` or None for a batch with maps, the configuration batch's data
     (:func:`tmm_core.time_step.kernel_data`); ``model = (m, aM, beta_node, seg_start,
-    seg_end, seg_L, seg_EA, seg_beta, seg_K, gauge_seg)``; ``settings = (coriolis, has_kv,
+    seg_end, seg_L, seg_EA, seg_beta, seg_K, (gauge_seg, gauge_w))``, the last the two segments of
+    each gauge's axial strain and the weights [1/m] of their shortenings; ``settings = (coriolis, has_kv,
     dynamic, shortening, own_force, tol_z, tol_P, max_iterations, depth)``; ``state = (S, P)``
     with ``S (K, n_dof)`` the integrator's state arrays, updated in place; ``recorded =
     (out_hist, z_hist, P_hist, iterations)``."""
     Hc, Gc, ez, dva, dt, c_v = integrator
     Zx, Ox, Ax, P0, rigid, omega = maps
     # The masses, mass damping and bending blocks serve only the history loads (the whole record).
-    _m, _aM, _beta_node, seg_start, seg_end, seg_L, seg_EA, seg_beta, _seg_K, gauge_seg = model
+    _m, _aM, _beta_node, seg_start, seg_end, seg_L, seg_EA, seg_beta, _seg_K, gauge_axial = model
+    gauge_seg, gauge_w = gauge_axial
     coriolis, has_kv, dynamic, shortening, own_force, tol_z, tol_P, max_iterations, depth = settings
     S, P = state
     out_hist, z_hist, P_hist, iterations = recorded
@@ -256,8 +258,8 @@ def march(integrator, idx, maps, on_factors, model, settings, state, recorded):
                     if shortening:
                         shape_products(seg_start, seg_end, seg_L, zn, delta, G)
                         for gi in range(gauge_seg.shape[0]):
-                            sg = gauge_seg[gi]
-                            outv[2 + 2 * gi] += delta[sg] / seg_L[sg]
+                            for c in range(2):
+                                outv[2 + 2 * gi] += gauge_w[gi, c] * delta[gauge_seg[gi, c]]
                     iterations[j] = it + 1
                     break
                 if dz > 1e3 or dPr > 1e3:

@@ -66,7 +66,7 @@ def push(S, coef, idx, forced, maps, model, flags, c_v, trajectory):
     Hc, Gc, ez = coef
     Zx, Ax, P0, rigid, omega = maps
     # The mass damping and bending blocks serve only the history loads (the whole record).
-    m, _aM, _beta_node, seg_start, seg_end, seg_L, seg_EA, seg_beta, _seg_K, _gauge_seg = model
+    m, _aM, _beta_node, seg_start, seg_end, seg_L, seg_EA, seg_beta, _seg_K, _gauge_axial = model
     coriolis, has_kv, dynamic = flags
     zs, vs, Ps = trajectory
     K, nM = S.shape

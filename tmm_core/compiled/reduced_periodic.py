@@ -184,8 +184,8 @@ def revolution(x0, guess, options, tableau, stages, segments, output_maps, newto
     Writes ``x_end`` (2r,), the stage accelerations ``accs`` (N, 3, r), with ``want_jac`` the
     monodromy ``mono`` (2r, 2r) (product of the step Jacobians), with ``want_out`` the outputs
     ``outs`` (3N, n_out): ``O0[p] + Oe[p] eta_i + Ov[p] eta'_i + Oa[p] acc_i`` plus, with
-    ``nonlinear``, the shortening of gauge segment ``gauge_seg[g]`` over its length in column
-    ``2 + 2 g``; ``counts`` (2,): Newton iterations and factorizations (added to).
+    ``nonlinear``, the shortenings of gauge g's two segments ``gauge_seg[g]`` times their weights
+    ``gauge_w[g]`` [1/m] in column ``2 + 2 g``; ``counts`` (2,): Newton iterations and factorizations (added to).
 
     ``chord_start``, ``chord_rate``: :data:`CHORD_START`, :data:`CHORD_CONTRACTION`.
     ``LUs`` (N, 3r, 3r), ``pivs`` (N, 3r): every step's last factorized Newton matrix, kept across
@@ -199,13 +199,13 @@ def revolution(x0, guess, options, tableau, stages, segments, output_maps, newto
     Records (tuples, unpacked below): ``options = (nonlinear, want_jac, want_out, have_guess,
     chord, chord_start, chord_rate)``; ``tableau = (h, A, A2, c)``; ``stages = (Mr, Cr, Kr, fr,
     T, Td)``; ``segments = (seg_w, seg_u, G, k, beta)`` (as :func:`second_order`);
-    ``output_maps = (O0, Oe, Ov, Oa, gauge_seg, gauge_len)``; ``newton = (tol, iterations)``;
+    ``output_maps = (O0, Oe, Ov, Oa, gauge_seg, gauge_w)``; ``newton = (tol, iterations)``;
     ``kept = (LUs, pivs, stored)``; ``results = (x_end, mono, outs, accs, counts)`` (written)."""
     nonlinear, want_jac, want_out, have_guess, chord, chord_start, chord_rate = options
     h, A, A2, c = tableau
     Mr, Cr, Kr, fr, T, Td = stages
     seg_w, seg_u, G, k, beta = segments
-    O0, Oe, Ov, Oa, gauge_seg, gauge_len = output_maps
+    O0, Oe, Ov, Oa, gauge_seg, gauge_w = output_maps
     tol, iterations = newton
     LUs, pivs, stored = kept
     x_end, mono, outs, accs, counts = results
@@ -332,18 +332,19 @@ def revolution(x0, guess, options, tableau, stages, segments, output_maps, newto
                     outs[p, o] = s
                 if nonlinear:
                     for gi in range(gauge_seg.shape[0]):
-                        sg = gauge_seg[gi]
-                        d = w4[0]
-                        for a in range(4):
-                            d[a] = 0.0
-                            row = seg_w[sg, a]
-                            for j in range(r):
-                                d[a] += T[p, row, j] * es[i, j]
-                        delta = 0.0
-                        for a in range(4):
-                            delta += d[a] * (G[sg, a, 0] * d[0] + G[sg, a, 1] * d[1] + G[sg, a, 2] * d[2] +
-                                             G[sg, a, 3] * d[3])
-                        outs[p, 2 + 2 * gi] += 0.5 * delta / gauge_len[gi]
+                        for gc in range(2):
+                            sg = gauge_seg[gi, gc]
+                            d = w4[0]
+                            for a in range(4):
+                                d[a] = 0.0
+                                row = seg_w[sg, a]
+                                for j in range(r):
+                                    d[a] += T[p, row, j] * es[i, j]
+                            delta = 0.0
+                            for a in range(4):
+                                delta += d[a] * (G[sg, a, 0] * d[0] + G[sg, a, 1] * d[1] + G[sg, a, 2] * d[2] +
+                                                 G[sg, a, 3] * d[3])
+                            outs[p, 2 + 2 * gi] += 0.5 * delta * gauge_w[gi, gc]
         if want_jac:
             # d(acc)/d(eta, eta') = -J^-1 [Ke_i, Ce_i + h c_i Ke_i] (the last Newton matrix).
             for i in range(3):

@@ -46,7 +46,7 @@ def history_loads(k, h_a, h_v, model, omega, flags, L):
     flattened (value ``(i, r)`` at ``i M + r``; M = 1 for a march). ``model`` is the model record
     (:meth:`tmm_core.discretization.Discretization.kernel_model`), ``omega`` (B, n_dof) each DOF's
     link speed [rad/s] per configuration, ``flags = (coriolis, has_kv)``."""
-    m, aM, beta_node, seg_start, _end, _length, _EA, _beta, seg_K, _gauges = model
+    m, aM, beta_node, seg_start, _end, _length, _EA, _beta, seg_K, _gauge_axial = model
     coriolis, has_kv = flags
     n = m.shape[0]
     M = h_a.shape[0] // n
