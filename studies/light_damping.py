@@ -24,6 +24,8 @@ doubled, integrator dissipation changed, second-order terms switched, rotating-f
     python -m studies.light_damping march --case 373:0.5 [--variant base] [--revolutions 40]
     python -m studies.light_damping step-split [--case 241:0.5]
     python -m studies.light_damping frequencies
+    python -m studies.light_damping multipliers [--cases 373:1] [--variant step8] [--elements 16]
+    python -m studies.light_damping deflection [--cases 241:2,373:2]
     python -m studies.light_damping table      # the markdown table of docs/light_damping.md
 
 Run heavy parts with ``nice``; the exudyn references take ~4 s per revolution at 16 elements.
@@ -211,7 +213,7 @@ def gauge_node_axial(model, zs):
     delta = shape_products(seg, Z)[0]
     strain = (Z[:, seg.end] - Z[:, seg.start] + delta) / seg.length
     out = {}
-    for g, j in zip(model.gauges, model.gauge_segment):
+    for g, j in zip(model.gauges, model.gauge_segments[:, 0]):
         link = next(l for l in model.links if l.name == g.link)
         on_node = np.any(np.isclose(link.stations, g.position_m, rtol=0, atol=1e-9)) and j > 0 and \
             seg.end[j - 1] == seg.start[j]
@@ -259,7 +261,6 @@ def tmm_case(rpm, zeta, spec, log=print):
         if abs(target[0] - rpm) < 1e-9 and abs(target[1] - zeta) < 1e-9:
             return {"ok": True, **res, "wall_s": time.time() - t0}
         i = next(j for j, p in enumerate(path) if p == target) if target in path else i
-        nxt = [p for p in path if (abs(p[0] - target[0]) > 1e-9 or p[1] < target[1] - 1e-9)]
         # the next point of the path beyond the current one
         after = path[path.index(target) + 1] if target in path else next(
             p for p in path if (p[1] < target[1] - 1e-12 and abs(p[0] - rpm) < 1e-9) or
@@ -444,6 +445,98 @@ def cmd_frequencies(args):
     return 0
 
 
+# -- the dynamics about the orbit: Floquet multipliers read off a transient ------------------------
+def revolution_samples(angle, gauges):
+    """``[revolution, sample]``: every gauge's bending and axial strain [-] at the same crank angles
+    in each complete revolution, each channel scaled by its last revolution's peak-to-peak."""
+    a = np.asarray(angle) - angle[0]
+    per_rev = int(round(2 * math.pi / np.median(np.diff(a))))
+    k = len(a) // per_rev
+    channels = [np.asarray(x)[:k * per_rev].reshape(k, per_rev) for pair in gauges.values() for x in pair]
+    return np.hstack([c / np.ptp(c[-1]) for c in channels])
+
+
+def transient_multipliers(samples, rank=6, first=3, floor=1e-9):
+    """The Floquet multipliers that dominate the approach to the periodic orbit, read off a
+    transient (dynamic mode decomposition of the revolution-to-revolution changes
+    ``d_k = y_{k+1} - y_k``, which evolve as ``d_{k+1} = M d_k`` near the orbit for the monodromy
+    ``M``). Uses the revolutions from ``first`` on whose change exceeds ``floor`` (the steady
+    rounding). Returns the multipliers, largest first, and the revolutions used."""
+    d = np.diff(samples, axis=0)
+    size = np.abs(d).max(axis=1)
+    usable = np.flatnonzero(size > floor)
+    window = usable[usable >= first]
+    D = d[window].T
+    U, S, Vt = np.linalg.svd(D[:, :-1], full_matrices=False)
+    r = min(rank, int(np.sum(S > S[0] * 1e-8)))
+    A = U[:, :r].T @ D[:, 1:] @ Vt[:r].T / S[:r]
+    mu = np.linalg.eigvals(A)
+    return mu[np.argsort(-np.abs(mu))], (int(window[0]), int(window[-1]) + 1)
+
+
+def cmd_multipliers(args):
+    """The largest Floquet multipliers of both engines about their steady orbit, read the same way
+    off each engine's transient from rest (exudyn) or from the quasi-static start (TMM), and the
+    TMM's own from its monodromy (a check of the reading)."""
+    from tmm_core import CrankMotion
+    cache = load_json(TMM_CACHE)
+    for rpm, zeta in parse_cases(args.cases):
+        key = f"multipliers|{case_key(rpm, zeta)}"
+        res = cache.get(key, {})
+        exudyn = f"exudyn_{args.elements}el_{args.exudyn_step_deg:g}deg"
+        if exudyn not in res or args.force:
+            from cosim.engines import make_engine
+            from cosim.master import run_prescribed
+            sc = scenario(rpm, zeta, {"solver.exudyn.elements": args.elements,
+                                      "solver.exudyn.step": f"{args.exudyn_step_deg:g} deg"})
+            r = run_prescribed(make_engine("exudyn"), sc, revolutions=args.revolutions)
+            samples = revolution_samples(r.crank_angle, r.gauges)
+            mu, used = transient_multipliers(samples, args.rank, args.first)
+            res[exudyn] = {"mu": [[float(m.real), float(m.imag)] for m in mu], "revolutions": list(used)}
+        spec = VARIANTS[args.variant][1]
+        tag = f"tmm_{args.variant}"
+        if tag not in res or args.force:
+            td, speed, step = time_domain(rpm, zeta, spec)
+            r = td.run(CrankMotion.constant_speed(speed, step_deg=step, revolutions=args.revolutions),
+                       start="quasi_static", record_displacements=False)
+            mu, used = transient_multipliers(revolution_samples(r.crank_angle, r.gauges), args.rank, args.first)
+            orbit = cache.get(f"{args.variant}|{case_key(rpm, zeta)}", {})
+            res[tag] = {"mu": [[float(m.real), float(m.imag)] for m in mu], "revolutions": list(used),
+                        "monodromy": orbit.get("mu")}
+        cache = load_json(TMM_CACHE)
+        cache[key] = res
+        save_json(TMM_CACHE, cache)
+        for name, v in res.items():
+            show = lambda ms: " ".join(f"{abs(complex(*m)):.3f}@{math.degrees(np.angle(complex(*m))):+.1f}"
+                                       for m in ms[:4])
+            mono = f"   monodromy {show(v['monodromy'])}" if v.get("monodromy") else ""
+            print(f"{case_key(rpm, zeta)} {name:12s} transient {show(v['mu'])} (revolutions {v['revolutions']}){mono}")
+    return 0
+
+
+def cmd_deflection(args):
+    """Each link's largest deflection from its chord [mm] and largest section rotation against
+    its rigid-body frame [deg] over the last of ``--revolutions`` revolutions of the shipped TMM
+    from its quasi-static start, at each speed of ``--cases``: how far the elastic motion goes
+    beyond small rotations."""
+    from tmm_core import CrankMotion
+    for rpm, zeta in parse_cases(args.cases):
+        sc = scenario(rpm, zeta)
+        td = sc.time_domain()
+        crank = CrankMotion.constant_speed(sc.drive.speed_rad_s, step_deg=math.degrees(sc.tmm.step_rad),
+                                           revolutions=args.revolutions)
+        r = td.run(crank, start="quasi_static")
+        last = crank.steps_per_revolution()
+        for link in td.model.links:
+            q = r.displacements[link.name][-last:]                        # (steps, nodes, (u, w, theta))
+            x = link.stations / link.stations[-1]
+            chord = q[:, :1, 1] + (q[:, -1:, 1] - q[:, :1, 1]) * x
+            print(f"{case_key(rpm, zeta)} {link.name:8s} length {link.length_m * 1e3:4.0f} mm: deflection from "
+                  f"the chord up to {np.abs(q[:, :, 1] - chord).max() * 1e3:5.2f} mm, sections turned up to "
+                  f"{math.degrees(np.abs(q[:, :, 2]).max()):5.2f} deg")
+    return 0
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     sub = ap.add_subparsers(dest="cmd", required=True)
@@ -470,6 +563,20 @@ def main(argv=None) -> int:
     sp.set_defaults(func=cmd_step_split)
     fr = sub.add_parser("frequencies", help="natural frequencies at rest of both engines")
     fr.set_defaults(func=cmd_frequencies)
+    mu = sub.add_parser("multipliers", help="the largest Floquet multipliers of both engines, read off transients")
+    mu.add_argument("--cases", default="373:1")
+    mu.add_argument("--variant", default="step8", help="the TMM variant (VARIANTS)")
+    mu.add_argument("--elements", type=int, default=16)
+    mu.add_argument("--exudyn-step-deg", type=float, default=0.2)
+    mu.add_argument("--revolutions", type=float, default=30)
+    mu.add_argument("--rank", type=int, default=6)
+    mu.add_argument("--first", type=int, default=3, help="the first revolution the reading uses")
+    mu.add_argument("--force", action="store_true")
+    mu.set_defaults(func=cmd_multipliers)
+    de = sub.add_parser("deflection", help="the links' largest deflection and section rotation")
+    de.add_argument("--cases", default="241:2,373:2")
+    de.add_argument("--revolutions", type=float, default=8)
+    de.set_defaults(func=cmd_deflection)
     tb = sub.add_parser("table", help="print the markdown tables from the cached results")
     tb.set_defaults(func=cmd_table)
     args = ap.parse_args(argv)
