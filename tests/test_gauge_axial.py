@@ -52,9 +52,10 @@ def test_no_interpolation_across_a_point_mass_or_past_the_link_ends(coupler):
     assert axial_sampling(loaded, x[4]) == ((4, 4), (1.0, 0.0))
 
 
-def _axial_peaks(run):
+def _axial_peaks(run, gauge="coupler_mid"):
+    """The last revolution's axial (max, min) [microstrain] at ``gauge``."""
     m = run.last_revolution()
-    axial = run.gauges["coupler_mid"][1][m] * 1e6
+    axial = run.gauges[gauge][1][m] * 1e6
     return np.array([axial.max(), axial.min()])
 
 
@@ -77,3 +78,16 @@ def test_the_axial_reading_does_not_depend_on_the_mesh(slider_crank_axial):
 def test_the_axial_peaks_agree_with_exudyn(slider_crank_axial):
     """Each axial peak within 1 % of exudyn's (-2.7 % and -2.5 % before, at 8 segments)."""
     np.testing.assert_allclose(slider_crank_axial[8], slider_crank_axial["exudyn"], rtol=1e-2)
+
+
+@pytest.mark.slow
+def test_alexander_lawrence_axial_peaks_agree_with_a_converged_exudyn():
+    """Issue 34's check on another rig: each axial peak of both gauges within 2 % of exudyn's at
+    16 elements (measured: coupler +0.3 / +0.2 %, follower -0.4 / +1.1 %). The scenario's own
+    exudyn mesh (8 elements) is not converged in the axial strains (follower compression 12 %
+    smaller), so the reference is refined here (docs/light_damping.md, "The axial strains")."""
+    sc = load("alexander_lawrence_400rpm")
+    tmm = run_prescribed(make_engine("tmm"), sc)
+    exu = run_prescribed(make_engine("exudyn"), sc.with_overrides({"solver.exudyn.elements": 16}))
+    for gauge in ("coupler_mid", "follower_mid"):
+        np.testing.assert_allclose(_axial_peaks(tmm, gauge), _axial_peaks(exu, gauge), rtol=0.02, err_msg=gauge)
