@@ -17,7 +17,7 @@ import math
 import numpy as np
 
 from tmm_core import InputError
-from tmm_core.revolution import phase, revolution_change, revolutions_completed
+from tmm_core.revolution import last_revolution, phase, revolution_change, revolutions_completed
 
 STEADY_TOLERANCE = 5e-3     # last two revolutions agree to 0.5 % of their peak-to-peak
 
@@ -28,6 +28,29 @@ def run_change(run) -> float:
         return float("nan")
     signals = [run.drive_torque] + [bending for bending, _ in run.gauges.values()]
     return revolution_change(run.crank_angle, [s for s in signals if np.all(np.isfinite(s))])
+
+
+def link_rotations(run) -> dict:
+    """``{link: degrees}``: the largest angle [deg] between a segment of the link (two neighbouring
+    nodes of the engine's deformed positions, ``run.nodes``) and the link's chord (its first node
+    to its last) over the last revolution; how far the elastic motion is from small rotations.
+    Links with fewer than three nodes have no segment that can turn against the chord and are
+    left out. Sign-free, so the same for every engine's node layout."""
+    if len(run.t) == 0 or not run.nodes:
+        return {}
+    mask = last_revolution(run.crank_angle)
+    out = {}
+    for name, positions in run.nodes.items():
+        p = np.asarray(positions)
+        if p.ndim != 3 or p.shape[1] < 3 or len(p) != len(mask):
+            continue
+        p = p[mask]
+        chord = p[:, -1] - p[:, 0]
+        segment = np.diff(p, axis=1)
+        cross = chord[:, None, 0] * segment[..., 1] - chord[:, None, 1] * segment[..., 0]
+        dot = np.einsum("kd,ksd->ks", chord, segment)
+        out[name] = float(np.degrees(np.abs(np.arctan2(cross, dot)).max()))
+    return out
 
 
 def steadiness(run, tolerance: float) -> dict:

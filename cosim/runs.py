@@ -57,7 +57,7 @@ from .kernel_warmup import KernelWarmup, first_run_in_numpy
 from .master import CoSimulation, InputError
 from tmm_core.revolution import last_revolution, revolutions_completed
 
-from .metrics import steadiness
+from .metrics import link_rotations, steadiness
 from .physics_flags import attach_flags, questionable
 from .recording.animation import write_gif
 from .recording.batch import check_linkage_rate
@@ -155,6 +155,9 @@ def _engine_summary(ch, scenario: Scenario, sim_t0: float) -> dict:
          "coupling_passes_mean": float(np.mean(ch.passes)) if len(ch.passes) else 0.0}
     d.update(last_revolution_stats(run, t0=sim_t0))
     d.update(steadiness(run, scenario.output.steady_tolerance))
+    rotations = link_rotations(run)
+    if rotations:
+        d["link_rotation_max_deg"] = rotations
     if ch.motor is not None and len(run.t):
         f = ch.speed_fluctuation()
         if len(f["mean"]):

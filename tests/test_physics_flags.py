@@ -7,8 +7,11 @@ from types import SimpleNamespace
 
 import pytest
 
-from cosim.physics_flags import (BUCKLING_FRACTIONS, RIGID_FACTOR, link_modes, physics_flags, resonance_flags,
-                                 rigid_flags, transmission_flags)
+import numpy as np
+
+from cosim.metrics import link_rotations
+from cosim.physics_flags import (BUCKLING_FRACTIONS, LARGE_ROTATION_DEG, RIGID_FACTOR, link_modes, physics_flags,
+                                 resonance_flags, rigid_flags, rotation_flags, transmission_flags)
 from cosim.report import comparison_table
 from cosim.scenario import load
 from tmm_core import FourBarMechanism, Link, Material, Section
@@ -151,13 +154,21 @@ def test_flexible_crank_linkage_mode_takes_in_a_harmonic():
 
 @pytest.mark.slow
 def test_flexible_crank_run_gets_a_resonance_flag(tmp_path):
+    """A run's flags check the links' own modes; the linkage's modes (a map of seconds) only for
+    a run whose results call for them (:func:`cosim.physics_flags.questionable`: implausible or
+    not steady), which a quarter revolution of fixed length is not. With the map, the flexible
+    crank's linkage mode takes in a harmonic."""
+    from cosim.physics_flags import attach_flags
     from cosim.runs import RunOptions, run_scenario
     options = RunOptions(engines=("tmm",), revolutions=0.25, out=tmp_path / "run", viewer="none", progress=False,
                          figures=False)
     summary = run_scenario("crank_rocker_373rpm_flexible_crank", options).summary
     flags = summary["engines"]["tmm"]["flags"]
-    assert any(f["kind"] == "resonance" and "linkage mode 1" in f["message"] for f in flags)
     assert any(f["kind"] == "transmission" for f in flags)
+    assert not any("linkage mode" in f["message"] for f in flags)
+    mapped = attach_flags(load("crank_rocker_373rpm_flexible_crank"), summary, linkage_map=True)
+    assert any(f["kind"] == "resonance" and "linkage mode 1" in f["message"] for f in mapped["tmm"])
+    assert set(summary["engines"]["tmm"]["link_rotation_max_deg"]) == {"crank", "coupler", "rocker"}
 
 
 # -- the step near a resonance (issue 34: the step error a light damping amplifies) -------------
@@ -203,3 +214,40 @@ def test_a_step_too_coarse_for_a_resonance_is_flagged_with_the_step_that_is_enou
     assert deg == pytest.approx(0.5 * (STEP_ERROR_TARGET / flags[0]["value"]) ** 0.5, rel=0.05)
     slow = load("crank_rocker_95rpm")
     assert step_flags(slow, slow.drive.speed_rpm, link_modes(slow)) == []
+
+
+# -- large rotations (issue 34: where the second-order beam leaves its range) -------------------
+def _arc_run(half_angle_deg, segments=8, steps=40):
+    """A run whose link 'r' lies, at every step of two revolutions, on a circular arc of total
+    angle 2 alpha through ``segments + 1`` equally spaced nodes (and link 's' straight)."""
+    alpha = math.radians(half_angle_deg)
+    phi = np.linspace(-alpha, alpha, segments + 1)
+    arc = np.stack([np.sin(phi), 1.0 - np.cos(phi)], -1)
+    straight = np.stack([np.linspace(0, 1, segments + 1), np.zeros(segments + 1)], -1)
+    angle = np.linspace(0.0, 4 * math.pi, 2 * steps + 1)
+    return SimpleNamespace(t=angle, crank_angle=angle, nodes={"r": np.repeat(arc[None], len(angle), 0),
+                                                             "s": np.repeat(straight[None], len(angle), 0)})
+
+
+def test_link_rotation_is_the_segments_largest_angle_to_the_chord():
+    """Nodes on an arc of total angle 2 alpha, n equal segments: the chord is parallel to the
+    arc's middle, and the end segment's direction is alpha (1 - 1/n) from it (closed form)."""
+    rotations = link_rotations(_arc_run(10.0))
+    assert rotations["r"] == pytest.approx(10.0 * (1 - 1 / 8), rel=1e-9)
+    assert rotations["s"] == pytest.approx(0.0, abs=1e-12)
+
+
+def test_large_rotation_flagged_for_the_transfer_matrix_engine_only():
+    below = {"link_rotation_max_deg": {"rocker": LARGE_ROTATION_DEG - 0.1}}
+    assert rotation_flags(below) == []
+    above = {"link_rotation_max_deg": {"coupler": 5.1, "rocker": 9.5, "crank": 0.0}}
+    (f,) = rotation_flags(above)
+    assert f["kind"] == "large_rotation" and f["value"] == 9.5 and f["threshold"] == LARGE_ROTATION_DEG
+    assert "the rocker's segments turn up to 9.5 deg" in f["message"] and "the coupler 5.1 deg" in f["message"]
+    # theta^2 at 9.5 deg: 2.7 %
+    assert "2.7 %" in f["message"]
+    sc = load("crank_rocker_241rpm")
+    summary = _summary({"tmm": {"status": "completed", **above}, "exudyn": {"status": "completed", **above}})
+    flags = physics_flags(sc, summary, modes=[])
+    assert [g["kind"] for g in flags["tmm"]].count("large_rotation") == 1
+    assert not any(g["kind"] == "large_rotation" for g in flags["exudyn"])
