@@ -458,20 +458,11 @@ def revolution_samples(angle, gauges):
 
 def transient_multipliers(samples, rank=6, first=3, floor=1e-9):
     """The Floquet multipliers that dominate the approach to the periodic orbit, read off a
-    transient (dynamic mode decomposition of the revolution-to-revolution changes
-    ``d_k = y_{k+1} - y_k``, which evolve as ``d_{k+1} = M d_k`` near the orbit for the monodromy
-    ``M``). Uses the revolutions from ``first`` on whose change exceeds ``floor`` (the steady
-    rounding). Returns the multipliers, largest first, and the revolutions used."""
-    d = np.diff(samples, axis=0)
-    size = np.abs(d).max(axis=1)
-    usable = np.flatnonzero(size > floor)
-    window = usable[usable >= first]
-    D = d[window].T
-    U, S, Vt = np.linalg.svd(D[:, :-1], full_matrices=False)
-    r = min(rank, int(np.sum(S > S[0] * 1e-8)))
-    A = U[:, :r].T @ D[:, 1:] @ Vt[:r].T / S[:r]
-    mu = np.linalg.eigvals(A)
-    return mu[np.argsort(-np.abs(mu))], (int(window[0]), int(window[-1]) + 1)
+    transient (:func:`tmm_core.revolution_dmd.dominant_multipliers` on the revolutions from
+    ``first`` on). Returns the multipliers, largest first, and the revolutions used."""
+    from tmm_core.revolution_dmd import dominant_multipliers
+    mu, read = dominant_multipliers(samples[first:], rank, floor)
+    return mu, (first, first + read + 1)
 
 
 def cmd_multipliers(args):
