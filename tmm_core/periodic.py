@@ -67,7 +67,8 @@ READ_REVOLUTIONS, READ_PERTURBATION, READ_FLOOR, READ_MIN_CHANGES, READ_TRUSTED_
 class PeriodicResult:
     """One steady revolution: ``angle`` [rad] and outputs at the N steps (the first sample is the
     state after one step), drive torque [N m], gauges ``{name: (bending, axial)}``, the Floquet
-    ``multipliers`` (descending modulus) and ``residual`` (relative change of the state over a
+    ``multipliers`` (descending modulus; all of the monodromy's, or the dominant few where
+    ``info["multipliers"]`` says they were read off revolutions) and ``residual`` (relative change of the state over a
     revolution marched from the periodic state: the solve's own check) and the periodic ``state``
     at the start angle (the solver's stacked state vector, mixed units: m, m/s, m/s^2; a nearby
     speed's solve takes as ``initial_state``)."""
@@ -280,7 +281,7 @@ def _read_multipliers(rev: _Revolution, x0, info) -> np.ndarray | None:
     snapshots = [x * weights]
     try:
         with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
-            for k in range(READ_REVOLUTIONS):
+            for _ in range(READ_REVOLUTIONS):
                 x = _revolution(rev.model, rev.cfg, rev.keys, x, rev.N, rev.dt)[0]
                 snapshots.append(x * weights)
                 if np.abs(snapshots[-1] - snapshots[-2]).max() <= floor:
@@ -290,7 +291,7 @@ def _read_multipliers(rev: _Revolution, x0, info) -> np.ndarray | None:
     mu, read = dominant_multipliers(np.array(snapshots), floor=floor)
     if read < READ_MIN_CHANGES or not np.all(np.isfinite(mu)) or abs(mu[0]) >= READ_TRUSTED_BELOW:
         return None
-    info["multipliers"] = f"read off {read} revolutions"
+    info["multipliers"] = f"read off {read + 1} revolutions"
     return mu
 
 
