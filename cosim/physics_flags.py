@@ -269,12 +269,12 @@ def rotation_flags(engine: dict) -> list:
     name = max(large, key=large.get)
     deg = large[name]
     others = ", ".join(f"the {n} {d:.1f} deg" for n, d in large.items() if n != name)
-    return [flag("large_rotation", f"large rotation: the {name}'s segments turn up to {deg:.1f} deg against its "
-                                   f"chord{' (' + others + ')' if others else ''}, beyond the small rotations of the "
-                                   f"transfer-matrix model's second-order beam (its neglected terms are of order "
-                                   f"{100 * math.radians(deg) ** 2:.1f} % of its nonlinear ones); near a resonance and "
-                                   f"at light damping it can then part from a geometrically exact model (exudyn) by "
-                                   f"several per cent (flagged from {LARGE_ROTATION_DEG:g} deg)", deg, LARGE_ROTATION_DEG)]
+    message = (f"large rotation: the {name}'s segments turn up to {deg:.1f} deg against its chord"
+               f"{' (' + others + ')' if others else ''}, beyond the small rotations of the transfer-matrix "
+               f"model's second-order beam (its neglected terms are of order {100 * math.radians(deg) ** 2:.1f} % "
+               "of its nonlinear ones); near a resonance and at light damping it can then part from a "
+               f"geometrically exact model (exudyn) by several per cent (flagged from {LARGE_ROTATION_DEG:g} deg)")
+    return [flag("large_rotation", message, deg, LARGE_ROTATION_DEG)]
 
 
 def _peak(stats: dict) -> float:
