@@ -171,12 +171,17 @@ class Discretization:
         :func:`tmm_core.compiled.periodic.push`): ``(m, aM, beta_node, seg_start, seg_end, seg_L,
         seg_EA, seg_beta, seg_K, gauge_axial)``: lumped masses [kg, kg m^2] and mass damping per
         DOF, stiffness damping per node, each segment's end nodes, length [m], EA [N], stiffness
-        damping [s] and 4x4 bending blocks, and ``gauge_axial = (gauge_segments, shortening)``:
-        the two segments each gauge's axial strain reads and the weights [1/m] of their
-        shortenings in it (:meth:`gauge_shortening`)."""
+        damping [s] and 4x4 bending blocks, and :meth:`gauge_axial`."""
         seg = self.segments
         return (self.m_vec, self.aM_vec, self.beta_node, seg.start, seg.end, seg.length, seg.EA, seg.beta,
-                self.seg_blocks, (self.gauge_segments, self.gauge_shortening_weights()))
+                self.seg_blocks, self.gauge_axial())
+
+    def gauge_axial(self) -> tuple:
+        """The record of the gauges' axial sampling the compiled kernels read (the march and the
+        reduced revolution): ``(gauge_segments, shortening)``, the two stacked segments each
+        gauge's axial strain reads (G, 2) and the weights [1/m] of their shortenings in it
+        (:meth:`gauge_shortening_weights`)."""
+        return self.gauge_segments, self.gauge_shortening_weights()
 
     def gauge_shortening_weights(self) -> np.ndarray:
         """(G, 2) [1/m]: each gauge's axial strain gains ``sum_c w[g, c] Delta[s[g, c]]`` from the

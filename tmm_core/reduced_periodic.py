@@ -332,7 +332,7 @@ class ReducedModel:
         """The records the compiled revolution reads (built once): ``(stages, segments,
         output_maps)``, the stage matrices and basis ``(Mr, Cr, Kr, fr, T, Td)``, the segment data
         ``(seg_w, seg_u, G, k, beta)`` and the output maps (:meth:`output_maps`) with the gauges'
-        axial sampling (:meth:`tmm_core.discretization.Discretization.kernel_model`'s last entry)."""
+        axial sampling (:meth:`tmm_core.discretization.Discretization.gauge_axial`)."""
         if self._kernel_args is None:
             seg = self.model.segments
             c = np.ascontiguousarray
@@ -340,7 +340,7 @@ class ReducedModel:
             segments = (np.stack([seg.start + 1, seg.start + 2, seg.end + 1, seg.end + 2], axis=1).astype(np.int64),
                         np.stack([seg.start, seg.end], axis=1).astype(np.int64), c(self.G, dtype=float),
                         c(self.k, dtype=float), c(self.beta, dtype=float))
-            output_maps = (*self.output_maps(), *self.model.kernel_model()[-1])
+            output_maps = (*self.output_maps(), *self.model.gauge_axial())
             self._kernel_args = (stages, segments, output_maps)
         return self._kernel_args
 
