@@ -67,9 +67,11 @@ RIGID_FACTOR = 2.0
 #: Segment rotation against the link's chord [deg] from which the transfer-matrix model is out of
 #: its small-rotation range. Its beam is second order in the rotations (axial strain u' + w'^2/2,
 #: curvature w''): the first neglected terms are of order theta^2 of the kept nonlinear ones, 0.8 %
-#: at 5 deg and 3 % at 10 deg. On the FE rig at 1 % damping its dynamics about the orbit (Floquet
-#: multipliers) equal exudyn's within 2 deg of phase where the rocker turns up to 4.3 deg (300 rpm)
-#: and part by 7.5-31 deg from 8 deg (340-381 rpm; docs/light_damping.md).
+#: at 5 deg and 3 % at 10 deg. On the FE rig at 355 rpm and 1 % damping, with the crank shortened
+#: to shrink the elastic motion, its dynamics about the orbit (Floquet multipliers) and its peaks
+#: equal exudyn's within 0.5 deg of phase and 0.3 % while the rocker's segments turn up to 4.1 deg
+#: against its chord (this measure), part by 2.9 deg and 1 % at 5.6 deg, and by 68 % near a fold at
+#: 8.7 deg (docs/light_damping.md, "The same speed at smaller amplitude").
 LARGE_ROTATION_DEG = 5.0
 #: Crank angles of the linkage's frequency map (from the drive's start angle); a coarse bisection
 #: is enough for a flag (relative tolerance).
@@ -273,7 +275,8 @@ def rotation_flags(engine: dict) -> list:
                f"{' (' + others + ')' if others else ''}, beyond the small rotations of the transfer-matrix "
                f"model's second-order beam (its neglected terms are of order {100 * math.radians(deg) ** 2:.1f} % "
                "of its nonlinear ones); near a resonance and at light damping it can then part from a "
-               f"geometrically exact model (exudyn) by several per cent (flagged from {LARGE_ROTATION_DEG:g} deg)")
+               "geometrically exact model (exudyn) by several per cent, and near a fold of the steady "
+               f"response by tens of per cent (flagged from {LARGE_ROTATION_DEG:g} deg)")
     return [flag("large_rotation", message, deg, LARGE_ROTATION_DEG)]
 
 

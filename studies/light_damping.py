@@ -26,6 +26,7 @@ doubled, integrator dissipation changed, second-order terms switched, rotating-f
     python -m studies.light_damping frequencies
     python -m studies.light_damping multipliers [--cases 373:1] [--variant step8] [--elements 16]
     python -m studies.light_damping deflection [--cases 241:2,373:2]
+    python -m studies.light_damping amplitude [--case 355:1] [--cranks 5,6,6.5,6.75,6.9,7]
     python -m studies.light_damping table      # the markdown table of docs/light_damping.md
 
 Run heavy parts with ``nice``; the exudyn references take ~4 s per revolution at 16 elements.
@@ -156,11 +157,14 @@ VARIANTS = {
 }
 
 
-def time_domain(rpm, zeta, spec):
-    """``(TimeDomain, speed [rad/s], step [deg])`` of the FE rig variant ``spec`` (VARIANTS)."""
+def time_domain(rpm, zeta, spec, overrides=None):
+    """``(TimeDomain, speed [rad/s], step [deg])`` of the FE rig variant ``spec`` (VARIANTS), with
+    the scenario ``overrides`` (keys and values as :func:`scenario` takes them)."""
     from tmm_core import Coupling, TimeDomain
     from tmm_core.integrators import GeneralizedAlpha
-    over = {"solver.tmm.segments": spec["segments"]} if "segments" in spec else {}
+    over = dict(overrides or {})
+    if "segments" in spec:
+        over["solver.tmm.segments"] = spec["segments"]
     sc = scenario(rpm, zeta, over)
     s = sc.tmm
     extra = {k: spec[k] for k in ("dynamic_terms", "backend") if k in spec}
@@ -528,6 +532,65 @@ def cmd_deflection(args):
     return 0
 
 
+# -- the same dynamics at smaller amplitude: the crank shortened ---------------------------------
+#: Crank lengths [in] of the amplitude experiment: the shipped 7 in and shorter cranks, which move
+#: the linkage away from its 18 deg toggle and shrink every inertia load and deflection.
+CRANKS_IN = (5.0, 6.0, 6.5, 6.75, 6.9, 7.0)
+
+
+def amplitude_case(rpm, zeta, crank_in, revolutions=30):
+    """Both engines from their starts at ``rpm`` / ``zeta`` [%] with the crank ``crank_in`` [in]
+    long: the multipliers read off each transient (:func:`transient_multipliers`), exudyn's largest
+    segment rotation against the chord per link (:func:`cosim.metrics.link_rotations`) and both
+    engines' bending peaks over the last revolution [microstrain]. exudyn at 16 elements / 0.2
+    deg, the TMM at 0.125 deg (its step converged: VARIANTS['step8']); each run's last
+    revolution-to-revolution change (:func:`change_of`) says whether it settled."""
+    from cosim.engines import make_engine
+    from cosim.master import run_prescribed
+    from cosim.metrics import last_revolution, link_rotations
+    from tmm_core import CrankMotion
+    over = {"links.crank.length": f"{crank_in:g} in"}
+    sc = scenario(rpm, zeta, {**over, "solver.exudyn.elements": 16, "solver.exudyn.step": "0.2 deg"})
+    ex = run_prescribed(make_engine("exudyn"), sc, revolutions=revolutions)
+    td, speed, step = time_domain(rpm, zeta, VARIANTS["step8"][1], over)
+    tm = td.run(CrankMotion.constant_speed(speed, step_deg=step, revolutions=revolutions), start="quasi_static",
+                record_displacements=False)
+
+    def bending_peaks(run):
+        last = last_revolution(run.crank_angle)
+        return {g: [float(b[last].max()) * 1e6, float(b[last].min()) * 1e6] for g, (b, _) in run.gauges.items()}
+
+    out = {"rotation_deg": link_rotations(ex)}
+    for name, run in (("exudyn", ex), ("tmm", tm)):
+        mu, _ = transient_multipliers(revolution_samples(run.crank_angle, run.gauges))
+        out[name] = {"mu": [[float(m.real), float(m.imag)] for m in mu], "peaks_ue": bending_peaks(run),
+                     "change": change_of(per_revolution(run.crank_angle, run.gauges))}
+    return out
+
+
+def cmd_amplitude(args):
+    """The multiplier comparison of ``multipliers`` at one speed and damping with the crank
+    shortened: how the engines' difference grows with the elastic rotations (cached)."""
+    rpm, zeta = parse_cases(args.case)[0]
+    for crank in (float(c) for c in args.cranks.split(",")):
+        key = f"amplitude|{case_key(rpm, zeta)}|crank{crank:g}in"
+        cache = load_json(TMM_CACHE)
+        if key not in cache or args.force:
+            res = amplitude_case(rpm, zeta, crank, args.revolutions)
+            cache = load_json(TMM_CACHE)
+            cache[key] = res
+            save_json(TMM_CACHE, cache)
+        res = cache[key]
+        mu = {e: complex(*res[e]["mu"][0]) for e in ("exudyn", "tmm")}
+        worst = max(abs(t / x - 1.0) for g in res["exudyn"]["peaks_ue"]
+                    for t, x in zip(res["tmm"]["peaks_ue"][g], res["exudyn"]["peaks_ue"][g]))
+        print(f"| {crank:g} | {res['rotation_deg']['rocker']:.2f} / {res['rotation_deg']['coupler']:.2f} | "
+              + " | ".join(f"{abs(m):.3f} @ {math.degrees(abs(np.angle(m))):.1f}" for m in mu.values())
+              + f" | {math.degrees(abs(np.angle(mu['tmm'])) - abs(np.angle(mu['exudyn']))):+.1f} | "
+              f"{100 * worst:.1f} % | {res['exudyn']['change']:.0e} / {res['tmm']['change']:.0e} |")
+    return 0
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     sub = ap.add_subparsers(dest="cmd", required=True)
@@ -568,6 +631,12 @@ def main(argv=None) -> int:
     de.add_argument("--cases", default="241:2,373:2")
     de.add_argument("--revolutions", type=float, default=8)
     de.set_defaults(func=cmd_deflection)
+    am = sub.add_parser("amplitude", help="the multiplier comparison with the crank shortened (smaller rotations)")
+    am.add_argument("--case", default="355:1")
+    am.add_argument("--cranks", default=",".join(f"{c:g}" for c in CRANKS_IN), help="crank lengths [in]")
+    am.add_argument("--revolutions", type=float, default=30)
+    am.add_argument("--force", action="store_true")
+    am.set_defaults(func=cmd_amplitude)
     tb = sub.add_parser("table", help="print the markdown tables from the cached results")
     tb.set_defaults(func=cmd_table)
     args = ap.parse_args(argv)
