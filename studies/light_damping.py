@@ -585,7 +585,7 @@ def cmd_amplitude(args):
         worst = max(abs(t / x - 1.0) for g in res["exudyn"]["peaks_ue"]
                     for t, x in zip(res["tmm"]["peaks_ue"][g], res["exudyn"]["peaks_ue"][g]))
         print(f"| {crank:g} | {res['rotation_deg']['rocker']:.2f} / {res['rotation_deg']['coupler']:.2f} | "
-              + " | ".join(f"{abs(m):.3f} @ {math.degrees(abs(np.angle(m))):.1f}" for m in mu.values())
+              + " | ".join(f"{abs(m):.3f} at {math.degrees(abs(np.angle(m))):.1f} deg" for m in mu.values())
               + f" | {math.degrees(abs(np.angle(mu['tmm'])) - abs(np.angle(mu['exudyn']))):+.1f} | "
               f"{100 * worst:.1f} % | {res['exudyn']['change']:.0e} / {res['tmm']['change']:.0e} |")
     return 0

@@ -6,10 +6,13 @@ geometrically exact cables, 16 elements / 0.2 deg, from rest until the last two 
 to 4e-11; `python -m studies.light_damping exudyn --cases 241:0.5`, kept in
 studies/light_damping_exudyn.json). At the rig's 0.5 deg the coupler's negative peak is 5.3 % off
 (the integrator's period error, which the resonance 1.6 % from the 20th harmonic amplifies)."""
+from pathlib import Path
+
 import numpy as np
 import pytest
 
 from cosim.scenario import load
+from studies import light_damping
 from tmm_core.periodic import periodic_steady_state
 
 #: exudyn's steady peaks [microstrain]: bending max, min, axial max, min.
@@ -36,3 +39,14 @@ def test_every_peak_within_2_percent_of_exudyn(orbit):
         bending, axial = orbit.gauges[gauge]
         peaks = 1e6 * np.array([bending.max(), bending.min(), axial.max(), axial.min()])
         np.testing.assert_allclose(peaks, expected, rtol=0.02, err_msg=gauge)
+
+
+def test_the_amplitude_table_of_the_docs_is_the_studys(capsys):
+    """docs/light_damping.md, "The same speed at smaller amplitude": every row the study prints
+    from its cached runs (studies/light_damping_tmm.json; no engine runs here) is in the doc."""
+    light_damping.main(["amplitude"])
+    rows = capsys.readouterr().out.strip().splitlines()
+    doc = (Path(__file__).resolve().parents[1] / "docs" / "light_damping.md").read_text(encoding="utf-8")
+    assert len(rows) == len(light_damping.CRANKS_IN)
+    for row in rows:
+        assert row in doc, row
