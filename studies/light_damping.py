@@ -177,52 +177,15 @@ def time_domain(rpm, zeta, spec, overrides=None):
 
 
 def periodic_orbit(td, speed, step_deg, x0=None, iterations=12):
-    """Newton shooting (tmm_core.periodic) from the state ``x0`` (None: the solver's own start).
-    Returns ``(x0, {gauge: peaks}, multipliers, newton iterations)``."""
-    from tmm_core import CrankMotion
-    from tmm_core import periodic as per
-    crank = CrankMotion.constant_speed(speed, step_deg=step_deg, revolutions=1.0)
-    N, dt = crank.steps_per_revolution(), crank.dt
-    keys = per.STATE_KEYS[td.integrator.name]
-    if x0 is None or td.axial_force != "dynamic":
-        p = per.periodic_steady_state(td, speed, step_deg=step_deg)
-        # The periodic state itself: one more Newton pass from the linear solution is cheap, but
-        # the state is not returned; rebuild it from the zero state below when needed.
-        if td.axial_force != "dynamic":
-            return None, peaks(p.gauges), p.multipliers, 0
-        x0 = np.zeros(len(keys) * td.n_dof)
-    cfg = td.configurations(crank.angle[:N], crank.speed[:N], crank.acceleration[:N], dt, maps=True)
-    model = td.model
-    mono = per._compiled_monodromy if td.compiled else per._monodromy     # as periodic_steady_state
-    shot = per._shoot(model, cfg, keys, x0, N, dt, 1)
-    x0, shot, its = per._newton(model, cfg, keys, N, dt, mono, x0, shot, None, 1e-7, iterations, strict=False)
-    mu = np.linalg.eigvals(mono(model, cfg, keys, shot[1], dt))
-    mu = mu[np.argsort(-np.abs(mu))]
-    outs = np.array(shot[2])
-    pk = peaks(td.outputs.split(outs))
-    node_axial = gauge_node_axial(model, [z for _, z, _, _ in shot[1]])
-    for g, e in node_axial.items():
-        pk[g] += [float(e.max()) * 1e6, float(e.min()) * 1e6]
-    return x0, pk, mu, its
-
-
-def gauge_node_axial(model, zs):
-    """Axial strain [-] of the time-domain ``model`` (tmm_core.discretization.Discretization) at
-    every gauge that sits on a node, as the mean of the full strains ``(u1 - u0 + Delta) / L`` of
-    the two segments that meet there (the shipped output reads the segment after the node alone),
-    per step of the displacement history ``zs``."""
-    from tmm_core.second_order import shape_products
-    seg = model.segments
-    Z = np.asarray(zs)
-    delta = shape_products(seg, Z)[0]
-    strain = (Z[:, seg.end] - Z[:, seg.start] + delta) / seg.length
-    out = {}
-    for g, j in zip(model.gauges, model.gauge_segments[:, 0]):
-        link = next(l for l in model.links if l.name == g.link)
-        on_node = np.any(np.isclose(link.stations, g.position_m, rtol=0, atol=1e-9)) and j > 0 and \
-            seg.end[j - 1] == seg.start[j]
-        out[g.name] = 0.5 * (strain[:, j - 1] + strain[:, j]) if on_node else strain[:, j]
-    return out
+    """The periodic orbit (:func:`tmm_core.periodic.periodic_steady_state`) from the state ``x0``
+    (None: the solver's own start). Returns ``(state, {gauge: peaks}, multipliers, Newton
+    iterations)``; the axial peaks are the gauges' own reading (between segment middles).
+    (Before that reading existed, this study read the axial strain at a node as the mean of the
+    two segments meeting there; the cached orbits keep those two extra peaks.)"""
+    from tmm_core.periodic import ShootingOptions, periodic_steady_state
+    p = periodic_steady_state(td, speed, step_deg=step_deg, shooting=ShootingOptions(1e-7, iterations),
+                              initial_state=x0)
+    return p.state, peaks(p.gauges), p.multipliers, p.info.get("newton_iterations", 0)
 
 
 def continuation_path(rpm, zeta, start=(373.0, 2.0)):
