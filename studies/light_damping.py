@@ -17,7 +17,8 @@ each solve starting from the previous orbit. The Floquet multipliers of the orbi
 marching can settle on it (all inside the unit circle) and how fast. Where the continuation
 fails the case is marched in time (``march`` sub-command) and the revolution-to-revolution
 change reported. Each candidate cause is a variant of the TMM (``VARIANTS``): step halved, mesh
-doubled, integrator dissipation changed, second-order terms switched, rotating-frame terms off.
+doubled, integrator dissipation changed, second-order terms switched, rotating-frame terms off,
+and the segments' exact strain or exact rotation (co-rotational) prototypes.
 
     python -m studies.light_damping exudyn [--elements 16 --step-deg 0.2] [--cases 373:0.5,...]
     python -m studies.light_damping tmm [--variants base,step,...] [--cases ...]
@@ -143,6 +144,8 @@ VARIANTS = {
     "base": ("shipped TMM setting", {}),
     "exact_strain": ("prototype: the segments' exact strain instead of the second-order one (numpy step)",
                      {"dynamic_terms": ("shortening", "axial_force", "exact_strain")}),
+    "corotational": ("prototype: segments exact in their rotation (co-rotational; numpy step), step halved "
+                     "(0.25 deg)", {"dynamic_terms": ("shortening", "axial_force", "corotational"), "step_deg": 0.25}),
     "step": ("step halved (0.25 deg)", {"step_deg": 0.25}),
     "step8": ("step divided by 4 (0.125 deg)", {"step_deg": 0.125}),
     "mesh": ("mesh doubled (16 segments per link)", {"segments": 16}),

@@ -40,10 +40,15 @@ from .second_order import Segments
 
 AXIAL_FORCE_MODELS = ("dynamic", "quasi_static", "none")
 DYNAMIC_TERMS = ("shortening", "axial_force")
-#: Optional terms of the 'dynamic' step beyond DYNAMIC_TERMS (not in the default): 'exact_strain',
-#: the segments' geometrically exact strain instead of the second-order one (prototype of issue
-#: 34; numpy step only, so a model asking for it runs the numpy backend).
-OPTIONAL_TERMS = ("exact_strain",)
+#: Optional terms of the 'dynamic' step beyond DYNAMIC_TERMS (not in the default), each a
+#: prototype of issue 34 in the numpy step only (a model asking for one runs the numpy backend):
+#: 'exact_strain', the segments' geometrically exact axial strain instead of the second-order
+#: one; 'corotational', segments exact in their rotation (the cubic beam in a frame turning with
+#: each segment's chord). At most one of them.
+OPTIONAL_TERMS = ("exact_strain", "corotational")
+#: The strain measure of the second-order pseudo-loads (tmm_core.second_order.STRAIN_MEASURES)
+#: each optional term asks for.
+_STRAIN_OF_TERM = {"exact_strain": "exact", "corotational": "corotational"}
 #: Default memory budget of a batch's maps or stored factorizations [bytes] (``max_map_bytes``).
 MAX_STEP_DATA_BYTES = 1e9
 
@@ -166,6 +171,16 @@ class Discretization:
             factors[link.name] = f
         return factors, visco
 
+    @property
+    def strain_measure(self) -> str:
+        """The segments' strain measure of the 'dynamic' step's pseudo-loads
+        (:data:`tmm_core.second_order.STRAIN_MEASURES`): from the optional term asked for, else
+        'second_order' with the shortening and 'none' without it."""
+        for term, strain in _STRAIN_OF_TERM.items():
+            if term in self.dynamic_terms:
+                return strain
+        return "second_order" if "shortening" in self.dynamic_terms else "none"
+
     def kernel_model(self) -> tuple:
         """The model record the compiled steps read (:func:`tmm_core.compiled.march.march`,
         :func:`tmm_core.compiled.periodic.push`): ``(m, aM, beta_node, seg_start, seg_end, seg_L,
@@ -259,14 +274,18 @@ def _backend(dynamic_terms, backend):
     """The backend of a model asking for ``dynamic_terms``, after checking them."""
     if not set(dynamic_terms) <= set(DYNAMIC_TERMS + OPTIONAL_TERMS):
         raise InputError(f"dynamic_terms must be a subset of {DYNAMIC_TERMS + OPTIONAL_TERMS}, got {dynamic_terms!r}")
-    if "exact_strain" in dynamic_terms:
+    optional = [t for t in OPTIONAL_TERMS if t in dynamic_terms]
+    if len(optional) > 1:
+        raise InputError(f"dynamic_terms: give at most one of {OPTIONAL_TERMS}, got {dynamic_terms!r}")
+    if optional:
+        term = optional[0]
         if not set(DYNAMIC_TERMS) <= set(dynamic_terms):
-            raise InputError("dynamic_terms: 'exact_strain' replaces the second-order strain of both terms; give it "
+            raise InputError(f"dynamic_terms: {term!r} replaces the second-order strain of both terms; give it "
                              f"with {DYNAMIC_TERMS}")
         # A prototype of the numpy step only (the compiled march does not have it): the
         # default backend becomes numpy, an explicit compiled one is refused.
         if backend == "compiled":
-            raise InputError("dynamic_terms: 'exact_strain' runs in the numpy step only; build the model with "
+            raise InputError(f"dynamic_terms: {term!r} runs in the numpy step only; build the model with "
                              "backend = 'numpy' (or leave the backend to its default)")
         backend = "numpy"
     return choose_backend(backend)
@@ -306,15 +325,17 @@ def _segment_operators(links, offsets, n_dof) -> dict:
 
 def _segments(links, offsets) -> Segments:
     """Segment data of the node vector (second-order terms, axial forces)."""
-    starts, lengths, EA, beta = [], [], [], []
+    starts, lengths, EA, beta, EI = [], [], [], [], []
     for link in links:
         m = link.member("s", "e")
         starts.append(offsets[link.name] + 3 * np.arange(link.total_segments))
         lengths.append(np.asarray(m.segment_lengths))
         EA.append(m.EA)
+        EI.append(m.EI)
         beta.append(np.full(link.total_segments, link.damping.stiffness_s))
     starts = np.concatenate(starts)
-    return Segments(starts, starts + 3, np.concatenate(lengths), np.concatenate(EA), np.concatenate(beta))
+    return Segments(starts, starts + 3, np.concatenate(lengths), np.concatenate(EA), np.concatenate(beta),
+                    np.concatenate(EI))
 
 
 def axial_sampling(link, position: float) -> tuple:

@@ -41,13 +41,15 @@ class Segments:
     """Segment data of a stacked node vector (3 local DOFs ``(u, w, theta)`` per node).
 
     ``start``/``end``: index of the segment's first/last node's ``u`` in the node vector;
-    ``length`` [m], ``EA`` [N], ``beta`` [s] (stiffness-proportional damping) per segment."""
+    ``length`` [m], ``EA`` [N], ``beta`` [s] (stiffness-proportional damping) per segment;
+    ``EI`` [N m^2] per segment (the co-rotational prototype's bending; None where not given)."""
 
     start: np.ndarray
     end: np.ndarray
     length: np.ndarray
     EA: np.ndarray
     beta: np.ndarray
+    EI: np.ndarray | None = None
 
     @property
     def stiffness(self) -> np.ndarray:
@@ -75,16 +77,25 @@ def rate(seg: Segments, v: np.ndarray, Gd) -> np.ndarray:
             + v[..., seg.end + 2] * Gd[3])
 
 
+#: The segment's strain measure in :func:`pseudo_loads`: the second-order one (the model), none
+#: (the shortening left out; experiments), and two prototypes of issue 34 (numpy step only).
+STRAIN_MEASURES = ("second_order", "none", "exact", "corotational")
+
+
 def pseudo_loads(seg: Segments, z: np.ndarray, v: np.ndarray, P: np.ndarray, P0: np.ndarray,
-                 shortening: bool = True, exact: bool = False):
+                 strain: str = "second_order"):
     """Nodal pseudo-loads (stacked local node vector) of the shortening and of the axial-force
     change ``P - P0`` for displacements ``z`` and velocities ``v``; also returns the shortening
     force ``F = EA/L (Delta + beta Delta_dot)`` [N] and ``Delta`` [m] per segment.
-    ``shortening=False`` leaves the shortening out (F = 0; for experiments). ``exact=True``: the
-    geometrically exact strain of the segment instead of the second-order one (a prototype,
-    numpy step only: :func:`exact_pseudo_loads`)."""
-    if exact:
+    ``strain`` (:data:`STRAIN_MEASURES`): 'none' leaves the shortening out (F = 0; for
+    experiments); 'exact' takes the geometrically exact axial strain of the segment instead of
+    the second-order one (:func:`exact_pseudo_loads`); 'corotational' a segment exact in its
+    rotation (:func:`corotational_pseudo_loads`)."""
+    if strain == "exact":
         return exact_pseudo_loads(seg, z, v, P, P0)
+    if strain == "corotational":
+        return corotational_pseudo_loads(seg, z, v, P, P0)
+    shortening = strain != "none"
     delta, Gd = shape_products(seg, z)
     F = seg.stiffness * (delta + seg.beta * rate(seg, v, Gd)) if shortening else np.zeros_like(delta)
     f = np.zeros(np.shape(z))
@@ -197,3 +208,62 @@ def exact_pseudo_loads(seg: Segments, z: np.ndarray, v: np.ndarray, P: np.ndarra
     for j, (offset, idx) in enumerate(((1, seg.start), (2, seg.start), (1, seg.end), (2, seg.end))):
         np.add.at(f, idx + offset, -(P * g[:, j] - P0 * Gd[j]))
     return f, F, excess * seg.length
+
+
+# -- prototype (issue 34): a segment exact in its rotation (co-rotational) ---------------------------
+def _bending_forces(EI, L, P, t0, t1):
+    """End moments ``(m0, m1)`` [N m] of a cubic segment whose end rotations against its chord are
+    ``t0, t1`` [rad], with the geometric stiffness of its axial force ``P`` [N]: ``(K + P G)`` on
+    the rotations, ``K = EI/L [[4, 2], [2, 4]]``, ``G = L/30 [[4, -1], [-1, 4]]``."""
+    k, g = EI / L, P * L / 30.0
+    return k * (4 * t0 + 2 * t1) + g * (4 * t0 - t1), k * (2 * t0 + 4 * t1) + g * (4 * t1 - t0)
+
+
+def corotational_pseudo_loads(seg: Segments, z: np.ndarray, v: np.ndarray, P: np.ndarray, P0: np.ndarray):
+    """:func:`pseudo_loads` of a co-rotational segment (prototype of issue 34, numpy step only).
+
+    Each segment carries the cubic beam of the second-order model in a frame that turns with its
+    chord, exactly: chord length ``l`` and angle ``b`` from the end displacements (``l cos b = L +
+    u1 - u0``, ``l sin b = w1 - w0``), end rotations against the chord ``t_i = theta_i - b``, and
+    the strain ``e = (l - L + Delta_c) / L`` with ``Delta_c = 1/2 t^T G t`` the shortening of the
+    cubic relative to its chord. Its nodal forces are the gradient of ``1/2 EA L e^2 + 1/2 t^T K
+    t`` with the physical axial force ``P = EA (e + beta e')``. To second order in the rotations
+    they are the second-order model's; the pseudo-loads are the difference between these forces
+    and the solver's (``EA (a + beta a')`` axially, ``K d + P0 G d`` in bending; ``a = (u1 -
+    u0)/L``). Returns ``(f, F, Delta)`` as :func:`pseudo_loads`, with ``Delta = L (e - a)``."""
+    if seg.EI is None:
+        raise ValueError("the co-rotational segment needs the segments' EI")
+    L, EA, EI, beta = seg.length, seg.EA, seg.EI, seg.beta
+    u0, w0, q0 = z[seg.start], z[seg.start + 1], z[seg.start + 2]
+    u1, w1, q1 = z[seg.end], z[seg.end + 1], z[seg.end + 2]
+    du, dw = u1 - u0, w1 - w0
+    dud, dwd = v[seg.end] - v[seg.start], v[seg.end + 1] - v[seg.start + 1]
+    l = np.hypot(L + du, dw)
+    c, s = (L + du) / l, dw / l
+    b = np.arctan2(dw, L + du)
+    bd = (c * dwd - s * dud) / l
+    t0, t1 = q0 - b, q1 - b
+    t0d, t1d = v[seg.start + 2] - bd, v[seg.end + 2] - bd
+    # e L - (u1 - u0) = (l - L - du) + Delta_c; l - L - du = dw^2 / (l + L + du) without cancellation.
+    excess = dw * dw / (l + L + du) + L / 60.0 * (4 * t0 * t0 - 2 * t0 * t1 + 4 * t1 * t1)
+    excess_rate = (c - 1.0) * dud + s * dwd + L / 30.0 * ((4 * t0 - t1) * t0d + (4 * t1 - t0) * t1d)
+    F = EA / L * (excess + beta * excess_rate)
+    # The energy's gradient: P on the chord's length, the end moments on the rotations and,
+    # through the chord's angle, -(m0 + m1) on it.
+    m0, m1 = _bending_forces(EI, L, P, t0, t1)
+    g_u = P * c + (m0 + m1) * s / l
+    g_w = P * s - (m0 + m1) * c / l
+    # The solver's: EA (a + beta a') = P - F axially; K d + P0 G d in bending (K d: the same
+    # cubic with the chord's angle linearized, dw / L).
+    k0, k1 = _bending_forces(EI, L, 0.0, q0 - dw / L, q1 - dw / L)
+    _, Gd = shape_products(seg, z)
+    f = np.zeros(np.shape(z))
+    axial = g_u - (P - F)
+    shear = g_w - (-(k0 + k1) / L + P0 * Gd[2])
+    np.add.at(f, seg.start, axial)
+    np.add.at(f, seg.end, -axial)
+    np.add.at(f, seg.start + 1, shear)
+    np.add.at(f, seg.end + 1, -shear)
+    np.add.at(f, seg.start + 2, -(m0 - k0 - P0 * Gd[1]))
+    np.add.at(f, seg.end + 2, -(m1 - k1 - P0 * Gd[3]))
+    return f, F, excess

@@ -144,10 +144,10 @@ def _iterate(model: Discretization, cfg, k, loads, state, dt, axial_guess):
     scale_P = 1e-9 * float(np.max(seg.EA))
     dz = dP = float("nan")
     shorten, own_force = "shortening" in model.dynamic_terms, "axial_force" in model.dynamic_terms
-    exact = "exact_strain" in model.dynamic_terms
+    strain = model.strain_measure
     for it in range(model.axial_iterations):
         z, P = x[:n], x[n:] / to_len
-        f, F, delta = pseudo_loads(seg, z, c_v * z + h_v, P if own_force else P0, P0, shorten, exact)
+        f, F, delta = pseudo_loads(seg, z, c_v * z + h_v, P if own_force else P0, P0, strain)
         if not np.all(np.isfinite(f)):
             # An iterate that overflowed (a diverging step): the step's report, not the structure's
             # refusal of non-finite node loads.
@@ -161,8 +161,8 @@ def _iterate(model: Discretization, cfg, k, loads, state, dt, axial_guess):
         if dz < model.axial_tolerance and dP < AXIAL_FORCE_TOLERANCE:
             if len(model.gauges) and shorten:
                 # Gauge axial strain = the full axial strain, with the shortening from bending.
-                delta = shape_products(seg, z_new)[0] if not exact else \
-                    pseudo_loads(seg, z_new, c_v * z_new + h_v, P_new, P0, True, True)[2]
+                delta = shape_products(seg, z_new)[0] if strain == "second_order" else \
+                    pseudo_loads(seg, z_new, c_v * z_new + h_v, P_new, P0, strain)[2]
                 out = out.copy()
                 out[model.outputs.axial_columns] += model.gauge_shortening_strain(delta)
             return StepSolution(z_new, out, P_new), None, (it + 1, dz, dP)
