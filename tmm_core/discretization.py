@@ -40,12 +40,15 @@ from .second_order import Segments
 
 AXIAL_FORCE_MODELS = ("dynamic", "quasi_static", "none")
 DYNAMIC_TERMS = ("shortening", "axial_force")
-#: Optional terms of the 'dynamic' step beyond DYNAMIC_TERMS (not in the default), each a
-#: prototype of issue 34 in the numpy step only (a model asking for one runs the numpy backend):
-#: 'exact_strain', the segments' geometrically exact axial strain instead of the second-order
-#: one; 'corotational', segments exact in their rotation (the cubic beam in a frame turning with
-#: each segment's chord). At most one of them.
+#: Optional terms of the 'dynamic' step beyond DYNAMIC_TERMS (not in the default), prototypes of
+#: issue 34, at most one of them: 'exact_strain', the segments' geometrically exact axial strain
+#: instead of the second-order one (numpy step only: a model asking for it runs the numpy
+#: backend); 'corotational', segments exact in their rotation (the cubic beam in a frame turning
+#: with each segment's chord; numpy step and compiled march, not yet the periodic solver or the
+#: reduced model).
 OPTIONAL_TERMS = ("exact_strain", "corotational")
+#: The optional terms the compiled march carries.
+COMPILED_TERMS = ("corotational",)
 #: The strain measure of the second-order pseudo-loads (tmm_core.second_order.STRAIN_MEASURES)
 #: each optional term asks for.
 _STRAIN_OF_TERM = {"exact_strain": "exact", "corotational": "corotational"}
@@ -282,6 +285,8 @@ def _backend(dynamic_terms, backend):
         if not set(DYNAMIC_TERMS) <= set(dynamic_terms):
             raise InputError(f"dynamic_terms: {term!r} replaces the second-order strain of both terms; give it "
                              f"with {DYNAMIC_TERMS}")
+        if term in COMPILED_TERMS:
+            return choose_backend(backend)
         # A prototype of the numpy step only (the compiled march does not have it): the
         # default backend becomes numpy, an explicit compiled one is refused.
         if backend == "compiled":

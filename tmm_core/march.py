@@ -176,8 +176,9 @@ class March:
         _, c_v = integ.coefficients(self.dt)
         integrator = (Hc, Gc, ez, np.array([slots.index(key) for key in "dva"]), self.dt, c_v)
         settings = (model.coupling.coriolis, model.has_kv, model.axial_force == "dynamic",
-                    "shortening" in model.dynamic_terms, "axial_force" in model.dynamic_terms, model.axial_tolerance,
-                    AXIAL_FORCE_TOLERANCE, model.axial_iterations, ANDERSON_DEPTH)
+                    "shortening" in model.dynamic_terms, "axial_force" in model.dynamic_terms,
+                    model.strain_measure == "corotational", model.axial_tolerance, AXIAL_FORCE_TOLERANCE,
+                    model.axial_iterations, ANDERSON_DEPTH)
         return integrator, data[:6], data[6], model.kernel_model(), settings, slots
 
     def kernel_arguments(self, cfg) -> tuple:

@@ -132,6 +132,11 @@ def periodic_steady_state(source: Discretization | HoldsModel, speed_rad_s: floa
     model = as_model(source)
     if any(link.viscoelastic is not None for link in model.links):
         raise InputError("the periodic solver does not carry the viscoelastic (SLS) history states; use time marching")
+    if model.strain_measure in ("exact", "corotational"):
+        # Its linearized revolution (Newton's Jacobian, the Floquet multipliers) differentiates
+        # the second-order pseudo-loads only.
+        raise InputError(f"periodic solver: the segments' {model.strain_measure} strain (dynamic_terms "
+                         f"{model.dynamic_terms!r}) is not in its linearized revolution yet; march in time")
     keys = STATE_KEYS.get(model.integrator.name)
     if keys is None:
         raise InputError(f"periodic solver: unsupported integrator {model.integrator.name!r}")

@@ -107,7 +107,8 @@ class ReducedModel:
                              "default) or none (beam_column = false); axial_force 'quasi_static' needs "
                              "solver.tmm.model = 'full'")
         if model.axial_force == "dynamic" and set(model.dynamic_terms) != {"shortening", "axial_force"}:
-            raise InputError("the reduced model carries both second-order terms or neither")
+            raise InputError("the reduced model carries both second-order terms or neither, with the second-order "
+                             f"strain (dynamic_terms {model.dynamic_terms!r})")
         self.model, self.basis = model, basis
         self.backend = model.backend if backend is None else choose_backend(backend)
         if basis.axial == "link" and self.backend == "compiled":

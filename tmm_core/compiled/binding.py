@@ -38,7 +38,7 @@ LU = ("dot", "subtract_rows", "lu_factor", "lu_solve", "lu_solve_many")
 #: maps_scratch, is allocated in Python: tmm_core.compiled.structure.range_workspace).
 MAPS = ("sweep_member", "copy_sweep", "solve_loads_many")
 #: The march's own helpers (tmm_core.compiled.march).
-MARCH = ("shape_products", "affine", "anderson_coefficients")
+MARCH = ("shape_products", "corotational_loads", "affine", "anderson_coefficients")
 #: The step's parts the march and the linearized revolutions share: the integrator's history and
 #: update (tmm_core.compiled.integrators) and the history loads (tmm_core.compiled.time_step).
 STEP = {integrators: ("history", "advance"), time_step: ("history_loads",)}

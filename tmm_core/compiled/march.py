@@ -51,6 +51,49 @@ def shape_products(start, end, L, z, delta, G):
         delta[s] = 0.5 * (dw * g0 + t0 * g1 + t1 * g3)
 
 
+def corotational_loads(s, segments, z, h_v, c_v, P, P0, f):
+    """Co-rotational segment ``s`` (tmm_core.second_order.corotational_pseudo_loads, the
+    reference): adds its pseudo-loads at displacements ``z`` (velocities ``c_v z + h_v``) and
+    axial force ``P`` [N] into ``f`` and returns ``(F, excess)``, its shortening force [N] and
+    ``L (e - a)`` [m]. ``P0``: the factorization's axial force [N]. Its bending stiffness is the
+    segment block's (``K[s]``: 4EI/L and 2EI/L on the rotations). Record: ``segments =
+    (start, end, L, EA, beta, K)``."""
+    start, end, length, EA, beta, K = segments
+    i0, i1, L = start[s], end[s], length[s]
+    du, dw, q0, q1 = z[i1] - z[i0], z[i1 + 1] - z[i0 + 1], z[i0 + 2], z[i1 + 2]
+    dud = c_v * du + h_v[i1] - h_v[i0]
+    dwd = c_v * dw + h_v[i1 + 1] - h_v[i0 + 1]
+    x = L + du
+    l = np.sqrt(x * x + dw * dw)
+    c, sn = x / l, dw / l
+    bd = (c * dwd - sn * dud) / l
+    b = np.arctan2(dw, x)
+    t0, t1 = q0 - b, q1 - b
+    t0d, t1d = c_v * q0 + h_v[i0 + 2] - bd, c_v * q1 + h_v[i1 + 2] - bd
+    excess = dw * dw / (l + x) + L / 60.0 * (4.0 * t0 * t0 - 2.0 * t0 * t1 + 4.0 * t1 * t1)
+    rate = (c - 1.0) * dud + sn * dwd + L / 30.0 * ((4.0 * t0 - t1) * t0d + (4.0 * t1 - t0) * t1d)
+    F = EA[s] / L * (excess + beta[s] * rate)
+    k00, k01, k11 = K[s, 2, 2], K[s, 2, 5], K[s, 5, 5]
+    g = P * L / 30.0
+    m0 = k00 * t0 + k01 * t1 + g * (4.0 * t0 - t1)
+    m1 = k01 * t0 + k11 * t1 + g * (4.0 * t1 - t0)
+    # The solver's bending forces: K d (chord angle linearized) and P0 G d (shape_products).
+    e0, e1 = q0 - dw / L, q1 - dw / L
+    kb0, kb1 = k00 * e0 + k01 * e1, k01 * e0 + k11 * e1
+    g0 = (-36.0 * dw + 3.0 * L * (q0 + q1)) / (30.0 * L)
+    g1 = (-3.0 * dw + L * (4.0 * q0 - q1)) / 30.0
+    g3 = (-3.0 * dw + L * (4.0 * q1 - q0)) / 30.0
+    axial = P * c + (m0 + m1) * sn / l - (P - F)
+    shear = P * sn - (m0 + m1) * c / l - (-(kb0 + kb1) / L - P0 * g0)
+    f[i0] += axial
+    f[i1] -= axial
+    f[i0 + 1] += shear
+    f[i1 + 1] -= shear
+    f[i0 + 2] -= m0 - kb0 - P0 * g1
+    f[i1 + 2] -= m1 - kb1 - P0 * g3
+    return F, excess
+
+
 def affine(Mx, k, v, out):
     """``out = Mx[k, :, :n] @ v + Mx[k, :, n]`` (``n = len(v)``): one augmented affine map of the
     batch (:class:`tmm_core.configuration_batch.StepMaps`) at configuration ``k``."""
@@ -127,15 +170,18 @@ def march(integrator, idx, maps, on_factors, model, settings, state, recorded):
     (:func:`tmm_core.time_step.kernel_data`); ``model = (m, aM, beta_node, seg_start,
     seg_end, seg_L, seg_EA, seg_beta, seg_K, (gauge_seg, gauge_w))``, the last the two segments of
     each gauge's axial strain and the weights [1/m] of their shortenings; ``settings = (coriolis, has_kv,
-    dynamic, shortening, own_force, tol_z, tol_P, max_iterations, depth)``; ``state = (S, P)``
+    dynamic, shortening, own_force, corotational, tol_z, tol_P, max_iterations, depth)``
+    (``corotational``: the co-rotational segments' pseudo-loads, :func:`corotational_loads`,
+    instead of the second-order ones); ``state = (S, P)``
     with ``S (K, n_dof)`` the integrator's state arrays, updated in place; ``recorded =
     (out_hist, z_hist, P_hist, iterations)``."""
     Hc, Gc, ez, dva, dt, c_v = integrator
     Zx, Ox, Ax, P0, rigid, omega = maps
     # The masses, mass damping and bending blocks serve only the history loads (the whole record).
-    _m, _aM, _beta_node, seg_start, seg_end, seg_L, seg_EA, seg_beta, _seg_K, gauge_axial = model
+    _m, _aM, _beta_node, seg_start, seg_end, seg_L, seg_EA, seg_beta, seg_K, gauge_axial = model
     gauge_seg, gauge_w = gauge_axial
-    coriolis, has_kv, dynamic, shortening, own_force, tol_z, tol_P, max_iterations, depth = settings
+    coriolis, has_kv, dynamic, shortening, own_force, corotational, tol_z, tol_P, max_iterations, depth = settings
+    segments = (seg_start, seg_end, seg_L, seg_EA, seg_beta, seg_K)
     S, P = state
     out_hist, z_hist, P_hist, iterations = recorded
 
@@ -156,6 +202,7 @@ def march(integrator, idx, maps, on_factors, model, settings, state, recorded):
     F = np.empty(ns)
     delta = np.empty(ns)
     G = np.empty((ns, 4))
+    scratch = np.empty(n)           # the co-rotational loads at convergence (only their excess is kept)
     damp = np.empty(ns)
     outv = np.empty(no)
     # Stored factorizations, or None (maps): numba prunes every ``on_factors is not None`` branch
@@ -206,10 +253,18 @@ def march(integrator, idx, maps, on_factors, model, settings, state, recorded):
             for it in range(max_iterations):
                 for i in range(n):
                     zt[i] = x[i]
-                shape_products(seg_start, seg_end, seg_L, zt, delta, G)
                 for i in range(n):
                     f[i] = 0.0
+                if corotational:
+                    for s in range(ns):
+                        F[s], delta[s] = corotational_loads(s, segments, zt, h_v, c_v,
+                                                            x[n + s] / to_len[s] if own_force else P0[k, s],
+                                                            P0[k, s], f)
+                else:
+                    shape_products(seg_start, seg_end, seg_L, zt, delta, G)
                 for s in range(ns):
+                    if corotational:
+                        break
                     i0, i1 = seg_start[s], seg_end[s]
                     if shortening:
                         rate = ((c_v * zt[i0 + 1] + h_v[i0 + 1]) * G[s, 0] + (c_v * zt[i0 + 2] + h_v[i0 + 2]) * G[s, 1]
@@ -255,8 +310,12 @@ def march(integrator, idx, maps, on_factors, model, settings, state, recorded):
                         affine(Ocx, k, y, outv)           # y: the last solve's, for these loads
                     else:
                         affine(Ox, k, f, outv)
-                    if shortening:
+                    if corotational:
+                        for s in range(ns):
+                            _, delta[s] = corotational_loads(s, segments, zn, h_v, c_v, Pn[s], P0[k, s], scratch)
+                    elif shortening:
                         shape_products(seg_start, seg_end, seg_L, zn, delta, G)
+                    if shortening:
                         for gi in range(gauge_seg.shape[0]):
                             for c in range(2):
                                 outv[2 + 2 * gi] += gauge_w[gi, c] * delta[gauge_seg[gi, c]]
