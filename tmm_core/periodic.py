@@ -46,7 +46,7 @@ from .discretization import Discretization, HoldsModel, as_model
 from .ked import CrankMotion
 from .march import begin
 from .revolution_dmd import dominant_multipliers
-from .second_order import linearization
+from .second_order import corotational_linearization, linearization
 from .time_step import kernel_data, step_loads
 
 STATE_KEYS = {"newmark": ("d", "v", "a"), "generalized_alpha": ("d", "v", "a", "acc"), "houbolt": ("d", "d1", "d2")}
@@ -132,11 +132,11 @@ def periodic_steady_state(source: Discretization | HoldsModel, speed_rad_s: floa
     model = as_model(source)
     if any(link.viscoelastic is not None for link in model.links):
         raise InputError("the periodic solver does not carry the viscoelastic (SLS) history states; use time marching")
-    if model.strain_measure in ("exact", "corotational"):
+    if model.strain_measure == "exact":
         # Its linearized revolution (Newton's Jacobian, the Floquet multipliers) differentiates
-        # the second-order pseudo-loads only.
-        raise InputError(f"periodic solver: the segments' {model.strain_measure} strain (dynamic_terms "
-                         f"{model.dynamic_terms!r}) is not in its linearized revolution yet; march in time")
+        # the second-order and the co-rotational pseudo-loads only.
+        raise InputError(f"periodic solver: the segments' exact strain (dynamic_terms {model.dynamic_terms!r}) "
+                         "is not in its linearized revolution; march in time")
     keys = STATE_KEYS.get(model.integrator.name)
     if keys is None:
         raise InputError(f"periodic solver: unsupported integrator {model.integrator.name!r}")
@@ -193,8 +193,10 @@ class _Revolution:
 
     def monodromy(self, trajectory):
         """The monodromy of the revolution linearized about ``trajectory`` (compiled kernels or the
-        numpy reference)."""
-        linearized = _compiled_monodromy if self.model.compiled else _monodromy
+        numpy reference; the co-rotational segments' in numpy only, their compiled linearized
+        revolution not being written yet)."""
+        compiled = self.model.compiled and self.model.strain_measure != "corotational"
+        linearized = _compiled_monodromy if compiled else _monodromy
         return linearized(self.model, self.cfg, self.keys, trajectory, self.dt)
 
 
@@ -408,6 +410,7 @@ def _monodromy(model: Discretization, cfg, keys, trajectory, dt):
     seg = model.segments
     n_seg = len(seg.length)
     _, c_v = model.integrator.coefficients(dt)
+    linearize = corotational_linearization if model.strain_measure == "corotational" else linearization
     # J mixes metres and newtons (condition ~1e13 on the FE rig, ~1e5 with the axial-force
     # unknowns and equations scaled by EA/L): unscaled, the solve loses ~1e-10 per step.
     scale = np.concatenate([np.ones(n), seg.stiffness])
@@ -419,7 +422,7 @@ def _monodromy(model: Discretization, cfg, keys, trajectory, dt):
     for idx, z, v, P in trajectory:
         h_a, h_v = model.integrator.history(state, dt)
         dL = step_loads(model, cfg, idx, h_a, h_v, rigid=False)
-        f_z, f_P, f_h, F_z, F_h = linearization(seg, n, c_v, z, v, P, cfg.P0[idx])
+        f_z, f_P, f_h, F_z, F_h = linearize(seg, n, c_v, z, v, P, cfg.P0[idx])
         Z, A = maps.Z[idx], maps.A[idx]
         J = np.block([[np.eye(n) - Z @ f_z, -Z @ f_P], [-(A @ f_z + F_z), np.eye(n_seg) - A @ f_P]])
         L = dL + h_v @ f_h.T

@@ -220,7 +220,7 @@ def _bending_forces(EI, L, P, t0, t1):
 
 
 def corotational_pseudo_loads(seg: Segments, z: np.ndarray, v: np.ndarray, P: np.ndarray, P0: np.ndarray):
-    """:func:`pseudo_loads` of a co-rotational segment (prototype of issue 34, numpy step only).
+    """:func:`pseudo_loads` of a co-rotational segment (prototype of issue 34).
 
     Each segment carries the cubic beam of the second-order model in a frame that turns with its
     chord, exactly: chord length ``l`` and angle ``b`` from the end displacements (``l cos b = L +
@@ -231,19 +231,33 @@ def corotational_pseudo_loads(seg: Segments, z: np.ndarray, v: np.ndarray, P: np
     they are the second-order model's; the pseudo-loads are the difference between these forces
     and the solver's (``EA (a + beta a')`` axially, ``K d + P0 G d`` in bending; ``a = (u1 -
     u0)/L``). Returns ``(f, F, Delta)`` as :func:`pseudo_loads`, with ``Delta = L (e - a)``."""
+    idx = _segment_dofs(seg)
+    loads, F, excess = _corotational_local(seg, z[idx], v[idx], P, P0)
+    f = np.zeros(np.shape(z))
+    np.add.at(f, idx, loads)
+    return f, F, excess
+
+
+def _segment_dofs(seg: Segments) -> np.ndarray:
+    """Node-vector index of every segment's ``(u0, w0, theta0, u1, w1, theta1)``, ``(n_seg, 6)``."""
+    return np.stack([seg.start, seg.start + 1, seg.start + 2, seg.end, seg.end + 1, seg.end + 2], axis=1)
+
+
+def _corotational_local(seg: Segments, zl: np.ndarray, vl: np.ndarray, P, P0):
+    """The co-rotational segments' pseudo-loads on their own ``(u0, w0, theta0, u1, w1, theta1)``
+    (n_seg, 6), their shortening force ``F`` [N] and ``Delta = L (e - a)`` [m], from their local
+    displacements ``zl`` and velocities ``vl`` (n_seg, 6) (:func:`corotational_pseudo_loads`)."""
     if seg.EI is None:
         raise ValueError("the co-rotational segment needs the segments' EI")
     L, EA, EI, beta = seg.length, seg.EA, seg.EI, seg.beta
-    u0, w0, q0 = z[seg.start], z[seg.start + 1], z[seg.start + 2]
-    u1, w1, q1 = z[seg.end], z[seg.end + 1], z[seg.end + 2]
-    du, dw = u1 - u0, w1 - w0
-    dud, dwd = v[seg.end] - v[seg.start], v[seg.end + 1] - v[seg.start + 1]
+    du, dw, q0, q1 = zl[:, 3] - zl[:, 0], zl[:, 4] - zl[:, 1], zl[:, 2], zl[:, 5]
+    dud, dwd = vl[:, 3] - vl[:, 0], vl[:, 4] - vl[:, 1]
     l = np.hypot(L + du, dw)
     c, s = (L + du) / l, dw / l
     b = np.arctan2(dw, L + du)
     bd = (c * dwd - s * dud) / l
     t0, t1 = q0 - b, q1 - b
-    t0d, t1d = v[seg.start + 2] - bd, v[seg.end + 2] - bd
+    t0d, t1d = vl[:, 2] - bd, vl[:, 5] - bd
     # e L - (u1 - u0) = (l - L - du) + Delta_c; l - L - du = dw^2 / (l + L + du) without cancellation.
     excess = dw * dw / (l + L + du) + L / 60.0 * (4 * t0 * t0 - 2 * t0 * t1 + 4 * t1 * t1)
     excess_rate = (c - 1.0) * dud + s * dwd + L / 30.0 * ((4 * t0 - t1) * t0d + (4 * t1 - t0) * t1d)
@@ -254,16 +268,54 @@ def corotational_pseudo_loads(seg: Segments, z: np.ndarray, v: np.ndarray, P: np
     g_u = P * c + (m0 + m1) * s / l
     g_w = P * s - (m0 + m1) * c / l
     # The solver's: EA (a + beta a') = P - F axially; K d + P0 G d in bending (K d: the same
-    # cubic with the chord's angle linearized, dw / L).
+    # cubic with the chord's angle linearized, dw / L; G d: shape_products').
     k0, k1 = _bending_forces(EI, L, 0.0, q0 - dw / L, q1 - dw / L)
-    _, Gd = shape_products(seg, z)
-    f = np.zeros(np.shape(z))
+    g0 = (-36.0 * dw + 3.0 * L * (q0 + q1)) / (30.0 * L)
+    g1 = (-3.0 * dw + L * (4.0 * q0 - q1)) / 30.0
+    g3 = (-3.0 * dw + L * (4.0 * q1 - q0)) / 30.0
     axial = g_u - (P - F)
-    shear = g_w - (-(k0 + k1) / L + P0 * Gd[2])
-    np.add.at(f, seg.start, axial)
-    np.add.at(f, seg.end, -axial)
-    np.add.at(f, seg.start + 1, shear)
-    np.add.at(f, seg.end + 1, -shear)
-    np.add.at(f, seg.start + 2, -(m0 - k0 - P0 * Gd[1]))
-    np.add.at(f, seg.end + 2, -(m1 - k1 - P0 * Gd[3]))
-    return f, F, excess
+    shear = g_w - (-(k0 + k1) / L - P0 * g0)
+    loads = np.stack([axial, shear, -(m0 - k0 - P0 * g1), -axial, -shear, -(m1 - k1 - P0 * g3)], axis=1)
+    return loads, F, excess
+
+
+#: Central-difference steps of the co-rotational linearization, per local degree of freedom, as a
+#: fraction of the segment's length (displacements) or in radians (rotations): the segment's
+#: forces are smooth, and 1e-6 keeps the truncation (~1e-12) and the round-off (~1e-10) below the
+#: shooting's tolerance.
+_FD_STEP = 1e-6
+
+
+def corotational_linearization(seg: Segments, n: int, c_v: float, z, v, P, P0):
+    """:func:`linearization` of the co-rotational pseudo-loads (the same five derivatives, dense),
+    by central differences of each segment's local forces in its six degrees of freedom, its
+    velocities and its axial force (the forces are exact functions; tests/test_corotational.py
+    checks these derivatives against the energy's)."""
+    idx = _segment_dofs(seg)
+    zl, vl = z[idx], v[idx]
+    ns = len(seg.length)
+    step = _FD_STEP * np.stack([seg.length, seg.length, np.ones(ns)] * 2, axis=1)    # (n_seg, 6)
+    f_d, f_v, F_d, F_v = (np.zeros((ns, 6, 6)), np.zeros((ns, 6, 6)), np.zeros((ns, 6)), np.zeros((ns, 6)))
+    for j in range(6):
+        e = np.zeros((ns, 6))
+        e[:, j] = step[:, j]
+        for arrays, (za, va, zb, vb) in (((f_d, F_d), (zl + e, vl, zl - e, vl)), ((f_v, F_v), (zl, vl + e, zl, vl - e))):
+            fa, Fa, _ = _corotational_local(seg, za, va, P, P0)
+            fb, Fb, _ = _corotational_local(seg, zb, vb, P, P0)
+            arrays[0][:, :, j] = (fa - fb) / (2 * step[:, j:j + 1])
+            arrays[1][:, j] = (Fa - Fb) / (2 * step[:, j])
+    dP = 1e-6 * np.maximum(np.abs(P), seg.EA * 1e-9)
+    f_P_local = (_corotational_local(seg, zl, vl, P + dP, P0)[0] - _corotational_local(seg, zl, vl, P - dP, P0)[0]) \
+        / (2 * dP[:, None])
+    f_z, f_h = np.zeros((n, n)), np.zeros((n, n))
+    F_z, F_h = np.zeros((ns, n)), np.zeros((ns, n))
+    f_P = np.zeros((n, ns))
+    rows = np.arange(ns)
+    for a in range(6):
+        np.add.at(f_P, (idx[:, a], rows), f_P_local[:, a])
+        np.add.at(F_z, (rows, idx[:, a]), F_d[:, a] + c_v * F_v[:, a])
+        np.add.at(F_h, (rows, idx[:, a]), F_v[:, a])
+        for b_ in range(6):
+            np.add.at(f_z, (idx[:, a], idx[:, b_]), f_d[:, a, b_] + c_v * f_v[:, a, b_])
+            np.add.at(f_h, (idx[:, a], idx[:, b_]), f_v[:, a, b_])
+    return f_z, f_P, f_h, F_z, F_h
