@@ -193,10 +193,8 @@ class _Revolution:
 
     def monodromy(self, trajectory):
         """The monodromy of the revolution linearized about ``trajectory`` (compiled kernels or the
-        numpy reference; the co-rotational segments' in numpy only, their compiled linearized
-        revolution not being written yet)."""
-        compiled = self.model.compiled and self.model.strain_measure != "corotational"
-        linearized = _compiled_monodromy if compiled else _monodromy
+        numpy reference)."""
+        linearized = _compiled_monodromy if self.model.compiled else _monodromy
         return linearized(self.model, self.cfg, self.keys, trajectory, self.dt)
 
 

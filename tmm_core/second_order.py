@@ -280,9 +280,11 @@ def _corotational_local(seg: Segments, zl: np.ndarray, vl: np.ndarray, P, P0):
 
 
 #: Central-difference steps of the co-rotational linearization, per local degree of freedom, as a
-#: fraction of the segment's length (displacements) or in radians (rotations): the segment's
-#: forces are smooth, and 1e-6 keeps the truncation (~1e-12) and the round-off (~1e-10) below the
-#: shooting's tolerance.
+#: fraction of the segment's length (displacements) or in radians (rotations). The round-off of
+#: the differences sets the monodromy's error: on the FE rig at 373 rpm, 1 deg, steps of 1e-5 and
+#: 1e-7 move it by 2.4e-7 and 7e-6 of its largest entry from 1e-6, and two roundings of the same
+#: forces (numpy, compiled) by 5e-7. The multipliers agree to about 1e-6; Newton's convergence
+#: does not need more.
 _FD_STEP = 1e-6
 
 

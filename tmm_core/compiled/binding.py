@@ -40,8 +40,11 @@ MAPS = ("sweep_member", "copy_sweep", "solve_loads_many")
 #: The march's own helpers (tmm_core.compiled.march).
 MARCH = ("shape_products", "corotational_loads", "affine", "anderson_coefficients")
 #: The step's parts the march and the linearized revolutions share: the integrator's history and
-#: update (tmm_core.compiled.integrators) and the history loads (tmm_core.compiled.time_step).
-STEP = {integrators: ("history", "advance"), time_step: ("history_loads",)}
+#: update (tmm_core.compiled.integrators), the history loads and the co-rotational segment
+#: (tmm_core.compiled.time_step).
+STEP = {integrators: ("history", "advance"), time_step: ("history_loads", "corotational_segment")}
+#: The linearized revolution's helpers (tmm_core.compiled.periodic).
+LINEARIZED = ("corotational_blocks", "corotational_response")
 #: The reduced revolution's helpers (tmm_core.compiled.reduced_periodic).
 REDUCED = ("second_order", "stage_states", "newton_matrix")
 
@@ -262,6 +265,7 @@ def linearized() -> Linearized:
     if "linearized" not in _ENTRY:
         step_parts()
         jit = numba_module().njit(cache=True)
+        _bind(jit, periodic, LINEARIZED)
         _ENTRY["linearized"] = Linearized(jit(periodic.push), jit(periodic.velocities))
     return _ENTRY["linearized"]
 

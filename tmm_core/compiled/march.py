@@ -32,7 +32,7 @@ import numpy as np
 # The compiled ones once bound (tmm_core.compiled.binding): the step's parts the periodic
 # solver's linearized revolutions share, and the solve on stored factorizations.
 from .integrators import advance, history
-from .time_step import factored_solve, history_loads
+from .time_step import corotational_segment, factored_solve, history_loads
 
 # numba is imported (and the kernels compiled or loaded from its cache) on first use only, by
 # tmm_core.compiled.binding: the command line and the numpy path do not pay for it. Without numba
@@ -51,47 +51,22 @@ def shape_products(start, end, L, z, delta, G):
         delta[s] = 0.5 * (dw * g0 + t0 * g1 + t1 * g3)
 
 
-def corotational_loads(s, segments, z, h_v, c_v, P, P0, f):
-    """Co-rotational segment ``s`` (tmm_core.second_order.corotational_pseudo_loads, the
-    reference): adds its pseudo-loads at displacements ``z`` (velocities ``c_v z + h_v``) and
-    axial force ``P`` [N] into ``f`` and returns ``(F, excess)``, its shortening force [N] and
-    ``L (e - a)`` [m]. ``P0``: the factorization's axial force [N]. Its bending stiffness is the
-    segment block's (``K[s]``: 4EI/L and 2EI/L on the rotations). Record: ``segments =
-    (start, end, L, EA, beta, K)``."""
-    start, end, length, EA, beta, K = segments
-    i0, i1, L = start[s], end[s], length[s]
-    du, dw, q0, q1 = z[i1] - z[i0], z[i1 + 1] - z[i0 + 1], z[i0 + 2], z[i1 + 2]
-    dud = c_v * du + h_v[i1] - h_v[i0]
-    dwd = c_v * dw + h_v[i1 + 1] - h_v[i0 + 1]
-    x = L + du
-    l = np.sqrt(x * x + dw * dw)
-    c, sn = x / l, dw / l
-    bd = (c * dwd - sn * dud) / l
-    b = np.arctan2(dw, x)
-    t0, t1 = q0 - b, q1 - b
-    t0d, t1d = c_v * q0 + h_v[i0 + 2] - bd, c_v * q1 + h_v[i1 + 2] - bd
-    excess = dw * dw / (l + x) + L / 60.0 * (4.0 * t0 * t0 - 2.0 * t0 * t1 + 4.0 * t1 * t1)
-    rate = (c - 1.0) * dud + sn * dwd + L / 30.0 * ((4.0 * t0 - t1) * t0d + (4.0 * t1 - t0) * t1d)
-    F = EA[s] / L * (excess + beta[s] * rate)
-    k00, k01, k11 = K[s, 2, 2], K[s, 2, 5], K[s, 5, 5]
-    g = P * L / 30.0
-    m0 = k00 * t0 + k01 * t1 + g * (4.0 * t0 - t1)
-    m1 = k01 * t0 + k11 * t1 + g * (4.0 * t1 - t0)
-    # The solver's bending forces: K d (chord angle linearized) and P0 G d (shape_products).
-    e0, e1 = q0 - dw / L, q1 - dw / L
-    kb0, kb1 = k00 * e0 + k01 * e1, k01 * e0 + k11 * e1
-    g0 = (-36.0 * dw + 3.0 * L * (q0 + q1)) / (30.0 * L)
-    g1 = (-3.0 * dw + L * (4.0 * q0 - q1)) / 30.0
-    g3 = (-3.0 * dw + L * (4.0 * q1 - q0)) / 30.0
-    axial = P * c + (m0 + m1) * sn / l - (P - F)
-    shear = P * sn - (m0 + m1) * c / l - (-(kb0 + kb1) / L - P0 * g0)
-    f[i0] += axial
-    f[i1] -= axial
-    f[i0 + 1] += shear
-    f[i1 + 1] -= shear
-    f[i0 + 2] -= m0 - kb0 - P0 * g1
-    f[i1 + 2] -= m1 - kb1 - P0 * g3
-    return F, excess
+def corotational_loads(s, segments, z, h_v, c_v, P, P0, f, local):
+    """Co-rotational segment ``s`` (:func:`tmm_core.compiled.time_step.corotational_segment`):
+    adds its pseudo-loads at displacements ``z`` (velocities ``c_v z + h_v``) and axial force
+    ``P`` [N] into ``f`` and returns ``(F, excess)``, its shortening force [N] and ``L (e - a)``
+    [m]. ``P0``: the factorization's axial force [N]. Record: ``segments = (start, end, L, EA,
+    beta, K)`` (its bending stiffness from the segment block ``K[s]``); ``local`` (2, 6): work."""
+    start, _end, length, EA, beta, K = segments
+    i0 = start[s]
+    for q in range(6):
+        local[0, q] = z[i0 + q]
+        local[1, q] = c_v * z[i0 + q] + h_v[i0 + q]
+    out = corotational_segment((length[s], EA[s], beta[s], K[s, 2, 2], K[s, 2, 5], K[s, 5, 5]), local[0], local[1],
+                               P, P0)
+    for q in range(6):
+        f[i0 + q] += out[q]
+    return out[6], out[7]
 
 
 def affine(Mx, k, v, out):
@@ -203,6 +178,7 @@ def march(integrator, idx, maps, on_factors, model, settings, state, recorded):
     delta = np.empty(ns)
     G = np.empty((ns, 4))
     scratch = np.empty(n)           # the co-rotational loads at convergence (only their excess is kept)
+    local = np.empty((2, 6))        # a co-rotational segment's displacements and velocities
     damp = np.empty(ns)
     outv = np.empty(no)
     # Stored factorizations, or None (maps): numba prunes every ``on_factors is not None`` branch
@@ -259,7 +235,7 @@ def march(integrator, idx, maps, on_factors, model, settings, state, recorded):
                     for s in range(ns):
                         F[s], delta[s] = corotational_loads(s, segments, zt, h_v, c_v,
                                                             x[n + s] / to_len[s] if own_force else P0[k, s],
-                                                            P0[k, s], f)
+                                                            P0[k, s], f, local)
                 else:
                     shape_products(seg_start, seg_end, seg_L, zt, delta, G)
                 for s in range(ns):
@@ -312,7 +288,8 @@ def march(integrator, idx, maps, on_factors, model, settings, state, recorded):
                         affine(Ox, k, f, outv)
                     if corotational:
                         for s in range(ns):
-                            _, delta[s] = corotational_loads(s, segments, zn, h_v, c_v, Pn[s], P0[k, s], scratch)
+                            _, delta[s] = corotational_loads(s, segments, zn, h_v, c_v, Pn[s], P0[k, s], scratch,
+                                                             local)
                     elif shortening:
                         shape_products(seg_start, seg_end, seg_L, zn, delta, G)
                     if shortening:

@@ -43,7 +43,7 @@ import numpy as np
 
 from ..integrators import linear_maps
 from .integrators import advance, history
-from .time_step import history_loads
+from .time_step import FD_STEP, corotational_segment, history_loads
 
 
 def push(S, coef, idx, forced, maps, model, flags, c_v, trajectory):
@@ -62,12 +62,13 @@ def push(S, coef, idx, forced, maps, model, flags, c_v, trajectory):
     Records (tuples, unpacked below): ``coef = (Hc, Gc, ez)`` (:func:`tmm_core.compiled.integrators.linear_maps`);
     ``maps = (Zx, Ax, P0, rigid, omega)``; ``model`` the march's model record
     (:meth:`tmm_core.discretization.Discretization.kernel_model`); ``flags = (coriolis, has_kv,
-    dynamic)``; ``trajectory = (zs, vs, Ps)``."""
+    dynamic, corotational)`` (``corotational``: the co-rotational segments' pseudo-loads, linearized
+    by :func:`corotational_blocks`); ``trajectory = (zs, vs, Ps)``."""
     Hc, Gc, ez = coef
     Zx, Ax, P0, rigid, omega = maps
-    # The mass damping and bending blocks serve only the history loads (the whole record).
-    m, _aM, _beta_node, seg_start, seg_end, seg_L, seg_EA, seg_beta, _seg_K, _gauge_axial = model
-    coriolis, has_kv, dynamic = flags
+    # The mass damping blocks serve only the history loads (the whole record).
+    m, _aM, _beta_node, seg_start, seg_end, seg_L, seg_EA, seg_beta, seg_K, _gauge_axial = model
+    coriolis, has_kv, dynamic, corotational = flags
     zs, vs, Ps = trajectory
     K, nM = S.shape
     n = m.shape[0]
@@ -103,6 +104,9 @@ def push(S, coef, idx, forced, maps, model, flags, c_v, trajectory):
     B = np.zeros((nx, nx))           # [[Z, 0], [A, I]], rows scaled like J's
     W1 = np.zeros((n, n + 1))        # the load block of W (and a zero column, as L's zero row)
     W2 = np.empty((n, ns))           # the axial-force block of W
+    # The co-rotational segments' derivatives on their six dofs (corotational_blocks).
+    blocks = (np.empty((ns, 6, 6)), np.empty((ns, 6, 6)), np.empty((ns, 6)), np.empty((ns, 6)), np.empty((ns, 6)))
+    local = np.empty((2, 6))
     for j in range(idx.shape[0]):
         k = idx[j]
         history(Hc, S, h_a, h_v)
@@ -110,7 +114,11 @@ def push(S, coef, idx, forced, maps, model, flags, c_v, trajectory):
         for i in range(n):
             for r in range(M):
                 L[i, r] = loads[i * M + r]
-        if dynamic:
+        if dynamic and corotational:
+            corotational_blocks(j, k, (seg_start, seg_L, seg_EA, seg_beta, seg_K), trajectory, P0, blocks, local)
+            z = corotational_response(j, k, (nx, n, ns, M, c_v), (seg_start, EAL, kb), (Zx, Ax), blocks, h_v,
+                                      (L, D, J, B, W1, W2))
+        elif dynamic:
             for s in range(ns):
                 for p in range(4):
                     sa = 0.0
@@ -185,6 +193,111 @@ def push(S, coef, idx, forced, maps, model, flags, c_v, trajectory):
             for r in range(M):
                 zf[i * M + r] = z[i, r]
         advance(Gc, ez, S, zf, Snew)
+
+
+def corotational_blocks(j, k, segments, trajectory, P0, blocks, local):
+    """The co-rotational segments' derivatives at step ``j`` (configuration ``k``) of the
+    trajectory, by central differences of :func:`tmm_core.compiled.time_step.corotational_segment`
+    (:func:`tmm_core.second_order.corotational_linearization` is the reference, step for step):
+    into ``blocks = (f_d, f_v, F_d, F_v, f_P)``, the pseudo-loads on the segment's six dofs by its
+    displacements and its velocities (n_seg, 6, 6), its shortening force by them (n_seg, 6) and
+    the pseudo-loads by its axial force (n_seg, 6). Records: ``segments = (start, L, EA, beta,
+    K)``, ``trajectory = (zs, vs, Ps)``; ``local`` (2, 6): work."""
+    seg_start, seg_L, seg_EA, seg_beta, seg_K = segments
+    zs, vs, Ps = trajectory
+    f_d, f_v, F_d, F_v, f_P = blocks
+    for s in range(seg_start.shape[0]):
+        i0 = seg_start[s]
+        section = (seg_L[s], seg_EA[s], seg_beta[s], seg_K[s, 2, 2], seg_K[s, 2, 5], seg_K[s, 5, 5])
+        for q in range(6):
+            local[0, q] = zs[j, i0 + q]
+            local[1, q] = vs[j, i0 + q]
+        P, p0 = Ps[j, s], P0[k, s]
+        for q in range(6):
+            h = FD_STEP * (1.0 if q == 2 or q == 5 else seg_L[s])
+            for which in range(2):                 # displacement, then velocity
+                keep = local[which, q]
+                local[which, q] = keep + h
+                a = corotational_segment(section, local[0], local[1], P, p0)
+                local[which, q] = keep - h
+                b = corotational_segment(section, local[0], local[1], P, p0)
+                local[which, q] = keep
+                for p in range(6):
+                    if which == 0:
+                        f_d[s, p, q] = (a[p] - b[p]) / (2 * h)
+                    else:
+                        f_v[s, p, q] = (a[p] - b[p]) / (2 * h)
+                if which == 0:
+                    F_d[s, q] = (a[6] - b[6]) / (2 * h)
+                else:
+                    F_v[s, q] = (a[6] - b[6]) / (2 * h)
+        dP = 1e-6 * max(abs(P), seg_EA[s] * 1e-9)
+        a = corotational_segment(section, local[0], local[1], P + dP, p0)
+        b = corotational_segment(section, local[0], local[1], P - dP, p0)
+        for p in range(6):
+            f_P[s, p] = (a[p] - b[p]) / (2 * dP)
+
+
+def corotational_response(j, k, sizes, segments, maps, blocks, h_v, work):
+    """The step's displacements (n_dof, M) of :func:`push` with the co-rotational segments'
+    derivatives ``blocks`` (:func:`corotational_blocks`), as its second-order branch builds them
+    from the 4 x 4 blocks: the velocity-history part of the loads ``L`` and axial forces ``D``,
+    the step's Jacobian ``J`` in (displacements, axial forces scaled by EA/L) and ``W``. Records:
+    ``sizes = (nx, n, ns, M, c_v)``, ``segments = (start, EA/L, beta EA/L)``, ``maps = (Zx,
+    Ax)``, ``work = (L, D, J, B, W1, W2)`` (``L`` holds the step's history loads on entry)."""
+    nx, n, ns, M, c_v = sizes
+    seg_start, EAL, kb = segments
+    Zx, Ax = maps
+    f_d, f_v, F_d, F_v, f_P = blocks
+    L, D, J, B, W1, W2 = work
+    for s in range(ns):
+        i0 = seg_start[s]
+        for r in range(M):
+            acc_F = 0.0
+            for q in range(6):
+                acc_F += F_v[s, q] * h_v[(i0 + q) * M + r]
+            D[s, r] = kb[s] * (h_v[(i0 + 3) * M + r] - h_v[i0 * M + r]) + acc_F
+            for p in range(6):
+                acc = 0.0
+                for q in range(6):
+                    acc += f_v[s, p, q] * h_v[(i0 + q) * M + r]
+                L[i0 + p, r] += acc
+    for i in range(nx):
+        for q in range(nx):
+            J[i, q] = 0.0
+    for i in range(nx):
+        if i < n:
+            row = Zx[k, i]
+            rs = 1.0
+        else:
+            row = Ax[k, i - n]
+            rs = 1.0 / EAL[i - n]
+        for s in range(ns):
+            i0 = seg_start[s]
+            fp = 0.0
+            for p in range(6):
+                fp += row[i0 + p] * f_P[s, p]
+            J[i, n + s] -= rs * fp * EAL[s]
+            for q in range(6):
+                g = 0.0
+                for p in range(6):
+                    g += row[i0 + p] * (f_d[s, p, q] + c_v * f_v[s, p, q])
+                J[i, i0 + q] -= rs * g
+        J[i, i] += 1.0
+        for q in range(n):
+            B[i, q] = rs * row[q]
+        if i >= n:
+            B[i, i] = rs
+    for s in range(ns):
+        for q in range(6):
+            J[n + s, seg_start[s] + q] -= (F_d[s, q] + c_v * F_v[s, q]) / EAL[s]
+    W = np.linalg.solve(J, B)
+    for i in range(n):
+        for q in range(n):
+            W1[i, q] = W[i, q]
+        for s in range(ns):
+            W2[i, s] = W[i, n + s]
+    return np.dot(W1, L) + np.dot(W2, D)
 
 
 def velocities(S, coef, c_v, zs, vs):
@@ -292,7 +405,7 @@ def linear_shooting(kernels, model, data, keys, N: int, dt: float):
     marched, dependent, C = dependent_keys(slots, keys, coef[0], coef[1])
     S = _initial_states(slots, keys, n, marched, extra=1)
     no_trajectory = (np.zeros((0, n)), np.zeros((0, n)), np.zeros((0, len(model.segments.length))))
-    kernels.push(S.reshape(len(S), -1), coef, np.arange(1, N + 1) % N, 1, maps, kernel, (*flags, False), c_v,
+    kernels.push(S.reshape(len(S), -1), coef, np.arange(1, N + 1) % N, 1, maps, kernel, (*flags, False, False), c_v,
                  no_trajectory)
     X = _stacked(S, slots, keys)
     return _expand(X[:, 1:], marched, dependent, C, n), X[:, 0].copy()
@@ -307,5 +420,6 @@ def monodromy(kernels, model, data, keys, trajectory, dt: float) -> np.ndarray:
     linearized_about = tuple(np.ascontiguousarray(np.array([t[i] for t in trajectory]), dtype=float) for i in (1, 2, 3))
     marched, dependent, C = dependent_keys(slots, keys, coef[0], coef[1])
     S = _initial_states(slots, keys, model.n_dof, marched)
-    kernels.push(S.reshape(len(S), -1), coef, idx, 0, maps, kernel, (*flags, True), c_v, linearized_about)
+    kernels.push(S.reshape(len(S), -1), coef, idx, 0, maps, kernel,
+                 (*flags, True, model.strain_measure == "corotational"), c_v, linearized_about)
     return _expand(_stacked(S, slots, keys), marched, dependent, C, model.n_dof)

@@ -16,7 +16,8 @@ the segments. The outputs (drive torque, gauge strains) are affine in the joint 
 gauges' station states; their coefficients per configuration come from the Python side
 (:func:`tmm_core.step_data.compiled_factors`).
 
-Owns: a step's history loads (:func:`history_loads`), the stored factorizations (:func:`factor_range`,
+Owns: a step's history loads (:func:`history_loads`), the co-rotational segment's pseudo-loads
+(:func:`corotational_segment`), the stored factorizations (:func:`factor_range`,
 a range of a batch's configurations) and the solve of one set of node loads on one of them
 (:func:`factored_solve`). Boundaries: the factorization and
 the load solve themselves are :mod:`tmm_core.compiled.riccati` and :mod:`tmm_core.compiled.structure`.
@@ -72,6 +73,46 @@ def history_loads(k, h_a, h_v, model, omega, flags, L):
                     for q in range(6):
                         acc += seg_K[s, p, q] * h_v[(i0 + q) * M + r]
                     L[(i0 + p) * M + r] -= beta_node[i0 + p] * acc
+
+
+#: Central-difference steps of the co-rotational segments' linearization (the periodic solver's
+#: monodromy), as :data:`tmm_core.second_order._FD_STEP`: a fraction of the segment's length for
+#: displacements, radians for rotations.
+FD_STEP = 1e-6
+
+
+def corotational_segment(section, z, v, P, P0):
+    """One co-rotational segment's pseudo-loads on its ``(u0, w0, theta0, u1, w1, theta1)``, its
+    shortening force ``F`` [N] and ``L (e - a)`` [m] (an 8-tuple), from its six displacements
+    ``z`` and velocities ``v``, its axial force ``P`` and the factorization's ``P0`` [N];
+    ``section = (L, EA, beta, k00, k01, k11)`` with the bending stiffness on the end rotations
+    (4EI/L, 2EI/L, 4EI/L). :func:`tmm_core.second_order.corotational_pseudo_loads` is the
+    reference (its formulas, term by term)."""
+    L, EA, beta, k00, k01, k11 = section
+    du, dw, q0, q1 = z[3] - z[0], z[4] - z[1], z[2], z[5]
+    dud, dwd = v[3] - v[0], v[4] - v[1]
+    x = L + du
+    l = np.sqrt(x * x + dw * dw)
+    c, sn = x / l, dw / l
+    b = np.arctan2(dw, x)
+    bd = (c * dwd - sn * dud) / l
+    t0, t1 = q0 - b, q1 - b
+    t0d, t1d = v[2] - bd, v[5] - bd
+    excess = dw * dw / (l + x) + L / 60.0 * (4.0 * t0 * t0 - 2.0 * t0 * t1 + 4.0 * t1 * t1)
+    rate = (c - 1.0) * dud + sn * dwd + L / 30.0 * ((4.0 * t0 - t1) * t0d + (4.0 * t1 - t0) * t1d)
+    F = EA / L * (excess + beta * rate)
+    g = P * L / 30.0
+    m0 = k00 * t0 + k01 * t1 + g * (4.0 * t0 - t1)
+    m1 = k01 * t0 + k11 * t1 + g * (4.0 * t1 - t0)
+    # The solver's bending forces: K d (the chord's angle linearized) and P0 G d.
+    e0, e1 = q0 - dw / L, q1 - dw / L
+    kb0, kb1 = k00 * e0 + k01 * e1, k01 * e0 + k11 * e1
+    g0 = (-36.0 * dw + 3.0 * L * (q0 + q1)) / (30.0 * L)
+    g1 = (-3.0 * dw + L * (4.0 * q0 - q1)) / 30.0
+    g3 = (-3.0 * dw + L * (4.0 * q1 - q0)) / 30.0
+    axial = P * c + (m0 + m1) * sn / l - (P - F)
+    shear = P * sn - (m0 + m1) * c / l - (-(kb0 + kb1) / L - P0 * g0)
+    return axial, shear, -(m0 - kb0 - P0 * g1), -axial, -shear, -(m1 - kb1 - P0 * g3), F, excess
 
 
 def factor_range(b_start, b_stop, segments, configuration, joints, checks, stored):
