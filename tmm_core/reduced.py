@@ -229,11 +229,6 @@ def instantaneous_modes(Z: np.ndarray, m: np.ndarray, count: int):
     return 1.0 / np.sqrt(lam), psi
 
 
-def segment_dofs(seg) -> np.ndarray:
-    """Node-vector index of ``(u0, w0, theta0, u1, w1, theta1)`` of every segment, (n_seg, 6)."""
-    return np.stack([seg.start, seg.start + 1, seg.start + 2, seg.end, seg.end + 1, seg.end + 2], axis=1)
-
-
 def _load_shapes(model: Discretization, angles, tol=1e-10):
     """Orthonormal basis (n, k) of the rigid-body loads over the revolution: samples at unit
     crank speed, unit crank acceleration and at rest (gravity, applied loads)."""

@@ -57,7 +57,7 @@ from .ked import CrankMotion
 from .periodic import PeriodicResult
 from .reduced import ReducedBasis, ReducedOptions, build_basis, segment_links
 from .reduced_stages import StageCoefficients, stage_terms
-from .second_order import geometric_matrices
+from .second_order import corotational_node_forces, geometric_matrices, segment_dofs
 
 _S6 = math.sqrt(6.0)
 #: Radau IIA, 3 stages: Butcher matrix and nodes.
@@ -106,11 +106,16 @@ class ReducedModel:
             raise InputError("the reduced model carries the step's own axial force (axial_force 'dynamic', the "
                              "default) or none (beam_column = false); axial_force 'quasi_static' needs "
                              "solver.tmm.model = 'full'")
-        if model.axial_force == "dynamic" and set(model.dynamic_terms) != {"shortening", "axial_force"}:
+        if model.axial_force == "dynamic" and set(model.dynamic_terms) not in ({"shortening", "axial_force"},
+                                                                              {"shortening", "axial_force",
+                                                                               "corotational"}):
             raise InputError("the reduced model carries both second-order terms or neither, with the second-order "
-                             f"strain (dynamic_terms {model.dynamic_terms!r})")
+                             f"or the co-rotational strain (dynamic_terms {model.dynamic_terms!r})")
         self.model, self.basis = model, basis
         self.backend = model.backend if backend is None else choose_backend(backend)
+        if model.strain_measure == "corotational" and self.backend == "compiled":
+            raise InputError("the reduced model with co-rotational segments (a prototype) has no compiled revolution "
+                             "yet; pass backend='numpy'")
         if basis.axial == "link" and self.backend == "compiled":
             raise InputError("the reduced model with one axial coordinate per link (ReducedOptions(axial='link'), a "
                              "prototype) has no compiled revolution yet; pass backend='numpy'")
@@ -149,6 +154,8 @@ class ReducedModel:
     def second_order(self, P, eta, v, jacobian=True):
         """``N``, ``dN/deta``, ``dN/deta'`` at the stage points ``P`` (k,) for ``eta, v`` (k, r), and
         ``(P_s, Delta)`` per segment (k, n_seg): batched matrix products over the stages."""
+        if self.model.strain_measure == "corotational":
+            return self._second_order_corotational(P, eta, v, jacobian)
         if self._segment_maps is None:
             # Segment DOFs per unit coordinate at every stage point: bending (w0, theta0, w1,
             # theta1) ``Ed``, their rates ``Edd``, ``G Ed``, elongation ``a`` and its rate ``ad``.
@@ -178,6 +185,28 @@ class ReducedModel:
         P_v = (k * beta)[:, None] * a + F_v
         bT = np.swapaxes(b, 1, 2)
         return N, bT @ P_eta + _geometric_stiffness(Ed, GEd, Pax) + aT @ F_eta, bT @ P_v + aT @ F_v, Pax, delta
+
+    def _second_order_corotational(self, P, eta, v, jacobian):
+        """:meth:`second_order` of co-rotational segments
+        (:func:`tmm_core.second_order.corotational_node_forces`): ``N = T^T g`` with ``g`` the
+        segments' internal forces beyond the linear ones that ``Kr`` and ``Cr`` carry, at ``q = T
+        eta``, ``q' = T eta' + T' eta``; ``dN/deta = T^T (g_q T + g_v T')``, ``dN/deta' = T^T g_v
+        T`` (per segment, on its six dofs). ``Delta`` is ``L (e - a)``."""
+        dofs = segment_dofs(self.model.segments)
+        Ts, Tds = self.T[P][:, dofs], self.Td[P][:, dofs]                    # (k, n_seg, 6, r)
+        col = lambda x: x[:, None, :, None]  # noqa: E731  (k, r) against (k, n_seg, 6, r)
+        zl = (Ts @ col(eta))[..., 0]
+        vl = (Ts @ col(v) + Tds @ col(eta))[..., 0]
+        out = corotational_node_forces(self.model.segments, zl, vl, jacobian)
+        g, Ps, delta = out[:3]
+        TsT = np.swapaxes(Ts, -1, -2)
+        N = np.sum(TsT @ g[..., None], axis=1)[..., 0]
+        if not jacobian:
+            return N, None, None, Ps, delta
+        g_z, g_v = out[3:]
+        N_eta = np.sum(TsT @ (g_z @ Ts + g_v @ Tds), axis=1)
+        N_v = np.sum(TsT @ (g_v @ Ts), axis=1)
+        return N, N_eta, N_v, Ps, delta
 
     def _second_order_links(self, Ed, GEd, Edd, a, ad, eta, v, jacobian):
         """:meth:`second_order` with the axial force uniform along each link (``ReducedOptions.axial

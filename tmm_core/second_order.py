@@ -231,14 +231,14 @@ def corotational_pseudo_loads(seg: Segments, z: np.ndarray, v: np.ndarray, P: np
     they are the second-order model's; the pseudo-loads are the difference between these forces
     and the solver's (``EA (a + beta a')`` axially, ``K d + P0 G d`` in bending; ``a = (u1 -
     u0)/L``). Returns ``(f, F, Delta)`` as :func:`pseudo_loads`, with ``Delta = L (e - a)``."""
-    idx = _segment_dofs(seg)
+    idx = segment_dofs(seg)
     loads, F, excess = _corotational_local(seg, z[idx], v[idx], P, P0)
     f = np.zeros(np.shape(z))
     np.add.at(f, idx, loads)
     return f, F, excess
 
 
-def _segment_dofs(seg: Segments) -> np.ndarray:
+def segment_dofs(seg: Segments) -> np.ndarray:
     """Node-vector index of every segment's ``(u0, w0, theta0, u1, w1, theta1)``, ``(n_seg, 6)``."""
     return np.stack([seg.start, seg.start + 1, seg.start + 2, seg.end, seg.end + 1, seg.end + 2], axis=1)
 
@@ -246,7 +246,9 @@ def _segment_dofs(seg: Segments) -> np.ndarray:
 def _corotational_local(seg: Segments, zl: np.ndarray, vl: np.ndarray, P, P0):
     """The co-rotational segments' pseudo-loads on their own ``(u0, w0, theta0, u1, w1, theta1)``
     (n_seg, 6), their shortening force ``F`` [N] and ``Delta = L (e - a)`` [m], from their local
-    displacements ``zl`` and velocities ``vl`` (n_seg, 6) (:func:`corotational_pseudo_loads`)."""
+    displacements ``zl`` and velocities ``vl`` (n_seg, 6) (:func:`corotational_pseudo_loads`).
+    ``P`` None: the physical axial force of the same state, ``EA/L (u1 - u0 + beta (u1 - u0)')
+    + F`` (the reduced model's, which has no axial-force unknown)."""
     if seg.EI is None:
         raise ValueError("the co-rotational segment needs the segments' EI")
     L, EA, EI, beta = seg.length, seg.EA, seg.EI, seg.beta
@@ -262,6 +264,8 @@ def _corotational_local(seg: Segments, zl: np.ndarray, vl: np.ndarray, P, P0):
     excess = dw * dw / (l + L + du) + L / 60.0 * (4 * t0 * t0 - 2 * t0 * t1 + 4 * t1 * t1)
     excess_rate = (c - 1.0) * dud + s * dwd + L / 30.0 * ((4 * t0 - t1) * t0d + (4 * t1 - t0) * t1d)
     F = EA / L * (excess + beta * excess_rate)
+    if P is None:
+        P = EA / L * (du + beta * dud) + F
     # The energy's gradient: P on the chord's length, the end moments on the rotations and,
     # through the chord's angle, -(m0 + m1) on it.
     m0, m1 = _bending_forces(EI, L, P, t0, t1)
@@ -293,7 +297,7 @@ def corotational_linearization(seg: Segments, n: int, c_v: float, z, v, P, P0):
     by central differences of each segment's local forces in its six degrees of freedom, its
     velocities and its axial force (the forces are exact functions; tests/test_corotational.py
     checks these derivatives against the energy's)."""
-    idx = _segment_dofs(seg)
+    idx = segment_dofs(seg)
     zl, vl = z[idx], v[idx]
     ns = len(seg.length)
     step = _FD_STEP * np.stack([seg.length, seg.length, np.ones(ns)] * 2, axis=1)    # (n_seg, 6)
@@ -321,3 +325,35 @@ def corotational_linearization(seg: Segments, n: int, c_v: float, z, v, P, P0):
             np.add.at(f_z, (idx[:, a], idx[:, b_]), f_d[:, a, b_] + c_v * f_v[:, a, b_])
             np.add.at(f_h, (idx[:, a], idx[:, b_]), f_v[:, a, b_])
     return f_z, f_P, f_h, F_z, F_h
+
+
+def corotational_node_forces(seg: Segments, zl: np.ndarray, vl: np.ndarray, jacobian: bool = True):
+    """The co-rotational segments' nonlinear internal forces on their six dofs beyond the linear
+    ones (``K q`` and the axial ``EA/L (u1 - u0 + beta (u1 - u0)')``), at their physical axial
+    force, for local displacements and velocities ``zl, vl`` (..., n_seg, 6): ``(g, P, Delta)``
+    and, with ``jacobian``, ``g``'s derivatives by ``zl`` and ``vl`` (..., n_seg, 6, 6), by central
+    differences (steps as :func:`corotational_linearization`). The reduced model's second-order
+    term (:class:`tmm_core.reduced_periodic.ReducedModel`): ``-`` the pseudo-loads with P0 = 0."""
+    shape = zl.shape[:-1]
+    flat = int(np.prod(shape))
+    tile = lambda x: np.broadcast_to(x, shape).reshape(flat)  # noqa: E731  per segment, for every stage
+    tiled = Segments(seg.start, seg.end, tile(seg.length), tile(seg.EA), tile(seg.beta), tile(seg.EI))
+    z2, v2 = zl.reshape(flat, 6), vl.reshape(flat, 6)
+
+    def forces(z, v):
+        loads, F, excess = _corotational_local(tiled, z, v, None, 0.0)
+        return -loads, F, excess
+
+    g, F, excess = forces(z2, v2)
+    P = tiled.EA / tiled.length * (z2[:, 3] - z2[:, 0] + tiled.beta * (v2[:, 3] - v2[:, 0])) + F
+    out = (g.reshape(*shape, 6), P.reshape(shape), excess.reshape(shape))
+    if not jacobian:
+        return out
+    step = _FD_STEP * np.stack([tiled.length, tiled.length, np.ones(flat)] * 2, axis=1)
+    g_z, g_v = np.empty((flat, 6, 6)), np.empty((flat, 6, 6))
+    for j in range(6):
+        e = np.zeros((flat, 6))
+        e[:, j] = step[:, j]
+        g_z[:, :, j] = (forces(z2 + e, v2)[0] - forces(z2 - e, v2)[0]) / (2 * step[:, j:j + 1])
+        g_v[:, :, j] = (forces(z2, v2 + e)[0] - forces(z2, v2 - e)[0]) / (2 * step[:, j:j + 1])
+    return (*out, g_z.reshape(*shape, 6, 6), g_v.reshape(*shape, 6, 6))
