@@ -113,9 +113,6 @@ class ReducedModel:
                              f"or the co-rotational strain (dynamic_terms {model.dynamic_terms!r})")
         self.model, self.basis = model, basis
         self.backend = model.backend if backend is None else choose_backend(backend)
-        if model.strain_measure == "corotational" and self.backend == "compiled":
-            raise InputError("the reduced model with co-rotational segments (a prototype) has no compiled revolution "
-                             "yet; pass backend='numpy'")
         if basis.axial == "link" and self.backend == "compiled":
             raise InputError("the reduced model with one axial coordinate per link (ReducedOptions(axial='link'), a "
                              "prototype) has no compiled revolution yet; pass backend='numpy'")
@@ -346,7 +343,8 @@ class ReducedModel:
         counts = np.zeros(2, dtype=np.int64)
         stages, segments, output_maps = self._kernel_data()
         options = (bool(nonlinear), bool(jacobian), bool(outputs), self.stage_acc is not None, self.chord,
-                   compiled_reduced_periodic.CHORD_START, compiled_reduced_periodic.CHORD_CONTRACTION)
+                   compiled_reduced_periodic.CHORD_START, compiled_reduced_periodic.CHORD_CONTRACTION,
+                   self.model.strain_measure == "corotational")
         newton = (compiled_reduced_periodic.STAGE_TOL, compiled_reduced_periodic.STAGE_ITERATIONS)
         failed = kernel_binding.reduced_revolution()(
             x0, guess, options, (self.h, RADAU_A, self.A2, RADAU_C), stages, segments, output_maps, newton,
@@ -367,9 +365,13 @@ class ReducedModel:
             seg = self.model.segments
             c = np.ascontiguousarray
             stages = (c(self.Mr), c(self.Cr), c(self.Kr), c(self.fr), c(self.T), c(self.Td))
+            K = self.model.seg_blocks
+            # The co-rotational segments' record: start and (L, EA, beta, 4EI/L, 2EI/L, 4EI/L).
+            sections = (seg.start.astype(np.int64), c(np.stack([seg.length, seg.EA, seg.beta, K[:, 2, 2], K[:, 2, 5],
+                                                               K[:, 5, 5]], axis=1), dtype=float))
             segments = (np.stack([seg.start + 1, seg.start + 2, seg.end + 1, seg.end + 2], axis=1).astype(np.int64),
                         np.stack([seg.start, seg.end], axis=1).astype(np.int64), c(self.G, dtype=float),
-                        c(self.k, dtype=float), c(self.beta, dtype=float))
+                        c(self.k, dtype=float), c(self.beta, dtype=float), sections)
             output_maps = (*self.output_maps(), *self.model.gauge_axial())
             self._kernel_args = (stages, segments, output_maps)
         return self._kernel_args

@@ -46,7 +46,7 @@ STEP = {integrators: ("history", "advance"), time_step: ("history_loads", "corot
 #: The linearized revolution's helpers (tmm_core.compiled.periodic).
 LINEARIZED = ("corotational_blocks", "corotational_response")
 #: The reduced revolution's helpers (tmm_core.compiled.reduced_periodic).
-REDUCED = ("second_order", "stage_states", "newton_matrix")
+REDUCED = ("second_order", "corotational_forces", "corotational_term", "gauge_excess", "stage_states", "newton_matrix")
 
 _ENTRY: dict = {}        # the one registry: a stage's (or a single kernel's) compiled entry points
 
@@ -242,14 +242,14 @@ def factored():
 
 
 def step_parts() -> None:
-    """Compile the step's shared parts (:data:`STEP`) and bind them into the march and the
-    linearized revolutions (plain numba options: the march's fast-math flags stay its own).
+    """Compile the step's shared parts (:data:`STEP`) and bind them into the march, the
+    linearized revolutions and the reduced revolution (plain numba options: the march's fast-math flags stay its own).
     Inlined where they are called: a call passing the model's record of arrays cost the march
     about 3 us a step (a third of it) against their arithmetic inlined."""
     if "step" not in _ENTRY:
         jit = numba_module().njit(cache=True, inline="always")
         for module, names in STEP.items():
-            _bind(jit, module, names, into=(march_kernel, periodic))
+            _bind(jit, module, names, into=(march_kernel, periodic, reduced_periodic))
         _ENTRY["step"] = True
 
 
@@ -295,6 +295,7 @@ def reduced_revolution():
         # converge, as in the numpy path) instead of raising ZeroDivisionError in the kernel.
         jit = numba.njit(cache=True, error_model="numpy")
         lu()
+        step_parts()                                 # the co-rotational segment
         _bind(jit, reduced_periodic, REDUCED)
         _ENTRY["reduced"] = jit(reduced_periodic.revolution)
     return _ENTRY["reduced"]

@@ -37,6 +37,7 @@ from __future__ import annotations
 import numpy as np
 
 from .dense import dot, lu_factor, lu_solve, lu_solve_many  # the compiled ones once bound (tmm_core.compiled.binding)
+from .time_step import FD_STEP, corotational_segment
 
 
 #: Refactorize while the chord iteration contracts slower than this (update ratio).
@@ -77,7 +78,7 @@ def second_order(Tp, Tdp, eta, v, jac, segments, work, terms):
     The loops over the r coordinates run on one-dimensional row views (they vectorize).
     Records: ``segments = (seg_w, seg_u, G, k, beta)``, ``work = (q, dq, g, w4, Lt, Re, Rv,
     Z)``, ``terms = (N, Ne, Nv)`` (written)."""
-    seg_w, seg_u, G, k, beta = segments
+    seg_w, seg_u, G, k, beta, _sections = segments
     q, dq, g, w4, Lt, Re, Rv, Z = work
     N, Ne, Nv = terms
     n, r = Tp.shape
@@ -153,6 +154,110 @@ def second_order(Tp, Tdp, eta, v, jac, segments, work, terms):
         np.dot(Lt.T, Rv, Nv)
 
 
+def corotational_forces(section, z, v, out):
+    """One co-rotational segment's internal forces beyond the linear ones, ``-`` its pseudo-loads
+    with P0 = 0 at its physical axial force ``P = EA/L (u1 - u0 + beta (u1 - u0)') + F``, into
+    ``out`` (6,); returns ``(P, L (e - a))``. ``section`` as
+    :func:`tmm_core.compiled.time_step.corotational_segment`;
+    :func:`tmm_core.second_order.corotational_node_forces` is the reference."""
+    L, EA, beta = section[0], section[1], section[2]
+    first = corotational_segment(section, z, v, 0.0, 0.0)
+    P = EA / L * ((z[3] - z[0]) + beta * (v[3] - v[0])) + first[6]
+    forces = corotational_segment(section, z, v, P, 0.0)
+    for a in range(6):
+        out[a] = -forces[a]
+    return P, forces[7]
+
+
+def corotational_term(Tp, Tdp, eta, v, jac, sections, work, terms):
+    """:func:`second_order` with co-rotational segments: ``N = T^T g`` (the segments' forces of
+    :func:`corotational_forces` at ``q = T eta``, ``q' = T eta' + T' eta``) and, with ``jac``,
+    ``Ne = sum_s T_s^T (g_q T_s + g_v T'_s)``, ``Nv = sum_s T_s^T g_v T_s`` with the segments'
+    derivatives by central differences (the numpy reference's steps). Records: ``sections =
+    (start, data)`` with ``data`` (n_seg, 6) each segment's ``(L, EA, beta, k00, k01, k11)``;
+    ``work = (q, dq, g, local (2, 6), plus (6,), minus (6,), gz (6, 6), gv (6, 6), M1 (6, r), M2
+    (6, r))``; ``terms = (N, Ne, Nv)`` (written)."""
+    start, data = sections
+    q, dq, g, local, plus, minus, gz, gv, M1, M2 = work
+    N, Ne, Nv = terms
+    r = Tp.shape[1]
+    np.dot(Tp, eta, q)
+    np.dot(Tp, v, dq)
+    dq += np.dot(Tdp, eta)
+    g[:] = 0.0
+    if jac:
+        Ne[:, :] = 0.0
+        Nv[:, :] = 0.0
+    for s in range(start.shape[0]):
+        i0 = start[s]
+        section = (data[s, 0], data[s, 1], data[s, 2], data[s, 3], data[s, 4], data[s, 5])
+        for a in range(6):
+            local[0, a] = q[i0 + a]
+            local[1, a] = dq[i0 + a]
+        corotational_forces(section, local[0], local[1], plus)
+        for a in range(6):
+            g[i0 + a] += plus[a]
+        if not jac:
+            continue
+        for col in range(6):
+            h = FD_STEP * (1.0 if col == 2 or col == 5 else data[s, 0])
+            for which in range(2):                 # displacement, then velocity
+                keep = local[which, col]
+                local[which, col] = keep + h
+                corotational_forces(section, local[0], local[1], plus)
+                local[which, col] = keep - h
+                corotational_forces(section, local[0], local[1], minus)
+                local[which, col] = keep
+                for a in range(6):
+                    if which == 0:
+                        gz[a, col] = (plus[a] - minus[a]) / (2 * h)
+                    else:
+                        gv[a, col] = (plus[a] - minus[a]) / (2 * h)
+        for a in range(6):
+            for j in range(r):
+                acc1 = 0.0
+                acc2 = 0.0
+                for b in range(6):
+                    acc1 += gz[a, b] * Tp[i0 + b, j] + gv[a, b] * Tdp[i0 + b, j]
+                    acc2 += gv[a, b] * Tp[i0 + b, j]
+                M1[a, j] = acc1
+                M2[a, j] = acc2
+        for j in range(r):
+            for m in range(r):
+                s1 = 0.0
+                s2 = 0.0
+                for a in range(6):
+                    s1 += Tp[i0 + a, j] * M1[a, m]
+                    s2 += Tp[i0 + a, j] * M2[a, m]
+                Ne[j, m] += s1
+                Nv[j, m] += s2
+    np.dot(Tp.T, g, N)
+
+
+def gauge_excess(Tp, Tdp, eta, v, sections, local, out6, gauge_axial, out):
+    """The gauges' axial strain from the co-rotational segments' ``L (e - a)`` at one stage point
+    (:func:`corotational_forces`), added into the stage's outputs ``out`` (axial columns ``2 + 2
+    g``) with the gauges' weights [1/m]. Record: ``gauge_axial = (gauge_seg, gauge_w)``."""
+    start, data = sections
+    gauge_seg, gauge_w = gauge_axial
+    r = Tp.shape[1]
+    for gi in range(gauge_seg.shape[0]):
+        for gc in range(2):
+            sg = gauge_seg[gi, gc]
+            i0 = start[sg]
+            for a in range(6):
+                za = 0.0
+                va = 0.0
+                for j in range(r):
+                    za += Tp[i0 + a, j] * eta[j]
+                    va += Tp[i0 + a, j] * v[j] + Tdp[i0 + a, j] * eta[j]
+                local[0, a] = za
+                local[1, a] = va
+            section = (data[sg, 0], data[sg, 1], data[sg, 2], data[sg, 3], data[sg, 4], data[sg, 5])
+            _, excess = corotational_forces(section, local[0], local[1], out6)
+            out[2 + 2 * gi] += excess * gauge_w[gi, gc]
+
+
 def newton_matrix(h, A, A2, Mr, Cr, Kr, Ne, Nv, P0, J):
     """The Newton matrix of the stage equations of the step whose stage points start at ``P0``:
     block ``(i, j)`` = ``h A_ij (C_i + Nv_i) + h^2 (A^2)_ij (K_i + Ne_i)`` (+ ``M_i`` if i = j)."""
@@ -201,10 +306,10 @@ def revolution(x0, guess, options, tableau, stages, segments, output_maps, newto
     T, Td)``; ``segments = (seg_w, seg_u, G, k, beta)`` (as :func:`second_order`);
     ``output_maps = (O0, Oe, Ov, Oa, gauge_seg, gauge_w)``; ``newton = (tol, iterations)``;
     ``kept = (LUs, pivs, stored)``; ``results = (x_end, mono, outs, accs, counts)`` (written)."""
-    nonlinear, want_jac, want_out, have_guess, chord, chord_start, chord_rate = options
+    nonlinear, want_jac, want_out, have_guess, chord, chord_start, chord_rate, corotational = options
     h, A, A2, c = tableau
     Mr, Cr, Kr, fr, T, Td = stages
-    seg_w, seg_u, G, k, beta = segments
+    seg_w, seg_u, G, k, beta, sections = segments
     O0, Oe, Ov, Oa, gauge_seg, gauge_w = output_maps
     tol, iterations = newton
     LUs, pivs, stored = kept
@@ -222,6 +327,9 @@ def revolution(x0, guess, options, tableau, stages, segments, output_maps, newto
     Lt, Re, Rv, Z = np.empty((2 * ns, r)), np.empty((2 * ns, r)), np.empty((2 * ns, r)), np.zeros((n, r))
     Rm, S, prod = np.empty((n3, 2 * r)), np.empty((2 * r, 2 * r)), np.empty((2 * r, 2 * r))
     work = (q, dq, g, w4, Lt, Re, Rv, Z)
+    local = np.empty((2, 6))
+    corotational_work = (q, dq, g, local, np.empty(6), np.empty(6), np.empty((6, 6)), np.empty((6, 6)),
+                         np.empty((6, r)), np.empty((6, r)))
     if want_jac:
         mono[:, :] = 0.0
         for i in range(2 * r):
@@ -254,7 +362,10 @@ def revolution(x0, guess, options, tableau, stages, segments, output_maps, newto
             stage_states(h, A, A2, c, eta, v, acc, es, vs)
             for i in range(3):
                 p = P0 + i
-                if nonlinear:
+                if nonlinear and corotational:
+                    corotational_term(T[p], Td[p], es[i], vs[i], refresh, sections, corotational_work,
+                                      (Nn[i], Ne[i], Nv[i]))
+                elif nonlinear:
                     second_order(T[p], Td[p], es[i], vs[i], refresh, segments, work, (Nn[i], Ne[i], Nv[i]))
                 for a in range(r):
                     s = dot(Mr[p, a], acc[i], 0, r) + dot(Cr[p, a], vs[i], 0, r) + dot(Kr[p, a], es[i], 0, r)
@@ -330,7 +441,10 @@ def revolution(x0, guess, options, tableau, stages, segments, output_maps, newto
                     for j in range(r):
                         s += Oe[p, o, j] * es[i, j] + Ov[p, o, j] * vs[i, j] + Oa[p, o, j] * acc[i, j]
                     outs[p, o] = s
-                if nonlinear:
+                if nonlinear and corotational:
+                    gauge_excess(T[p], Td[p], es[i], vs[i], sections, local, corotational_work[4],
+                                 (gauge_seg, gauge_w), outs[p])
+                elif nonlinear:
                     for gi in range(gauge_seg.shape[0]):
                         for gc in range(2):
                             sg = gauge_seg[gi, gc]
