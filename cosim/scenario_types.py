@@ -209,12 +209,14 @@ class Scenario(Variants):
         """The time [s] of one crank revolution at the drive speed."""
         return self.drive.period_s
 
-    def time_domain(self, mechanism=None, backend: str | None = None):
+    def time_domain(self, mechanism=None, backend: str | None = None, dynamic_terms: tuple | None = None):
         """The transfer-matrix time domain (:class:`tmm_core.TimeDomain`) of this scenario with its
         ``solver.tmm`` settings, gravity and gauges; ``mechanism`` replaces the scenario's (e.g.
-        the same four-bar with applied joint moments); ``backend`` as TimeDomain's (None: its
-        default)."""
+        the same four-bar with applied joint moments); ``backend`` and ``dynamic_terms`` as
+        TimeDomain's (None: its default; e.g. ``('shortening', 'axial_force')`` for the
+        second-order segments instead of the co-rotational ones)."""
         s = self.tmm
+        terms = {} if dynamic_terms is None else {"dynamic_terms": tuple(dynamic_terms)}
         return TimeDomain(self.mechanism if mechanism is None else mechanism, integrator=s.integrator,
                           coupling=s.coupling, beam_column=s.beam_column, gravity=self.gravity, gauges=self.gauges,
-                          axial_force=s.axial_force, backend=backend)
+                          axial_force=s.axial_force, backend=backend, **terms)

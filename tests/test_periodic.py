@@ -7,6 +7,7 @@ import pytest
 from cosim.overrides import prescribed_speed
 from cosim.scenario import load
 from tmm_core import CrankMotion, TimeDomain
+from tmm_core.discretization import DYNAMIC_TERMS as SECOND_ORDER
 from tmm_core.errors import ConvergenceError
 from tmm_core.periodic import ORBIT_KINDS, mathieu_multipliers, orbit_stability, periodic_steady_state
 
@@ -63,7 +64,7 @@ def _rig(rpm, integrator=None):
     s = load("crank_rocker_373rpm")
     t = s.tmm
     td = TimeDomain(s.mechanism, integrator=integrator or t.integrator, coupling=t.coupling, beam_column=t.beam_column,
-                    gravity=s.gravity, gauges=s.gauges, axial_force=t.axial_force)
+                    gravity=s.gravity, gauges=s.gauges, axial_force=t.axial_force, dynamic_terms=SECOND_ORDER)
     w = rpm * math.pi / 30
     crank = CrankMotion.constant_speed(w, step_s=t.step_rad / w, revolutions=1.0, start_angle=s.drive.start_angle_rad)
     N = crank.steps_per_revolution()
@@ -138,13 +139,15 @@ def test_compiled_monodromy_matches_numpy_near_buckling():
 
 
 def test_compiled_periodic_solution_matches_numpy():
-    """The whole periodic solve at 373 rpm (Newton shooting, two monodromies): with the compiled
-    backend and with the numpy one (as without numba) the responses agree to 1e-10 of their
-    range and the Floquet spectral radius to 1e-10."""
+    """The whole periodic solve at 373 rpm (Newton shooting, two monodromies) of the second-order
+    segments, whose derivatives are analytic: with the compiled backend and with the numpy one (as
+    without numba) the responses agree to 1e-10 of their range and the Floquet spectral radius to
+    1e-10. (The co-rotational segments' derivatives are central differences, equal to their
+    round-off: tests/test_corotational.py.)"""
     s = load("crank_rocker_373rpm")
 
     def solve(backend):
-        td = s.time_domain(backend=backend)
+        td = s.time_domain(backend=backend, dynamic_terms=SECOND_ORDER)
         return periodic_steady_state(td, s.drive.speed_rad_s, step_s=s.engine_step_s("tmm"),
                                      start_angle=s.drive.start_angle_rad)
     fast, ref = solve("compiled"), solve("numpy")
@@ -175,16 +178,21 @@ def test_a_complex_pair_outside_the_unit_circle_is_a_torus():
     assert s["kind"] == "torus" and s["mu_max"] == pytest.approx(1.2) and set(ORBIT_KINDS) >= {s["kind"]}
 
 
+@pytest.mark.parametrize("terms", [None, SECOND_ORDER], ids=["corotational", "second_order"])
 @pytest.mark.parametrize("rpm", [415.0, 445.0])
-def test_a_diverging_newton_revolution_is_reported_as_the_steps_failure(rpm):
+def test_a_diverging_newton_revolution_is_reported_as_the_steps_failure(rpm, terms):
     """FE rig past its fold, solved from the linear start: Newton's revolution diverges. Its
     report is the step's (it did not converge, with the axial forces it reached), not the
     structure's refusal of non-finite node loads nor a segment "overflowing cosh; split the link
-    into more segments" (a refactorization at the diverging forces), which read as bad input."""
+    into more segments" (a refactorization at the diverging forces), which read as bad input,
+    nor a division by zero in a co-rotational segment whose chord a diverging iterate folded
+    back (seen at 445 rpm)."""
     sc = load("crank_rocker_373rpm").with_overrides(prescribed_speed(rpm))
     with pytest.raises(ConvergenceError) as failed:
-        periodic_steady_state(sc.time_domain(), sc.drive.speed_rad_s, step_s=sc.engine_step_s("tmm"),
+        periodic_steady_state(sc.time_domain(dynamic_terms=terms), sc.drive.speed_rad_s, step_s=sc.engine_step_s("tmm"),
                               start_angle=sc.drive.start_angle_rad)
     message = str(failed.value)
     assert "must be finite" not in message and "split the link" not in message, message
-    assert "did not converge" in message, message
+    # The step's own reports: its iteration did not converge, or its dynamic system lost its
+    # positive definiteness (the links buckle even with their inertia).
+    assert "did not converge" in message or "not positive definite" in message, message

@@ -11,6 +11,7 @@ import pytest
 from cosim.scenario import ScenarioError, load
 from cosim.units import FOOT, INCH, PSI, SLUG
 from tmm_core import Joint, Material, Member, Section, Structure, TimeDomain
+from tmm_core.discretization import DYNAMIC_TERMS as SECOND_ORDER
 from tmm_core.frequencies import frequency_model, natural_frequencies
 from tmm_core.periodic import periodic_steady_state
 from tmm_core.reduced import ReducedOptions, build_basis, reduced_frequencies
@@ -155,11 +156,12 @@ def _rel(a, b):
 
 def _small_rig(beam_column=True, steps=120):
     """FE rig at 373 rpm (the stronger second-order effect of the two), 4 segments per link, two
-    modes on a coarse basis grid: the same equations as the default model, smaller and fewer steps
-    so that the numpy reference takes about a second."""
+    modes on a coarse basis grid: the same equations as the default model but with second-order
+    segments (analytic derivatives: the co-rotational ones are tests/test_corotational.py's),
+    smaller and fewer steps so that the numpy reference takes about a second."""
     from tmm_core.ked import CrankMotion
     sc = load("crank_rocker_373rpm").with_overrides({"solver.tmm.segments": 4})
-    td = _time_domain(sc, beam_column=beam_column)
+    td = _time_domain(sc, beam_column=beam_column, dynamic_terms=SECOND_ORDER)
     options = ReducedOptions(modes=2, positions=24, mode_positions=6, steps=steps)
     basis = build_basis(td, 0.0, options)
     crank = CrankMotion.constant_speed(sc.drive.speed_rad_s, step_deg=360.0 / steps, revolutions=1.0)
@@ -381,13 +383,14 @@ def test_a_gauge_at_a_joint_reads_the_full_models_strain():
 
 
 def test_where_newton_leaves_the_linear_start_revolutions_find_the_orbit():
-    """The FE rig at 1 % damping (its shipped light-damping variant): Newton from the linear
-    model's periodic state left the stage equations' range in its first revolution, and the
-    reduced model had no answer. Anderson-accelerated revolutions from the same start find the
-    orbit the full model finds at the scenario's 0.125 deg (peaks within 0.4 %, the largest
-    multiplier within 1e-3)."""
+    """The FE rig at 1 % damping (its shipped light-damping variant) with second-order segments:
+    Newton from the linear model's periodic state left the stage equations' range in its first
+    revolution, and the reduced model had no answer. Anderson-accelerated revolutions from the
+    same start find the orbit the full model finds at the scenario's 0.125 deg (peaks within 0.4
+    %, the largest multiplier within 1e-3). (With the co-rotational segments Newton from the
+    linear start converges there.)"""
     sc = load("crank_rocker_373rpm_damping_1pct")
-    td = sc.time_domain()
+    td = sc.time_domain(dynamic_terms=SECOND_ORDER)
     red = periodic_steady_state_reduced(td, sc.drive.speed_rad_s, start_angle=sc.drive.start_angle_rad,
                                         options=ReducedOptions(modes=sc.tmm.modes))
     full = periodic_steady_state(td, sc.drive.speed_rad_s, step_s=sc.engine_step_s("tmm"),

@@ -40,12 +40,13 @@ from .second_order import Segments
 
 AXIAL_FORCE_MODELS = ("dynamic", "quasi_static", "none")
 DYNAMIC_TERMS = ("shortening", "axial_force")
-#: Optional terms of the 'dynamic' step beyond DYNAMIC_TERMS (not in the default), prototypes of
-#: issue 34, at most one of them: 'exact_strain', the segments' geometrically exact axial strain
-#: instead of the second-order one (numpy step only: a model asking for it runs the numpy
-#: backend); 'corotational', segments exact in their rotation (the cubic beam in a frame turning
-#: with each segment's chord; numpy step and compiled march, not yet the periodic solver or the
-#: reduced model).
+#: Optional terms of the 'dynamic' step beyond DYNAMIC_TERMS (not in the default), at most one of
+#: them, each replacing the second-order strain of the segments: 'corotational', segments exact in
+#: their rotation (the cubic beam in a frame turning with each segment's chord; every realisation
+#: of the step has it; not the default yet: on Bahgat-Willmert's thick bars its answer moves with
+#: the mesh, docs/light_damping.md); 'exact_strain', the segments' geometrically exact axial strain
+#: alone (a prototype that made the agreement worse; numpy step only: a model asking for it runs
+#: the numpy backend).
 OPTIONAL_TERMS = ("exact_strain", "corotational")
 #: The optional terms the compiled march carries.
 COMPILED_TERMS = ("corotational",)

@@ -1,4 +1,4 @@
-"""Second-order (moderate-rotation) beam terms of the time-domain step, as pseudo-loads.
+"""The nonlinear beam terms of the time-domain step, as pseudo-loads.
 
 The linear transfer-matrix step treats every segment as a beam-column whose axial force P0 is
 fixed when the configuration is factorized (the quasi-static, rigid-body estimate). Near
@@ -25,9 +25,18 @@ lose digits).
 
 This is the von Karman beam in the moving frame of each link: strain u' + w'^2/2, bending
 equilibrium with the actual axial force. Its error against a geometrically exact beam is of
-order (slope)^2 of the elastic deflection relative to the link.
+order (slope)^2 of the elastic deflection relative to the link. On the FE crank-rocker that
+error, amplified near resonances and at light damping, is what parted the model from exudyn
+once the rocker's segments turned more than about 4 deg (docs/light_damping.md). The
+co-rotational strain measure (:func:`corotational_pseudo_loads`) removes it: each segment keeps
+the cubic beam in a frame that turns with its chord, exactly; the pseudo-loads are then the
+difference between its exact forces and the solver's linear ones, and their derivatives (the
+periodic solver's linearization, the reduced model's Jacobian) come from central differences of
+those forces. It is not the default yet: on Bahgat-Willmert's thick bars its answer moves with
+the mesh, where the second-order one converges.
 
-Owns: the second-order beam terms as pseudo-loads. Boundaries: no step driver.
+Owns: the nonlinear beam terms as pseudo-loads, in each strain measure, and their derivatives.
+Boundaries: no step driver.
 """
 from __future__ import annotations
 
@@ -220,7 +229,7 @@ def _bending_forces(EI, L, P, t0, t1):
 
 
 def corotational_pseudo_loads(seg: Segments, z: np.ndarray, v: np.ndarray, P: np.ndarray, P0: np.ndarray):
-    """:func:`pseudo_loads` of a co-rotational segment (prototype of issue 34).
+    """:func:`pseudo_loads` of a co-rotational segment (``dynamic_terms`` with 'corotational').
 
     Each segment carries the cubic beam of the second-order model in a frame that turns with its
     chord, exactly: chord length ``l`` and angle ``b`` from the end displacements (``l cos b = L +
@@ -260,8 +269,11 @@ def _corotational_local(seg: Segments, zl: np.ndarray, vl: np.ndarray, P, P0):
     bd = (c * dwd - s * dud) / l
     t0, t1 = q0 - b, q1 - b
     t0d, t1d = vl[:, 2] - bd, vl[:, 5] - bd
-    # e L - (u1 - u0) = (l - L - du) + Delta_c; l - L - du = dw^2 / (l + L + du) without cancellation.
-    excess = dw * dw / (l + L + du) + L / 60.0 * (4 * t0 * t0 - 2 * t0 * t1 + 4 * t1 * t1)
+    # e L - (u1 - u0) = (l - L - du) + Delta_c; l - L - du = dw^2 / (l + L + du) without cancellation
+    # where the chord points forward, l - (L + du) itself where a diverging iterate folded it back.
+    forward = L + du > 0
+    chord = np.where(forward, dw * dw / np.where(forward, l + L + du, 1.0), l - (L + du))
+    excess = chord + L / 60.0 * (4 * t0 * t0 - 2 * t0 * t1 + 4 * t1 * t1)
     excess_rate = (c - 1.0) * dud + s * dwd + L / 30.0 * ((4 * t0 - t1) * t0d + (4 * t1 - t0) * t1d)
     F = EA / L * (excess + beta * excess_rate)
     if P is None:

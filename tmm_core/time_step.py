@@ -116,7 +116,7 @@ def solve_step(model: Discretization, cfg, k, loads, state, dt, axial_guess=None
     crank = math.degrees(float(cfg.crank.angle[k]))
     reached = "" if guess is None else f", axial forces up to {float(np.max(np.abs(guess))):.3g} N"
     raise ConvergenceError(
-        f"the second-order (axial_force 'dynamic') step did not converge at crank angle {crank:.6g} deg "
+        f"the nonlinear (axial_force 'dynamic') step did not converge at crank angle {crank:.6g} deg "
         f"(after {attempt} refactorizations; last relative changes: displacement {diag[1]:.3g}, axial "
         f"force {diag[2]:.3g}{reached}); the links are near a dynamic instability or the step is too large "
         "(reduce solver.tmm.step)")

@@ -62,10 +62,13 @@ class TimeDomain:
         in the field matrices; linear per step and cheaper; good far from buckling.
     axial_tolerance, axial_iterations : relative tolerance and iteration limit of the 'dynamic'
         step iteration.
-    dynamic_terms : the second-order terms of the 'dynamic' step: 'shortening' (axial shortening
+    dynamic_terms : the nonlinear terms of the 'dynamic' step: 'shortening' (axial shortening
         from bending) and 'axial_force' (the step's own axial force in the bending equations);
-        with both, 'exact_strain' replaces their second-order strain by the segments' geometrically
-        exact strain (prototype of issue 34: numpy step only, so it runs the 'numpy' backend).
+        both alone (the default): the second-order (von Karman) segments; with both,
+        'corotational' makes the segments exact in their rotation (every realisation of the
+        step; not yet the default, :data:`tmm_core.discretization.OPTIONAL_TERMS`), and
+        'exact_strain' replaces their second-order strain by the geometrically exact axial
+        strain alone (a prototype: numpy step only, so it runs the 'numpy' backend).
     backend : 'compiled' (the numba kernels of :mod:`tmm_core.compiled`), 'numpy' (the reference)
         or None (compiled where numba is installed): chosen once here, read by every stage
         (:func:`tmm_core.backend.choose_backend`).

@@ -93,12 +93,19 @@ def corotational_segment(section, z, v, P, P0):
     dud, dwd = v[3] - v[0], v[4] - v[1]
     x = L + du
     l = np.sqrt(x * x + dw * dw)
+    if l == 0.0 or not np.isfinite(l):
+        # A diverging iterate (the chord collapsed or overflowed): non-finite forces, which the
+        # march reports as the step's divergence, rather than a division by zero in the kernel.
+        nan = np.nan
+        return nan, nan, nan, nan, nan, nan, nan, nan
     c, sn = x / l, dw / l
     b = np.arctan2(dw, x)
     bd = (c * dwd - sn * dud) / l
     t0, t1 = q0 - b, q1 - b
     t0d, t1d = v[2] - bd, v[5] - bd
-    excess = dw * dw / (l + x) + L / 60.0 * (4.0 * t0 * t0 - 2.0 * t0 * t1 + 4.0 * t1 * t1)
+    # l - x without cancellation where the chord points forward (x > 0); folded back, l - x itself.
+    chord = dw * dw / (l + x) if x > 0.0 else l - x
+    excess = chord + L / 60.0 * (4.0 * t0 * t0 - 2.0 * t0 * t1 + 4.0 * t1 * t1)
     rate = (c - 1.0) * dud + sn * dwd + L / 30.0 * ((4.0 * t0 - t1) * t0d + (4.0 * t1 - t0) * t1d)
     F = EA / L * (excess + beta * rate)
     g = P * L / 30.0
