@@ -44,9 +44,10 @@ MARCH = ("shape_products", "corotational_loads", "affine", "anderson_coefficient
 #: (tmm_core.compiled.time_step).
 STEP = {integrators: ("history", "advance"), time_step: ("history_loads", "corotational_segment")}
 #: The linearized revolution's helpers (tmm_core.compiled.periodic).
-LINEARIZED = ("corotational_blocks", "corotational_response")
+LINEARIZED = ("jacobian_row", "close_row", "solved_response", "corotational_blocks", "corotational_response")
 #: The reduced revolution's helpers (tmm_core.compiled.reduced_periodic).
-REDUCED = ("second_order", "corotational_forces", "corotational_term", "gauge_excess", "stage_states", "newton_matrix")
+REDUCED = ("node_state", "second_order", "corotational_forces", "corotational_term", "gauge_excess", "stage_states",
+           "newton_matrix")
 
 _ENTRY: dict = {}        # the one registry: a stage's (or a single kernel's) compiled entry points
 

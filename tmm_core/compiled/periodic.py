@@ -144,16 +144,9 @@ def push(S, coef, idx, forced, maps, model, flags, c_v, trajectory):
             # (segment blocks), f_P[dof_s, s] = -G d_s; rows of Z and A alike. The axial-force
             # unknowns and equations are scaled by EA/L (to displacements): unscaled, J mixes
             # metres and newtons and its condition number is ~1e13 (FE rig), scaled ~1e5.
+            J[:, :] = 0.0
             for i in range(nx):
-                for q in range(nx):
-                    J[i, q] = 0.0
-            for i in range(nx):
-                if i < n:
-                    row = Zx[k, i]
-                    rs = 1.0
-                else:
-                    row = Ax[k, i - n]
-                    rs = 1.0 / EAL[i - n]
+                row, rs = jacobian_row(i, k, n, (Zx, Ax), EAL)
                 for s in range(ns):
                     t = row[seg_start[s]] - row[seg_end[s]]
                     dP = Ps[j, s] - P0[k, s]
@@ -166,21 +159,11 @@ def push(S, coef, idx, forced, maps, model, flags, c_v, trajectory):
                         for p in range(4):
                             g += row[dof[s, p]] * G[s, p, q]
                         J[i, dof[s, q]] -= rs * (t * Fz[s, q] - dP * g)
-                J[i, i] += 1.0
-                for q in range(n):
-                    B[i, q] = rs * row[q]
-                if i >= n:
-                    B[i, i] = rs
+                close_row(i, n, row, rs, (J, B))
             for s in range(ns):
                 for q in range(4):
                     J[n + s, dof[s, q]] -= Fz[s, q] / EAL[s]
-            W = np.linalg.solve(J, B)
-            for i in range(n):
-                for q in range(n):
-                    W1[i, q] = W[i, q]
-                for s in range(ns):
-                    W2[i, s] = W[i, n + s]
-            z = np.dot(W1, L) + np.dot(W2, D)
+            z = solved_response((J, B, W1, W2), L, D)
         else:
             z = np.dot(Zx[k], L)
             for i in range(n):
@@ -193,6 +176,42 @@ def push(S, coef, idx, forced, maps, model, flags, c_v, trajectory):
             for r in range(M):
                 zf[i * M + r] = z[i, r]
         advance(Gc, ez, S, zf, Snew)
+
+
+def jacobian_row(i, k, n, maps, EAL):
+    """Row ``i`` of the step's Jacobian in (displacements, axial forces scaled by EA/L): the
+    displacement map's row ``Zx[k, i]`` (i < n) or the axial-force map's ``Ax[k, i - n]`` and its
+    scale ``1`` or ``L/EA``. Record: ``maps = (Zx, Ax)``."""
+    Zx, Ax = maps
+    if i < n:
+        return Zx[k, i], 1.0
+    return Ax[k, i - n], 1.0 / EAL[i - n]
+
+
+def close_row(i, n, row, rs, system):
+    """Row ``i`` of ``J`` gets its identity and row ``i`` of ``B = [[Z, 0], [A, I]]`` its map row,
+    both scaled by ``rs``. Record: ``system = (J, B)``."""
+    J, B = system
+    J[i, i] += 1.0
+    for q in range(n):
+        B[i, q] = rs * row[q]
+    if i >= n:
+        B[i, i] = rs
+
+
+def solved_response(system, L, D):
+    """The step's displacements (n_dof, M): ``W = J^-1 B`` split into its load block ``W1`` and its
+    axial-force block ``W2``, applied to the loads ``L`` and the axial-force parts ``D``. Record:
+    ``system = (J, B, W1, W2)`` (``W1`` keeps a zero last column, as ``L`` a zero last row)."""
+    J, B, W1, W2 = system
+    n, ns = W2.shape
+    W = np.linalg.solve(J, B)
+    for i in range(n):
+        for q in range(n):
+            W1[i, q] = W[i, q]
+        for s in range(ns):
+            W2[i, s] = W[i, n + s]
+    return np.dot(W1, L) + np.dot(W2, D)
 
 
 def corotational_blocks(j, k, segments, trajectory, P0, blocks, local):
@@ -262,16 +281,9 @@ def corotational_response(j, k, sizes, segments, maps, blocks, h_v, work):
                 for q in range(6):
                     acc += f_v[s, p, q] * h_v[(i0 + q) * M + r]
                 L[i0 + p, r] += acc
+    J[:, :] = 0.0
     for i in range(nx):
-        for q in range(nx):
-            J[i, q] = 0.0
-    for i in range(nx):
-        if i < n:
-            row = Zx[k, i]
-            rs = 1.0
-        else:
-            row = Ax[k, i - n]
-            rs = 1.0 / EAL[i - n]
+        row, rs = jacobian_row(i, k, n, (Zx, Ax), EAL)
         for s in range(ns):
             i0 = seg_start[s]
             fp = 0.0
@@ -283,21 +295,11 @@ def corotational_response(j, k, sizes, segments, maps, blocks, h_v, work):
                 for p in range(6):
                     g += row[i0 + p] * (f_d[s, p, q] + c_v * f_v[s, p, q])
                 J[i, i0 + q] -= rs * g
-        J[i, i] += 1.0
-        for q in range(n):
-            B[i, q] = rs * row[q]
-        if i >= n:
-            B[i, i] = rs
+        close_row(i, n, row, rs, (J, B))
     for s in range(ns):
         for q in range(6):
             J[n + s, seg_start[s] + q] -= (F_d[s, q] + c_v * F_v[s, q]) / EAL[s]
-    W = np.linalg.solve(J, B)
-    for i in range(n):
-        for q in range(n):
-            W1[i, q] = W[i, q]
-        for s in range(ns):
-            W2[i, s] = W[i, n + s]
-    return np.dot(W1, L) + np.dot(W2, D)
+    return solved_response((J, B, W1, W2), L, D)
 
 
 def velocities(S, coef, c_v, zs, vs):

@@ -68,6 +68,14 @@ def stage_states(h, A, A2, c, eta, v, acc, es, vs):
             es[i, j] = eta[j] + hc * v[j] + (a2[0] * acc[0, j] + a2[1] * acc[1, j] + a2[2] * acc[2, j])
 
 
+def node_state(Tp, Tdp, eta, v, q, dq):
+    """The node displacements ``q = T eta`` and rates ``q' = T eta' + T' eta`` at one stage point
+    (BLAS matrix-vector products), into ``q`` and ``dq``."""
+    np.dot(Tp, eta, q)
+    np.dot(Tp, v, dq)
+    dq += np.dot(Tdp, eta)
+
+
 def second_order(Tp, Tdp, eta, v, jac, segments, work, terms):
     """Second-order term at one stage point (basis ``Tp``, ``Tdp`` = T' theta', (n, r)) for the
     coordinates ``eta``, ``v``: ``N`` (r,) and, with ``jac``, ``Ne = dN/deta``, ``Nv = dN/deta'``
@@ -83,10 +91,7 @@ def second_order(Tp, Tdp, eta, v, jac, segments, work, terms):
     N, Ne, Nv = terms
     n, r = Tp.shape
     ns = seg_w.shape[0]
-    # Node displacements and rates (BLAS matrix-vector products).
-    np.dot(Tp, eta, q)
-    np.dot(Tp, v, dq)
-    dq += np.dot(Tdp, eta)
+    node_state(Tp, Tdp, eta, v, q, dq)
     g[:] = 0.0
     if jac:
         Z[:, :] = 0.0
@@ -181,9 +186,7 @@ def corotational_term(Tp, Tdp, eta, v, jac, sections, work, terms):
     q, dq, g, local, plus, minus, gz, gv, M1, M2 = work
     N, Ne, Nv = terms
     r = Tp.shape[1]
-    np.dot(Tp, eta, q)
-    np.dot(Tp, v, dq)
-    dq += np.dot(Tdp, eta)
+    node_state(Tp, Tdp, eta, v, q, dq)
     g[:] = 0.0
     if jac:
         Ne[:, :] = 0.0
