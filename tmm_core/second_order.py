@@ -241,7 +241,7 @@ def corotational_pseudo_loads(seg: Segments, z: np.ndarray, v: np.ndarray, P: np
     and the solver's (``EA (a + beta a')`` axially, ``K d + P0 G d`` in bending; ``a = (u1 -
     u0)/L``). Returns ``(f, F, Delta)`` as :func:`pseudo_loads`, with ``Delta = L (e - a)``."""
     idx = segment_dofs(seg)
-    loads, F, excess = _corotational_local(seg, z[idx], v[idx], P, P0)
+    loads, F, excess, _ = _corotational_local(seg, z[idx], v[idx], P, P0)
     f = np.zeros(np.shape(z))
     np.add.at(f, idx, loads)
     return f, F, excess
@@ -254,10 +254,11 @@ def segment_dofs(seg: Segments) -> np.ndarray:
 
 def _corotational_local(seg: Segments, zl: np.ndarray, vl: np.ndarray, P, P0):
     """The co-rotational segments' pseudo-loads on their own ``(u0, w0, theta0, u1, w1, theta1)``
-    (n_seg, 6), their shortening force ``F`` [N] and ``Delta = L (e - a)`` [m], from their local
-    displacements ``zl`` and velocities ``vl`` (n_seg, 6) (:func:`corotational_pseudo_loads`).
-    ``P`` None: the physical axial force of the same state, ``EA/L (u1 - u0 + beta (u1 - u0)')
-    + F`` (the reduced model's, which has no axial-force unknown)."""
+    (n_seg, 6), their shortening force ``F`` [N], ``Delta = L (e - a)`` [m] and the axial force
+    they carry [N], from their local displacements ``zl`` and velocities ``vl`` (n_seg, 6)
+    (:func:`corotational_pseudo_loads`). ``P`` None: the physical axial force of the same state,
+    ``EA/L (u1 - u0 + beta (u1 - u0)') + F`` (the reduced model's, which has no axial-force
+    unknown)."""
     if seg.EI is None:
         raise ValueError("the co-rotational segment needs the segments' EI")
     L, EA, EI, beta = seg.length, seg.EA, seg.EI, seg.beta
@@ -292,7 +293,7 @@ def _corotational_local(seg: Segments, zl: np.ndarray, vl: np.ndarray, P, P0):
     axial = g_u - (P - F)
     shear = g_w - (-(k0 + k1) / L - P0 * g0)
     loads = np.stack([axial, shear, -(m0 - k0 - P0 * g1), -axial, -shear, -(m1 - k1 - P0 * g3)], axis=1)
-    return loads, F, excess
+    return loads, F, excess, P
 
 
 #: Central-difference steps of the co-rotational linearization, per local degree of freedom, as a
@@ -304,6 +305,13 @@ def _corotational_local(seg: Segments, zl: np.ndarray, vl: np.ndarray, P, P0):
 _FD_STEP = 1e-6
 
 
+def _difference_steps(length: np.ndarray) -> np.ndarray:
+    """The central-difference steps (:data:`_FD_STEP`) on each segment's ``(u0, w0, theta0, u1,
+    w1, theta1)`` for segment lengths ``length`` [m], ``(n_seg, 6)``: [m] on displacements,
+    [rad] on rotations (velocities: the same numbers per second)."""
+    return _FD_STEP * np.stack([length, length, np.ones_like(length)] * 2, axis=1)
+
+
 def corotational_linearization(seg: Segments, n: int, c_v: float, z, v, P, P0):
     """:func:`linearization` of the co-rotational pseudo-loads (the same five derivatives, dense),
     by central differences of each segment's local forces in its six degrees of freedom, its
@@ -312,14 +320,14 @@ def corotational_linearization(seg: Segments, n: int, c_v: float, z, v, P, P0):
     idx = segment_dofs(seg)
     zl, vl = z[idx], v[idx]
     ns = len(seg.length)
-    step = _FD_STEP * np.stack([seg.length, seg.length, np.ones(ns)] * 2, axis=1)    # (n_seg, 6)
+    step = _difference_steps(seg.length)
     f_d, f_v, F_d, F_v = (np.zeros((ns, 6, 6)), np.zeros((ns, 6, 6)), np.zeros((ns, 6)), np.zeros((ns, 6)))
     for j in range(6):
         e = np.zeros((ns, 6))
         e[:, j] = step[:, j]
         for arrays, (za, va, zb, vb) in (((f_d, F_d), (zl + e, vl, zl - e, vl)), ((f_v, F_v), (zl, vl + e, zl, vl - e))):
-            fa, Fa, _ = _corotational_local(seg, za, va, P, P0)
-            fb, Fb, _ = _corotational_local(seg, zb, vb, P, P0)
+            fa, Fa, _, _ = _corotational_local(seg, za, va, P, P0)
+            fb, Fb, _, _ = _corotational_local(seg, zb, vb, P, P0)
             arrays[0][:, :, j] = (fa - fb) / (2 * step[:, j:j + 1])
             arrays[1][:, j] = (Fa - Fb) / (2 * step[:, j])
     dP = 1e-6 * np.maximum(np.abs(P), seg.EA * 1e-9)
@@ -353,15 +361,14 @@ def corotational_node_forces(seg: Segments, zl: np.ndarray, vl: np.ndarray, jaco
     z2, v2 = zl.reshape(flat, 6), vl.reshape(flat, 6)
 
     def forces(z, v):
-        loads, F, excess = _corotational_local(tiled, z, v, None, 0.0)
-        return -loads, F, excess
+        loads, _, excess, P = _corotational_local(tiled, z, v, None, 0.0)
+        return -loads, P, excess
 
-    g, F, excess = forces(z2, v2)
-    P = tiled.EA / tiled.length * (z2[:, 3] - z2[:, 0] + tiled.beta * (v2[:, 3] - v2[:, 0])) + F
+    g, P, excess = forces(z2, v2)
     out = (g.reshape(*shape, 6), P.reshape(shape), excess.reshape(shape))
     if not jacobian:
         return out
-    step = _FD_STEP * np.stack([tiled.length, tiled.length, np.ones(flat)] * 2, axis=1)
+    step = _difference_steps(tiled.length)
     g_z, g_v = np.empty((flat, 6, 6)), np.empty((flat, 6, 6))
     for j in range(6):
         e = np.zeros((flat, 6))

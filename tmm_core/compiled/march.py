@@ -238,23 +238,23 @@ def march(integrator, idx, maps, on_factors, model, settings, state, recorded):
                                                             P0[k, s], f, local)
                 else:
                     shape_products(seg_start, seg_end, seg_L, zt, delta, G)
-                for s in range(ns):
-                    if corotational:
-                        break
-                    i0, i1 = seg_start[s], seg_end[s]
-                    if shortening:
-                        rate = ((c_v * zt[i0 + 1] + h_v[i0 + 1]) * G[s, 0] + (c_v * zt[i0 + 2] + h_v[i0 + 2]) * G[s, 1]
-                                + (c_v * zt[i1 + 1] + h_v[i1 + 1]) * G[s, 2] + (c_v * zt[i1 + 2] + h_v[i1 + 2]) * G[s, 3])
-                        F[s] = EAL[s] * (delta[s] + seg_beta[s] * rate)
-                    else:
-                        F[s] = 0.0
-                    f[i0] += F[s]
-                    f[i1] -= F[s]
-                    dP = (x[n + s] / to_len[s] - P0[k, s]) if own_force else 0.0
-                    f[i0 + 1] -= dP * G[s, 0]
-                    f[i0 + 2] -= dP * G[s, 1]
-                    f[i1 + 1] -= dP * G[s, 2]
-                    f[i1 + 2] -= dP * G[s, 3]
+                    for s in range(ns):
+                        i0, i1 = seg_start[s], seg_end[s]
+                        if shortening:
+                            rate = ((c_v * zt[i0 + 1] + h_v[i0 + 1]) * G[s, 0]
+                                    + (c_v * zt[i0 + 2] + h_v[i0 + 2]) * G[s, 1]
+                                    + (c_v * zt[i1 + 1] + h_v[i1 + 1]) * G[s, 2]
+                                    + (c_v * zt[i1 + 2] + h_v[i1 + 2]) * G[s, 3])
+                            F[s] = EAL[s] * (delta[s] + seg_beta[s] * rate)
+                        else:
+                            F[s] = 0.0
+                        f[i0] += F[s]
+                        f[i1] -= F[s]
+                        dP = (x[n + s] / to_len[s] - P0[k, s]) if own_force else 0.0
+                        f[i0 + 1] -= dP * G[s, 0]
+                        f[i0 + 2] -= dP * G[s, 1]
+                        f[i1 + 1] -= dP * G[s, 2]
+                        f[i1 + 2] -= dP * G[s, 3]
                 for i in range(n):
                     f[i] += loads[i]
                 if on_factors is not None:
