@@ -143,6 +143,8 @@ class OutputLayout:
 
     #: The axial-strain columns of every gauge (an index for a row).
     axial_columns = slice(2, None, 2)
+    #: The bending-strain columns of every gauge (an index for a row).
+    bending_columns = slice(1, None, 2)
 
     def split(self, outs: np.ndarray) -> dict:
         """``{gauge: (bending, axial)}`` of output rows ``(..., size)``."""

@@ -80,9 +80,12 @@ class Discretization:
     n_seg, n_dof) of segment end displacements, ``seg_K`` (their block-diagonal stiffness) and
     ``K_local`` (n_dof, n_dof) (the members' stiffness in local frames, no joint coupling).
 
-    Outputs: ``gauges``, ``outputs`` (:class:`tmm_core.configuration_batch.OutputLayout`) and
+    Outputs: ``gauges``, ``outputs`` (:class:`tmm_core.configuration_batch.OutputLayout`),
     where each gauge reads its axial strain: ``gauge_segments`` (G, 2) stacked segments and
-    ``gauge_weights`` (G, 2) their weights (:func:`axial_sampling`).
+    ``gauge_weights`` (G, 2) their weights (:func:`axial_sampling`), and where it reads the
+    co-rotational segments' bending: ``gauge_bending_segments`` (G,) the stacked segment and
+    ``gauge_bending_weights`` (G,) [-] its bending strain per radian of that segment's chord lag
+    (:func:`bending_sampling`).
 
     The arrays the compiled kernels read (masses, damping, segments, blocks, gauge segments) stay
     writeable: numba types a read-only array apart and would compile every kernel a second time
@@ -121,6 +124,8 @@ class Discretization:
     outputs: OutputLayout
     gauge_segments: np.ndarray
     gauge_weights: np.ndarray
+    gauge_bending_segments: np.ndarray
+    gauge_bending_weights: np.ndarray
 
     def __getstate__(self):
         # A mapping proxy does not pickle (a model crosses process boundaries with its engine):
@@ -188,19 +193,21 @@ class Discretization:
     def kernel_model(self) -> tuple:
         """The model record the compiled steps read (:func:`tmm_core.compiled.march.march`,
         :func:`tmm_core.compiled.periodic.push`): ``(m, aM, beta_node, seg_start, seg_end, seg_L,
-        seg_EA, seg_beta, seg_K, gauge_axial)``: lumped masses [kg, kg m^2] and mass damping per
+        seg_EA, seg_beta, seg_K, gauge_reading)``: lumped masses [kg, kg m^2] and mass damping per
         DOF, stiffness damping per node, each segment's end nodes, length [m], EA [N], stiffness
-        damping [s] and 4x4 bending blocks, and :meth:`gauge_axial`."""
+        damping [s] and 4x4 bending blocks, and :meth:`gauge_reading`."""
         seg = self.segments
         return (self.m_vec, self.aM_vec, self.beta_node, seg.start, seg.end, seg.length, seg.EA, seg.beta,
-                self.seg_blocks, self.gauge_axial())
+                self.seg_blocks, self.gauge_reading())
 
-    def gauge_axial(self) -> tuple:
-        """The record of the gauges' axial sampling the compiled kernels read (the march and the
-        reduced revolution): ``(gauge_segments, shortening)``, the two stacked segments each
-        gauge's axial strain reads (G, 2) and the weights [1/m] of their shortenings in it
-        (:meth:`gauge_shortening_weights`)."""
-        return self.gauge_segments, self.gauge_shortening_weights()
+    def gauge_reading(self) -> tuple:
+        """The record of the gauges' sampling the compiled kernels read (the march and the reduced
+        revolution): ``(gauge_segments, shortening, bending_segments, bending)``, the two stacked
+        segments each gauge's axial strain reads (G, 2) and the weights [1/m] of their shortenings
+        in it (:meth:`gauge_shortening_weights`), and the segment whose chord lag moves its bending
+        strain (G,) with the weight [-] (:meth:`gauge_lag_strain`)."""
+        return self.gauge_segments, self.gauge_shortening_weights(), self.gauge_bending_segments, \
+            self.gauge_bending_weights
 
     def gauge_shortening_weights(self) -> np.ndarray:
         """(G, 2) [1/m]: each gauge's axial strain gains ``sum_c w[g, c] Delta[s[g, c]]`` from the
@@ -212,6 +219,12 @@ class Discretization:
         """(G,) [-]: the part of each gauge's axial strain that the segments' shortenings from
         bending ``delta`` (S,) [m] make (:meth:`gauge_shortening_weights`)."""
         return np.sum(self.gauge_shortening_weights() * delta[self.gauge_segments], axis=-1)
+
+    def gauge_lag_strain(self, lag: np.ndarray) -> np.ndarray:
+        """(G,) [-]: what the co-rotational segments add to each gauge's bending strain, from the
+        segments' chord lags ``lag`` (S,) [rad] (:func:`tmm_core.second_order.chord_lag`;
+        :func:`bending_sampling`)."""
+        return self.gauge_bending_weights * lag[self.gauge_bending_segments]
 
     def gauge_axial_sampling(self, k: int) -> tuple:
         """``(segments, weights)`` of gauge ``k`` with the segments numbered within its link, as
@@ -379,18 +392,45 @@ def _same_segments(link, j: int, k: int) -> bool:
                 and not on_node)
 
 
+def bending_sampling(link, gauge: Gauge) -> tuple:
+    """``(j, weight)``: the segment of ``link`` (numbered from its start) whose bending ``gauge``
+    reads (:func:`tmm_core.post.gauge_strains`: the one starting at or before it), and the
+    gauge's bending strain per radian of that segment's chord lag [-].
+
+    Why: the solver's bending moment is that of the linear segment, whose end rotations against
+    the chord are ``theta_i - dw/L``; a co-rotational segment's are ``theta_i - b`` with ``b`` the
+    chord's exact angle. Their difference, the chord lag ``psi = dw/L - b``
+    (:func:`tmm_core.second_order.chord_lag`), is the same at both ends, so the co-rotational
+    cubic's curvature at ``xi = x/L`` exceeds the linear one by ``(12 xi - 6) psi / L``. The
+    pseudo-loads carry that difference as node moments, and the solver's moment inside a segment
+    does not see them. It grows as 1/L: small on a slender link, it moved a node gauge on thick
+    bars with the mesh (docs/light_damping.md)."""
+    x = link.stations
+    j = int(np.clip(np.searchsorted(x, gauge.position_m, side="right") - 1, 0, link.total_segments - 1))
+    length = float(x[j + 1] - x[j])
+    xi = (gauge.position_m - x[j]) / length
+    sign = -1.0 if gauge.face == "top" else 1.0      # as gauge_strains: sigma = N/A - M y / I
+    depth = link.member("s", "e").sections[j].depth_m
+    return j, sign * 0.5 * depth * (12.0 * xi - 6.0) / length
+
+
 def _gauge_sampling(links, gauges) -> dict:
     """The ``gauge_segments`` (G, 2, stacked) and ``gauge_weights`` (G, 2) of a model
-    (:func:`axial_sampling` per gauge)."""
+    (:func:`axial_sampling` per gauge), and its ``gauge_bending_segments`` (G,) and
+    ``gauge_bending_weights`` (G,) (:func:`bending_sampling`)."""
     first = dict(zip([l.name for l in links], np.cumsum([0] + [l.total_segments for l in links])))
-    segments, weights = [], []
+    segments, weights, bending = [], [], []
     for g in gauges:
         link = next(l for l in links if l.name == g.link)
         (j, k), w = axial_sampling(link, g.position_m)
         segments.append((first[link.name] + j, first[link.name] + k))
         weights.append(w)
+        b, wb = bending_sampling(link, g)
+        bending.append((first[link.name] + b, wb))
     return {"gauge_segments": np.array(segments, dtype=np.int64).reshape(-1, 2),
-            "gauge_weights": np.array(weights, dtype=float).reshape(-1, 2)}
+            "gauge_weights": np.array(weights, dtype=float).reshape(-1, 2),
+            "gauge_bending_segments": np.array([b for b, _ in bending], dtype=np.int64),
+            "gauge_bending_weights": np.array([w for _, w in bending], dtype=float)}
 
 
 def _frozen(array: np.ndarray) -> np.ndarray:

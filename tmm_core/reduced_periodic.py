@@ -57,7 +57,7 @@ from .ked import CrankMotion
 from .periodic import PeriodicResult
 from .reduced import ReducedBasis, ReducedOptions, build_basis, segment_links
 from .reduced_stages import StageCoefficients, stage_terms
-from .second_order import corotational_node_forces, geometric_matrices, segment_dofs
+from .second_order import chord_lag, corotational_node_forces, geometric_matrices, segment_dofs
 
 _S6 = math.sqrt(6.0)
 #: Radau IIA, 3 stages: Butcher matrix and nodes.
@@ -360,7 +360,7 @@ class ReducedModel:
         """The records the compiled revolution reads (built once): ``(stages, segments,
         output_maps)``, the stage matrices and basis ``(Mr, Cr, Kr, fr, T, Td)``, the segment data
         ``(seg_w, seg_u, G, k, beta)`` and the output maps (:meth:`output_maps`) with the gauges'
-        axial sampling (:meth:`tmm_core.discretization.Discretization.gauge_axial`)."""
+        sampling (:meth:`tmm_core.discretization.Discretization.gauge_reading`)."""
         if self._kernel_args is None:
             seg = self.model.segments
             c = np.ascontiguousarray
@@ -372,7 +372,7 @@ class ReducedModel:
             segments = (np.stack([seg.start + 1, seg.start + 2, seg.end + 1, seg.end + 2], axis=1).astype(np.int64),
                         np.stack([seg.start, seg.end], axis=1).astype(np.int64), c(self.G, dtype=float),
                         c(self.k, dtype=float), c(self.beta, dtype=float), sections)
-            output_maps = (*self.output_maps(), *self.model.gauge_axial())
+            output_maps = (*self.output_maps(), *self.model.gauge_reading())
             self._kernel_args = (stages, segments, output_maps)
         return self._kernel_args
 
@@ -434,6 +434,8 @@ class ReducedModel:
         if nonlinear and len(model.gauges):
             _, _, _, _, delta = self.second_order(np.array([p]), eta[None], v[None], jacobian=False)
             strains[:, 1] += model.gauge_shortening_strain(delta[0])
+            if model.strain_measure == "corotational":
+                strains[:, 0] += model.gauge_lag_strain(chord_lag(model.segments, q))
         return np.concatenate([[self.torque_map[p] @ load + self.torque_offset[p]], strains.ravel()])
 
 

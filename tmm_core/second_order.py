@@ -247,6 +247,16 @@ def corotational_pseudo_loads(seg: Segments, z: np.ndarray, v: np.ndarray, P: np
     return f, F, excess
 
 
+def chord_lag(seg: Segments, z: np.ndarray) -> np.ndarray:
+    """The chord lag ``psi = dw/L - b`` [rad] of every segment (S,), for node displacements ``z``
+    (1-D): how much the co-rotational segment's end rotations against its chord (``theta_i - b``,
+    ``b`` the chord's exact angle) exceed the linear segment's (``theta_i - dw/L``). The gauges'
+    bending reads it (:func:`tmm_core.discretization.bending_sampling`)."""
+    L = seg.length
+    dw = z[seg.end + 1] - z[seg.start + 1]
+    return dw / L - np.arctan2(dw, L + z[seg.end] - z[seg.start])
+
+
 def segment_dofs(seg: Segments) -> np.ndarray:
     """Node-vector index of every segment's ``(u0, w0, theta0, u1, w1, theta1)``, ``(n_seg, 6)``."""
     return np.stack([seg.start, seg.start + 1, seg.start + 2, seg.end, seg.end + 1, seg.end + 2], axis=1)
@@ -282,11 +292,13 @@ def _corotational_local(seg: Segments, zl: np.ndarray, vl: np.ndarray, P, P0):
     # The energy's gradient: P on the chord's length, the end moments on the rotations and,
     # through the chord's angle, -(m0 + m1) on it.
     m0, m1 = _bending_forces(EI, L, P, t0, t1)
+    d0, d1 = _bending_forces(EI * beta, L, 0.0, t0d, t1d)
+    m0, m1 = m0 + d0, m1 + d1
     g_u = P * c + (m0 + m1) * s / l
     g_w = P * s - (m0 + m1) * c / l
     # The solver's: EA (a + beta a') = P - F axially; K d + P0 G d in bending (K d: the same
     # cubic with the chord's angle linearized, dw / L; G d: shape_products').
-    k0, k1 = _bending_forces(EI, L, 0.0, q0 - dw / L, q1 - dw / L)
+    k0, k1 = _bending_forces(EI, L, 0.0, q0 - dw / L + beta * (vl[:, 2] - dwd / L), q1 - dw / L + beta * (vl[:, 5] - dwd / L))
     g0 = (-36.0 * dw + 3.0 * L * (q0 + q1)) / (30.0 * L)
     g1 = (-3.0 * dw + L * (4.0 * q0 - q1)) / 30.0
     g3 = (-3.0 * dw + L * (4.0 * q1 - q0)) / 30.0

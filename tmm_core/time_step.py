@@ -26,11 +26,15 @@ from .errors import ConvergenceError, InputError
 from .ked import segment_forces
 from .mechanism import torque_from_terms
 from .post import gauge_strains
-from .second_order import pseudo_loads, shape_products
+from .second_order import chord_lag, pseudo_loads, shape_products
 from .step_data import select, terms_at
 from .structure import solve_factored
 
-ANDERSON_DEPTH = 4          # iterates mixed by the second-order step iteration
+#: Iterates mixed by the second-order step iteration. 8, not 4: a co-rotational segment couples its
+#: stretch to its bending as 12 EI sin(b) / L^3, which the linear solver does not carry, so the
+#: plain fixed point diverges on thick bars at fine meshes (Bahgat-Willmert at 32 segments); with 4
+#: a 64-segment step needed up to 128 iterations, with 8 up to 65 (docs/light_damping.md).
+ANDERSON_DEPTH = 8
 #: Relative change of the segment axial forces at which the second-order step iteration stops
 #: (with the displacements' Discretization.axial_tolerance). The axial force only feeds the
 #: geometric stiffness: 1e-6 is ample, and its round-off floor, a difference of large nodal
@@ -165,6 +169,9 @@ def _iterate(model: Discretization, cfg, k, loads, state, dt, axial_guess):
                     pseudo_loads(seg, z_new, c_v * z_new + h_v, P_new, P0, strain)[2]
                 out = out.copy()
                 out[model.outputs.axial_columns] += model.gauge_shortening_strain(delta)
+                if strain == "corotational":
+                    # Gauge bending = the co-rotational segment's, not the linear one the solver holds.
+                    out[model.outputs.bending_columns] += model.gauge_lag_strain(chord_lag(seg, z_new))
             return StepSolution(z_new, out, P_new), None, (it + 1, dz, dP)
         if dz > 1e3 or dP > 1e3:       # diverging: refactorize rather than iterate on
             break

@@ -40,14 +40,14 @@ MAPS = ("sweep_member", "copy_sweep", "solve_loads_many")
 #: The march's own helpers (tmm_core.compiled.march).
 MARCH = ("shape_products", "corotational_loads", "affine", "anderson_coefficients")
 #: The step's parts the march and the linearized revolutions share: the integrator's history and
-#: update (tmm_core.compiled.integrators), the history loads and the co-rotational segment
-#: (tmm_core.compiled.time_step).
-STEP = {integrators: ("history", "advance"), time_step: ("history_loads", "corotational_segment")}
+#: update (tmm_core.compiled.integrators), the history loads, the co-rotational segment and its
+#: chord lag (tmm_core.compiled.time_step).
+STEP = {integrators: ("history", "advance"), time_step: ("history_loads", "corotational_segment", "chord_lag")}
 #: The linearized revolution's helpers (tmm_core.compiled.periodic).
 LINEARIZED = ("jacobian_row", "close_row", "solved_response", "corotational_blocks", "corotational_response")
 #: The reduced revolution's helpers (tmm_core.compiled.reduced_periodic).
-REDUCED = ("node_state", "second_order", "corotational_forces", "corotational_term", "gauge_excess", "stage_states",
-           "newton_matrix")
+REDUCED = ("node_state", "second_order", "corotational_forces", "corotational_term", "segment_state", "gauge_excess",
+           "stage_states", "newton_matrix")
 
 _ENTRY: dict = {}        # the one registry: a stage's (or a single kernel's) compiled entry points
 

@@ -32,7 +32,7 @@ import numpy as np
 # The compiled ones once bound (tmm_core.compiled.binding): the step's parts the periodic
 # solver's linearized revolutions share, and the solve on stored factorizations.
 from .integrators import advance, history
-from .time_step import corotational_segment, factored_solve, history_loads
+from .time_step import chord_lag, corotational_segment, factored_solve, history_loads
 
 # numba is imported (and the kernels compiled or loaded from its cache) on first use only, by
 # tmm_core.compiled.binding: the command line and the numpy path do not pay for it. Without numba
@@ -143,8 +143,10 @@ def march(integrator, idx, maps, on_factors, model, settings, state, recorded):
     velocity coefficient; ``maps = (Zx, Ox, Ax, P0, rigid, omega)`` and ``on_factors = (flayout,
     fstored, fwork, Ocx)`` or None for a batch with maps, the configuration batch's data
     (:func:`tmm_core.time_step.kernel_data`); ``model = (m, aM, beta_node, seg_start,
-    seg_end, seg_L, seg_EA, seg_beta, seg_K, (gauge_seg, gauge_w))``, the last the two segments of
-    each gauge's axial strain and the weights [1/m] of their shortenings; ``settings = (coriolis, has_kv,
+    seg_end, seg_L, seg_EA, seg_beta, seg_K, (gauge_seg, gauge_w, bend_seg, bend_w))``, the last the
+    two segments of each gauge's axial strain and the weights [1/m] of their shortenings, and the
+    segment whose chord lag [rad] moves its co-rotational bending with the weight [-]
+    (:meth:`tmm_core.discretization.Discretization.gauge_reading`); ``settings = (coriolis, has_kv,
     dynamic, shortening, own_force, corotational, tol_z, tol_P, max_iterations, depth)``
     (``corotational``: the co-rotational segments' pseudo-loads, :func:`corotational_loads`,
     instead of the second-order ones); ``state = (S, P)``
@@ -153,8 +155,8 @@ def march(integrator, idx, maps, on_factors, model, settings, state, recorded):
     Hc, Gc, ez, dva, dt, c_v = integrator
     Zx, Ox, Ax, P0, rigid, omega = maps
     # The masses, mass damping and bending blocks serve only the history loads (the whole record).
-    _m, _aM, _beta_node, seg_start, seg_end, seg_L, seg_EA, seg_beta, seg_K, gauge_axial = model
-    gauge_seg, gauge_w = gauge_axial
+    _m, _aM, _beta_node, seg_start, seg_end, seg_L, seg_EA, seg_beta, seg_K, gauge_reading = model
+    gauge_seg, gauge_w, bend_seg, bend_w = gauge_reading
     coriolis, has_kv, dynamic, shortening, own_force, corotational, tol_z, tol_P, max_iterations, depth = settings
     segments = (seg_start, seg_end, seg_L, seg_EA, seg_beta, seg_K)
     S, P = state
@@ -287,12 +289,18 @@ def march(integrator, idx, maps, on_factors, model, settings, state, recorded):
                     else:
                         affine(Ox, k, f, outv)
                     if corotational:
-                        for s in range(ns):
-                            _, delta[s] = corotational_loads(s, segments, zn, h_v, c_v, Pn[s], P0[k, s], scratch,
-                                                             local)
+                        # Only the gauges' segments: their L (e - a) and the bending one's chord lag.
+                        for gi in range(gauge_seg.shape[0]):
+                            for c in range(2):
+                                s = gauge_seg[gi, c]
+                                _, excess = corotational_loads(s, segments, zn, h_v, c_v, Pn[s], P0[k, s], scratch,
+                                                               local)
+                                outv[2 + 2 * gi] += gauge_w[gi, c] * excess
+                            s = bend_seg[gi]
+                            i0, i1 = seg_start[s], seg_end[s]
+                            outv[1 + 2 * gi] += bend_w[gi] * chord_lag(seg_L[s], zn[i1] - zn[i0], zn[i1 + 1] - zn[i0 + 1])
                     elif shortening:
                         shape_products(seg_start, seg_end, seg_L, zn, delta, G)
-                    if shortening:
                         for gi in range(gauge_seg.shape[0]):
                             for c in range(2):
                                 outv[2 + 2 * gi] += gauge_w[gi, c] * delta[gauge_seg[gi, c]]

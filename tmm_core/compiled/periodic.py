@@ -67,7 +67,7 @@ def push(S, coef, idx, forced, maps, model, flags, c_v, trajectory):
     Hc, Gc, ez = coef
     Zx, Ax, P0, rigid, omega = maps
     # The mass damping blocks serve only the history loads (the whole record).
-    m, _aM, _beta_node, seg_start, seg_end, seg_L, seg_EA, seg_beta, seg_K, _gauge_axial = model
+    m, _aM, _beta_node, seg_start, seg_end, seg_L, seg_EA, seg_beta, seg_K, _gauge_reading = model
     coriolis, has_kv, dynamic, corotational = flags
     zs, vs, Ps = trajectory
     K, nM = S.shape

@@ -37,7 +37,7 @@ from __future__ import annotations
 import numpy as np
 
 from .dense import dot, lu_factor, lu_solve, lu_solve_many  # the compiled ones once bound (tmm_core.compiled.binding)
-from .time_step import FD_STEP, corotational_segment
+from .time_step import FD_STEP, chord_lag, corotational_segment
 
 
 #: Refactorize while the chord iteration contracts slower than this (update ratio).
@@ -237,28 +237,39 @@ def corotational_term(Tp, Tdp, eta, v, jac, sections, work, terms):
     np.dot(Tp.T, g, N)
 
 
-def gauge_excess(Tp, Tdp, eta, v, sections, local, out6, gauge_axial, out):
-    """The gauges' axial strain from the co-rotational segments' ``L (e - a)`` at one stage point
-    (:func:`corotational_forces`), added into the stage's outputs ``out`` (axial columns ``2 + 2
-    g``) with the gauges' weights [1/m]. Record: ``gauge_axial = (gauge_seg, gauge_w)``."""
-    start, data = sections
-    gauge_seg, gauge_w = gauge_axial
+def segment_state(Tp, Tdp, eta, v, i0, local):
+    """Fill ``local`` (2, 6) with the displacements and velocities of the segment whose first dof
+    is ``i0`` at one stage point: ``T eta`` and ``T v + T' eta`` on its six dofs."""
     r = Tp.shape[1]
+    for a in range(6):
+        za = 0.0
+        va = 0.0
+        for j in range(r):
+            za += Tp[i0 + a, j] * eta[j]
+            va += Tp[i0 + a, j] * v[j] + Tdp[i0 + a, j] * eta[j]
+        local[0, a] = za
+        local[1, a] = va
+
+
+def gauge_excess(Tp, Tdp, eta, v, sections, local, out6, gauge_reading, out):
+    """The gauges' co-rotational readings at one stage point, added into the stage's outputs
+    ``out``: the axial strain from their segments' ``L (e - a)`` (:func:`corotational_forces`)
+    with the weights [1/m] (columns ``2 + 2 g``) and the bending from their segment's chord lag
+    (:func:`tmm_core.compiled.time_step.chord_lag`) with the weight [-] (columns ``1 + 2 g``).
+    Record: ``gauge_reading = (gauge_seg, gauge_w, bend_seg, bend_w)``
+    (:meth:`tmm_core.discretization.Discretization.gauge_reading`)."""
+    start, data = sections
+    gauge_seg, gauge_w, bend_seg, bend_w = gauge_reading
     for gi in range(gauge_seg.shape[0]):
         for gc in range(2):
             sg = gauge_seg[gi, gc]
-            i0 = start[sg]
-            for a in range(6):
-                za = 0.0
-                va = 0.0
-                for j in range(r):
-                    za += Tp[i0 + a, j] * eta[j]
-                    va += Tp[i0 + a, j] * v[j] + Tdp[i0 + a, j] * eta[j]
-                local[0, a] = za
-                local[1, a] = va
+            segment_state(Tp, Tdp, eta, v, start[sg], local)
             section = (data[sg, 0], data[sg, 1], data[sg, 2], data[sg, 3], data[sg, 4], data[sg, 5])
             _, excess = corotational_forces(section, local[0], local[1], out6)
             out[2 + 2 * gi] += excess * gauge_w[gi, gc]
+        sb = bend_seg[gi]
+        segment_state(Tp, Tdp, eta, v, start[sb], local)
+        out[1 + 2 * gi] += bend_w[gi] * chord_lag(data[sb, 0], local[0, 3] - local[0, 0], local[0, 4] - local[0, 1])
 
 
 def newton_matrix(h, A, A2, Mr, Cr, Kr, Ne, Nv, P0, J):
@@ -293,7 +304,9 @@ def revolution(x0, guess, options, tableau, stages, segments, output_maps, newto
     monodromy ``mono`` (2r, 2r) (product of the step Jacobians), with ``want_out`` the outputs
     ``outs`` (3N, n_out): ``O0[p] + Oe[p] eta_i + Ov[p] eta'_i + Oa[p] acc_i`` plus, with
     ``nonlinear``, the shortenings of gauge g's two segments ``gauge_seg[g]`` times their weights
-    ``gauge_w[g]`` [1/m] in column ``2 + 2 g``; ``counts`` (2,): Newton iterations and factorizations (added to).
+    ``gauge_w[g]`` [1/m] in column ``2 + 2 g`` (with ``corotational`` also the bending from the
+    chord lag of ``bend_seg[g]`` times ``bend_w[g]``, :func:`gauge_excess`); ``counts`` (2,): Newton
+    iterations and factorizations (added to).
 
     ``chord_start``, ``chord_rate``: :data:`CHORD_START`, :data:`CHORD_CONTRACTION`.
     ``LUs`` (N, 3r, 3r), ``pivs`` (N, 3r): every step's last factorized Newton matrix, kept across
@@ -307,13 +320,13 @@ def revolution(x0, guess, options, tableau, stages, segments, output_maps, newto
     Records (tuples, unpacked below): ``options = (nonlinear, want_jac, want_out, have_guess,
     chord, chord_start, chord_rate)``; ``tableau = (h, A, A2, c)``; ``stages = (Mr, Cr, Kr, fr,
     T, Td)``; ``segments = (seg_w, seg_u, G, k, beta)`` (as :func:`second_order`);
-    ``output_maps = (O0, Oe, Ov, Oa, gauge_seg, gauge_w)``; ``newton = (tol, iterations)``;
+    ``output_maps = (O0, Oe, Ov, Oa, gauge_seg, gauge_w, bend_seg, bend_w)``; ``newton = (tol, iterations)``;
     ``kept = (LUs, pivs, stored)``; ``results = (x_end, mono, outs, accs, counts)`` (written)."""
     nonlinear, want_jac, want_out, have_guess, chord, chord_start, chord_rate, corotational = options
     h, A, A2, c = tableau
     Mr, Cr, Kr, fr, T, Td = stages
     seg_w, seg_u, G, k, beta, sections = segments
-    O0, Oe, Ov, Oa, gauge_seg, gauge_w = output_maps
+    O0, Oe, Ov, Oa, gauge_seg, gauge_w, bend_seg, bend_w = output_maps
     tol, iterations = newton
     LUs, pivs, stored = kept
     x_end, mono, outs, accs, counts = results
@@ -446,7 +459,7 @@ def revolution(x0, guess, options, tableau, stages, segments, output_maps, newto
                     outs[p, o] = s
                 if nonlinear and corotational:
                     gauge_excess(T[p], Td[p], es[i], vs[i], sections, local, corotational_work[4],
-                                 (gauge_seg, gauge_w), outs[p])
+                                 (gauge_seg, gauge_w, bend_seg, bend_w), outs[p])
                 elif nonlinear:
                     for gi in range(gauge_seg.shape[0]):
                         for gc in range(2):

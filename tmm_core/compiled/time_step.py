@@ -47,7 +47,7 @@ def history_loads(k, h_a, h_v, model, omega, flags, L):
     flattened (value ``(i, r)`` at ``i M + r``; M = 1 for a march). ``model`` is the model record
     (:meth:`tmm_core.discretization.Discretization.kernel_model`), ``omega`` (B, n_dof) each DOF's
     link speed [rad/s] per configuration, ``flags = (coriolis, has_kv)``."""
-    m, aM, beta_node, seg_start, _end, _length, _EA, _beta, seg_K, _gauge_axial = model
+    m, aM, beta_node, seg_start, _end, _length, _EA, _beta, seg_K, _gauge_reading = model
     coriolis, has_kv = flags
     n = m.shape[0]
     M = h_a.shape[0] // n
@@ -109,10 +109,12 @@ def corotational_segment(section, z, v, P, P0):
     rate = (c - 1.0) * dud + sn * dwd + L / 30.0 * ((4.0 * t0 - t1) * t0d + (4.0 * t1 - t0) * t1d)
     F = EA / L * (excess + beta * rate)
     g = P * L / 30.0
-    m0 = k00 * t0 + k01 * t1 + g * (4.0 * t0 - t1)
-    m1 = k01 * t0 + k11 * t1 + g * (4.0 * t1 - t0)
-    # The solver's bending forces: K d (the chord's angle linearized) and P0 G d.
-    e0, e1 = q0 - dw / L, q1 - dw / L
+    r0, r1 = t0 + beta * t0d, t1 + beta * t1d
+    m0 = k00 * r0 + k01 * r1 + g * (4.0 * t0 - t1)
+    m1 = k01 * r0 + k11 * r1 + g * (4.0 * t1 - t0)
+    # The solver's bending forces: K (d + beta d') (the chord's angle linearized) and P0 G d.
+    e0 = q0 - dw / L + beta * (v[2] - dwd / L)
+    e1 = q1 - dw / L + beta * (v[5] - dwd / L)
     kb0, kb1 = k00 * e0 + k01 * e1, k01 * e0 + k11 * e1
     g0 = (-36.0 * dw + 3.0 * L * (q0 + q1)) / (30.0 * L)
     g1 = (-3.0 * dw + L * (4.0 * q0 - q1)) / 30.0
@@ -120,6 +122,13 @@ def corotational_segment(section, z, v, P, P0):
     axial = P * c + (m0 + m1) * sn / l - (P - F)
     shear = P * sn - (m0 + m1) * c / l - (-(kb0 + kb1) / L - P0 * g0)
     return axial, shear, -(m0 - kb0 - P0 * g1), -axial, -shear, -(m1 - kb1 - P0 * g3), F, excess
+
+
+def chord_lag(L, du, dw):
+    """A segment's chord lag ``dw/L - b`` [rad] (``b`` its chord's exact angle) from its length
+    ``L`` and end displacement differences ``du, dw`` [m];
+    :func:`tmm_core.second_order.chord_lag` is the reference."""
+    return dw / L - np.arctan2(dw, L + du)
 
 
 def factor_range(b_start, b_stop, segments, configuration, joints, checks, stored):
