@@ -16,11 +16,7 @@ mode, its value and the threshold. Kinds:
   integrator's period error, amplified by the resonance at the link's damping, moves the resonant
   response by :data:`STEP_ERROR_FRACTION` or more (:func:`step_flags`);
 * ``rigid_model``: the rigid engine's peak bending more than :data:`RIGID_FACTOR` times off every
-  flexible engine's at the same gauge;
-* ``large_rotation`` (the transfer-matrix engine): a link whose segments turn more than
-  :data:`LARGE_ROTATION_DEG` against its chord (``link_rotation_max_deg`` of the engine's
-  summary, :func:`cosim.metrics.link_rotations`), beyond the small rotations of the model's
-  second-order beam (:func:`rotation_flags`).
+  flexible engine's at the same gauge.
 
 Owns: the flags' thresholds and texts. Boundaries: pure functions of (scenario, summary), except
 :func:`attach_flags` which writes them into the summary; the closed forms live in tmm_core.
@@ -64,15 +60,6 @@ STEP_ERROR_FRACTION, STEP_ERROR_TARGET = 0.01, 0.005
 #: The rigid model's peak bending this many times off every flexible engine's: the elastic
 #: response is then larger than the rigid-body load's own strain.
 RIGID_FACTOR = 2.0
-#: Segment rotation against the link's chord [deg] from which the transfer-matrix model is out of
-#: its small-rotation range. Its beam is second order in the rotations (axial strain u' + w'^2/2,
-#: curvature w''): the first neglected terms are of order theta^2 of the kept nonlinear ones, 0.8 %
-#: at 5 deg and 3 % at 10 deg. On the FE rig at 355 rpm and 1 % damping, with the crank shortened
-#: to shrink the elastic motion, its dynamics about the orbit (Floquet multipliers) and its peaks
-#: equal exudyn's within 0.5 deg of phase and 0.3 % while the rocker's segments turn up to 4.1 deg
-#: against its chord (this measure), part by 2.9 deg and 1 % at 5.6 deg, and by 68 % near a fold at
-#: 8.7 deg (docs/light_damping.md, "The same speed at smaller amplitude").
-LARGE_ROTATION_DEG = 5.0
 #: Crank angles of the linkage's frequency map (from the drive's start angle); a coarse bisection
 #: is enough for a flag (relative tolerance).
 _MAP_ANGLES, _MAP_RTOL = 12, 1e-3
@@ -260,26 +247,6 @@ def step_flags(sc, rpm: float, modes: list) -> list:
     return out
 
 
-def rotation_flags(engine: dict) -> list:
-    """The links of one engine's summary (``link_rotation_max_deg``) whose segments turn more than
-    :data:`LARGE_ROTATION_DEG` against their chord: the largest, named, with what it means for a
-    second-order model."""
-    rotations = engine.get("link_rotation_max_deg") or {}
-    large = {name: deg for name, deg in rotations.items() if deg > LARGE_ROTATION_DEG}
-    if not large:
-        return []
-    name = max(large, key=large.get)
-    deg = large[name]
-    others = ", ".join(f"the {n} {d:.1f} deg" for n, d in large.items() if n != name)
-    message = (f"large rotation: the {name}'s segments turn up to {deg:.1f} deg against its chord"
-               f"{' (' + others + ')' if others else ''}, beyond the small rotations of the transfer-matrix "
-               f"model's second-order beam (its neglected terms are of order {100 * math.radians(deg) ** 2:.1f} % "
-               "of its nonlinear ones); near a resonance and at light damping it can then part from a "
-               "geometrically exact model (exudyn) by several per cent, and near a fold of the steady "
-               f"response by tens of per cent (flagged from {LARGE_ROTATION_DEG:g} deg)")
-    return [flag("large_rotation", message, deg, LARGE_ROTATION_DEG)]
-
-
 def _peak(stats: dict) -> float:
     return max(abs(stats.get("bending_max_ue") or 0.0), abs(stats.get("bending_min_ue") or 0.0))
 
@@ -329,7 +296,7 @@ def physics_flags(sc, summary: dict, modes: list | None = None) -> dict:
             res = [dict(f, message=f["message"] + f"; {name} is rigid and cannot show it") for f in resonant]
         out[name] = buckling_flags(sc, e.get("gauges")) + common + res + rigid.get(name, [])
         if name == "tmm":
-            out[name] += step_flags(sc, rpm, own) + rotation_flags(e)
+            out[name] += step_flags(sc, rpm, own)
     return out
 
 

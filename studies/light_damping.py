@@ -146,7 +146,7 @@ VARIANTS = {
     "base": ("the shipped TMM setting (second-order segments)", {}),
     "exact_strain": ("prototype: the segments' exact strain instead of the second-order one (numpy step)",
                      {"dynamic_terms": ("shortening", "axial_force", "exact_strain")}),
-    "corotational": ("prototype: segments exact in their rotation (co-rotational; numpy step), step halved "
+    "corotational": ("segments exact in their rotation (co-rotational; the default since issue 34), step halved "
                      "(0.25 deg)", {"dynamic_terms": ("shortening", "axial_force", "corotational"), "step_deg": 0.25}),
     "step": ("step halved (0.25 deg)", {"step_deg": 0.25}),
     "step8": ("step divided by 4 (0.125 deg)", {"step_deg": 0.125}),

@@ -1,20 +1,13 @@
 """Every shipped scenario's default engine settings lie within 1 % of that engine's converged
 answer (issue 15): the steady bending peaks at the defaults against a run refined once in every
 direction (tests/benchmarks/defaults_check.py). Measured 2026-11: at most 0.6 % (exudyn,
-Bahgat-Willmert); the FE rig's flexible-crank variant has no steady state to compare, nor has the
-transfer-matrix model's march at 0.5 % damping (an expected failure)."""
+Bahgat-Willmert); the FE rig's flexible-crank variant has no steady state to compare."""
 import pytest
 
 from cosim.scenario import load
 from tests.benchmarks.defaults_check import check, moving_scenarios
 
-#: Cases with no steady state to compare, kept visible (strict: a fix makes them fail loudly).
-XFAIL = {("crank_rocker_373rpm_damping_0p5pct", "tmm"):
-         "issue 34: the TMM march from its quasi-static start stays in the irregular response that coexists "
-         "with the steady one at 0.5 % damping (exudyn too, from some starts; docs/light_damping.md)"}
-CASES = [pytest.param(name, engine, marks=[pytest.mark.xfail(strict=True, reason=XFAIL[name, engine])]
-                      if (name, engine) in XFAIL else [])
-         for name in moving_scenarios() for engine in load(name).output.engines]
+CASES = [(name, engine) for name in moving_scenarios() for engine in load(name).output.engines]
 
 
 @pytest.mark.slow

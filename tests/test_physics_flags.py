@@ -10,8 +10,8 @@ import pytest
 import numpy as np
 
 from cosim.metrics import link_rotations
-from cosim.physics_flags import (BUCKLING_FRACTIONS, LARGE_ROTATION_DEG, RIGID_FACTOR, link_modes, physics_flags,
-                                 resonance_flags, rigid_flags, rotation_flags, transmission_flags)
+from cosim.physics_flags import (BUCKLING_FRACTIONS, RIGID_FACTOR, link_modes, physics_flags,
+                                 resonance_flags, rigid_flags, transmission_flags)
 from cosim.report import comparison_table
 from cosim.scenario import load
 from tmm_core import FourBarMechanism, Link, Material, Section
@@ -237,17 +237,3 @@ def test_link_rotation_is_the_segments_largest_angle_to_the_chord():
     assert rotations["s"] == pytest.approx(0.0, abs=1e-12)
 
 
-def test_large_rotation_flagged_for_the_transfer_matrix_engine_only():
-    below = {"link_rotation_max_deg": {"rocker": LARGE_ROTATION_DEG - 0.1}}
-    assert rotation_flags(below) == []
-    above = {"link_rotation_max_deg": {"coupler": 5.1, "rocker": 9.5, "crank": 0.0}}
-    (f,) = rotation_flags(above)
-    assert f["kind"] == "large_rotation" and f["value"] == 9.5 and f["threshold"] == LARGE_ROTATION_DEG
-    assert "the rocker's segments turn up to 9.5 deg" in f["message"] and "the coupler 5.1 deg" in f["message"]
-    # theta^2 at 9.5 deg: 2.7 %
-    assert "2.7 %" in f["message"]
-    sc = load("crank_rocker_241rpm")
-    summary = _summary({"tmm": {"status": "completed", **above}, "exudyn": {"status": "completed", **above}})
-    flags = physics_flags(sc, summary, modes=[])
-    assert [g["kind"] for g in flags["tmm"]].count("large_rotation") == 1
-    assert not any(g["kind"] == "large_rotation" for g in flags["exudyn"])

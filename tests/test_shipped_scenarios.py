@@ -59,17 +59,10 @@ WEAK_DRIVE_FLUCTUATION = 0.5839
 #: constrained eigenvalue analysis; ``python -m tests.benchmarks.pinned_references --only flexible_crank``.
 FLEXIBLE_CRANK_FIRST_HZ = 67.19
 SLOW = {"bahgat_willmert_125rads", "crank_rocker_373rpm_damping_1pct", "crank_rocker_373rpm_damping_0p5pct"}
-#: Known failures, each with its issue: the transfer-matrix model marched from its quasi-static
-#: start does not settle at 0.5 % damping: a large irregular response coexists with the steady one
-#: (in exudyn too, which stays in it from rest at crank 90 deg; docs/light_damping.md).
-XFAIL = {"crank_rocker_373rpm_damping_0p5pct": "issue 34: the TMM march stays in the irregular response that "
-                                               "coexists with the steady one at 0.5 %"}
 
 
 def _cases(table):
-    return [pytest.param(name, marks=[pytest.mark.slow] + ([pytest.mark.xfail(strict=True, reason=XFAIL[name])]
-                                                            if name in XFAIL else []))
-            if name in SLOW else name for name in table]
+    return [pytest.param(name, marks=pytest.mark.slow) if name in SLOW else name for name in table]
 
 
 def test_every_shipped_scenario_has_a_pinned_number():

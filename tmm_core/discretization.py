@@ -39,15 +39,20 @@ from .riccati import segment_stiffness
 from .second_order import Segments
 
 AXIAL_FORCE_MODELS = ("dynamic", "quasi_static", "none")
+#: The 'dynamic' step's nonlinear terms: the shortening from bending and the step's own axial
+#: force. Alone, they make the second-order (von Karman) segments.
 DYNAMIC_TERMS = ("shortening", "axial_force")
-#: Optional terms of the 'dynamic' step beyond DYNAMIC_TERMS (not in the default), at most one of
-#: them, each replacing the second-order strain of the segments: 'corotational', segments exact in
-#: their rotation (the cubic beam in a frame turning with each segment's chord; every realisation
-#: of the step has it; not the default yet: on Bahgat-Willmert's thick bars its answer moves with
-#: the mesh, docs/light_damping.md); 'exact_strain', the segments' geometrically exact axial strain
-#: alone (a prototype that made the agreement worse; numpy step only: a model asking for it runs
-#: the numpy backend).
+#: Optional terms of the 'dynamic' step beyond DYNAMIC_TERMS, at most one of them, each replacing
+#: the second-order strain of the segments: 'corotational', segments exact in their rotation (the
+#: cubic beam in a frame turning with each segment's chord; every realisation of the step has it;
+#: the default); 'exact_strain', the segments' geometrically exact axial strain alone (a prototype
+#: that made the agreement worse; numpy step only: a model asking for it runs the numpy backend).
 OPTIONAL_TERMS = ("exact_strain", "corotational")
+#: The default terms: co-rotational segments. The second-order ones part from geometrically exact
+#: beams once a link's segments turn more than about 5 deg against its chord, by several per cent
+#: near a resonance and at light damping and by tens of per cent near a fold of the steady response
+#: (docs/light_damping.md).
+DEFAULT_TERMS = DYNAMIC_TERMS + ("corotational",)
 #: The optional terms the compiled march carries.
 COMPILED_TERMS = ("corotational",)
 #: The strain measure of the second-order pseudo-loads (tmm_core.second_order.STRAIN_MEASURES)
@@ -248,7 +253,7 @@ def as_model(source: Discretization | HoldsModel) -> Discretization:
 def discretize(mech: FourBarMechanism, *, integrator: str = "newmark", coupling: Coupling = Coupling(),
                beam_column: bool = True, gravity=None, gauges: Sequence[Gauge] = (),
                max_map_bytes: float = MAX_STEP_DATA_BYTES, axial_force: str = "dynamic", axial_tolerance: float = 1e-8,
-               axial_iterations: int = 60, dynamic_terms: tuple = DYNAMIC_TERMS,
+               axial_iterations: int = 60, dynamic_terms: tuple = DEFAULT_TERMS,
                backend: str | None = None) -> Discretization:
     """Build the :class:`Discretization` of ``mech`` once; the settings are those of
     :class:`tmm_core.TimeDomain` (documented there), checked here."""

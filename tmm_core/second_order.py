@@ -29,11 +29,13 @@ order (slope)^2 of the elastic deflection relative to the link. On the FE crank-
 error, amplified near resonances and at light damping, is what parted the model from exudyn
 once the rocker's segments turned more than about 4 deg (docs/light_damping.md). The
 co-rotational strain measure (:func:`corotational_pseudo_loads`) removes it: each segment keeps
-the cubic beam in a frame that turns with its chord, exactly; the pseudo-loads are then the
-difference between its exact forces and the solver's linear ones, and their derivatives (the
-periodic solver's linearization, the reduced model's Jacobian) come from central differences of
-those forces. It is not the default yet: on Bahgat-Willmert's thick bars its answer moves with
-the mesh, where the second-order one converges.
+the cubic beam in a frame that turns with its chord, exactly, with its Kelvin-Voigt damping on its
+rotations against the chord; the pseudo-loads are then the difference between its exact forces
+and the solver's linear ones (elastic and damping), and their derivatives (the periodic solver's
+linearization, the reduced model's Jacobian) come from central differences of those forces. It
+is the default (:data:`tmm_core.discretization.DEFAULT_TERMS`). Its end rotations against the
+chord exceed the linear segment's by the chord lag (:func:`chord_lag`), which the gauges' bending
+reads (:func:`tmm_core.discretization.bending_sampling`).
 
 Owns: the nonlinear beam terms as pseudo-loads, in each strain measure, and their derivatives.
 Boundaries: no step driver.
@@ -236,10 +238,15 @@ def corotational_pseudo_loads(seg: Segments, z: np.ndarray, v: np.ndarray, P: np
     u1 - u0``, ``l sin b = w1 - w0``), end rotations against the chord ``t_i = theta_i - b``, and
     the strain ``e = (l - L + Delta_c) / L`` with ``Delta_c = 1/2 t^T G t`` the shortening of the
     cubic relative to its chord. Its nodal forces are the gradient of ``1/2 EA L e^2 + 1/2 t^T K
-    t`` with the physical axial force ``P = EA (e + beta e')``. To second order in the rotations
-    they are the second-order model's; the pseudo-loads are the difference between these forces
-    and the solver's (``EA (a + beta a')`` axially, ``K d + P0 G d`` in bending; ``a = (u1 -
-    u0)/L``). Returns ``(f, F, Delta)`` as :func:`pseudo_loads`, with ``Delta = L (e - a)``."""
+    t`` with the physical axial force ``P = EA (e + beta e')``, plus the Kelvin-Voigt moments
+    ``beta K t'`` on the rotations against the chord. To second order in the rotations they are
+    the second-order model's; the pseudo-loads are the difference between these forces and the
+    solver's (``EA (a + beta a')`` axially, ``K (d + beta d') + P0 G d`` in bending with ``d`` the
+    end rotations against the linearized chord, ``theta_i - dw/L``; ``a = (u1 - u0)/L``). The
+    solver's damping must be taken out with its stiffness: left in the link frame, ``beta K``
+    acts on the rate of the chord lag ``dw/L - b`` with a stiffness 12 EI / L^3, a damping that
+    grows as the mesh is refined (docs/light_damping.md). Returns ``(f, F, Delta)`` as
+    :func:`pseudo_loads`, with ``Delta = L (e - a)``."""
     idx = segment_dofs(seg)
     loads, F, excess, _ = _corotational_local(seg, z[idx], v[idx], P, P0)
     f = np.zeros(np.shape(z))

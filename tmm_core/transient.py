@@ -23,7 +23,7 @@ from typing import Callable, Mapping, Sequence
 import numpy as np
 
 from .batches import configurations
-from .discretization import DYNAMIC_TERMS, MAX_STEP_DATA_BYTES, Discretization, discretize
+from .discretization import DEFAULT_TERMS, MAX_STEP_DATA_BYTES, Discretization, discretize
 from .errors import ConvergenceError, InputError, require_positive
 from .ked import Coupling, CrankMotion, KEDResult
 from .march import begin, quasi_static_start, rest_acceleration
@@ -52,11 +52,11 @@ class TimeDomain:
     beam_column : include the axial-force (beam-column) coupling of bending; False is linear
         theory (``axial_force='none'``).
     axial_force : how the axial force enters the bending equations when ``beam_column``:
-        'dynamic' (default): second-order beam theory (:mod:`tmm_core.second_order`): the
-        step's own axial force, including the axial shortening from bending, iterated within
-        every step on the cached factorization; it agrees with geometrically exact beams near
-        buckling (FE crank-rocker at 373 rpm, within a few per cent of exudyn where
-        'quasi_static' is 8-24 % off). A transient excursion past the static Euler load is
+        'dynamic' (default): the segments' nonlinear terms (:mod:`tmm_core.second_order`, as
+        ``dynamic_terms`` chooses): the step's own axial force, including the axial shortening
+        from bending, iterated within every step on the cached factorization; it agrees with
+        geometrically exact beams near buckling (FE crank-rocker at 373 rpm, within a few per
+        cent of exudyn where 'quasi_static' is 8-24 % off). A transient excursion past the static Euler load is
         integrated as long as the dynamic system stays positive definite.
         'quasi_static': the quasi-static (rigid-body) axial force of each crank position, fixed
         in the field matrices; linear per step and cheaper; good far from buckling.
@@ -64,11 +64,11 @@ class TimeDomain:
         step iteration.
     dynamic_terms : the nonlinear terms of the 'dynamic' step: 'shortening' (axial shortening
         from bending) and 'axial_force' (the step's own axial force in the bending equations);
-        both alone (the default): the second-order (von Karman) segments; with both,
-        'corotational' makes the segments exact in their rotation (every realisation of the
-        step; not yet the default, :data:`tmm_core.discretization.OPTIONAL_TERMS`), and
-        'exact_strain' replaces their second-order strain by the geometrically exact axial
-        strain alone (a prototype: numpy step only, so it runs the 'numpy' backend).
+        both alone: the second-order (von Karman) segments; with both, 'corotational' (the
+        default, :data:`tmm_core.discretization.DEFAULT_TERMS`) makes the segments exact in their
+        rotation (every realisation of the step), and 'exact_strain' replaces their second-order
+        strain by the geometrically exact axial strain alone (a prototype: numpy step only, so it
+        runs the 'numpy' backend).
     backend : 'compiled' (the numba kernels of :mod:`tmm_core.compiled`), 'numpy' (the reference)
         or None (compiled where numba is installed): chosen once here, read by every stage
         (:func:`tmm_core.backend.choose_backend`).
@@ -85,7 +85,7 @@ class TimeDomain:
     def __init__(self, mech: FourBarMechanism, *, integrator: str = "newmark", coupling: Coupling = Coupling(),
                  beam_column: bool = True, gravity=None, gauges: Sequence[Gauge] = (),
                  max_map_bytes: float = MAX_STEP_DATA_BYTES, axial_force: str = "dynamic", axial_tolerance: float = 1e-8,
-                 axial_iterations: int = 60, dynamic_terms: tuple = DYNAMIC_TERMS, backend: str | None = None):
+                 axial_iterations: int = 60, dynamic_terms: tuple = DEFAULT_TERMS, backend: str | None = None):
         #: The frozen model every stage reads.
         self.model = discretize(mech, integrator=integrator, coupling=coupling, beam_column=beam_column,
                                 gravity=gravity, gauges=gauges, max_map_bytes=max_map_bytes, axial_force=axial_force,
