@@ -16,8 +16,9 @@ from tmm_core.periodic import periodic_steady_state
 from tmm_core.reduced import ReducedOptions, build_basis
 from tmm_core.reduced_periodic import ReducedModel, periodic_steady_state_reduced
 from cosim.scenario import load
-from tmm_core.compiled.time_step import corotational_segment
-from tmm_core.second_order import Segments, corotational_pseudo_loads, pseudo_loads
+from tmm_core.compiled.time_step import corotational_segment, corotational_tangent
+from tmm_core.second_order import (Segments, corotational_linearization, corotational_node_forces,
+                                   corotational_pseudo_loads, pseudo_loads)
 
 L, EA, EI = 0.04, 5.7e6, 4.8
 SEG = Segments(np.array([0]), np.array([3]), np.array([L]), np.array([EA]), np.array([0.0]), np.array([EI]))
@@ -136,6 +137,53 @@ def test_bahgat_willmert_converges_with_the_mesh_onto_exudyn(bahgat_willmert_pea
     np.testing.assert_allclose(bahgat_willmert_peaks[32], [6165.3, -5629.9], rtol=0.01)
 
 
+def _random_segment_state(seed=5):
+    """A segment state with 10-20 deg rotations, a turned chord and velocities: ``(seg, z, v, P, P0)``."""
+    rng = np.random.default_rng(seed)
+    seg = Segments(SEG.start, SEG.end, SEG.length, SEG.EA, np.array([2e-4]), SEG.EI)
+    z = np.array([0.0, 0.0, 0.25, 0.02 * L, 0.2 * L, 0.3]) + rng.normal(scale=1e-3 * L, size=6)
+    return seg, z, rng.normal(size=6) * np.array([0.1, 0.3, 5.0, 0.1, 0.3, 5.0]), np.array([2e3]), np.array([5e2])
+
+
+def test_the_exact_derivatives_are_the_forces_central_differences():
+    """corotational_linearization (exact derivatives, forward mode by hand) against central
+    differences of the pseudo-loads and the shortening force (corotational_pseudo_loads) in the
+    displacements, the velocities and the axial force, at rotations of 15-20 deg."""
+    seg, z, v, P, P0 = _random_segment_state()
+    f_z, f_P, f_h, F_z, F_h = corotational_linearization(seg, 6, 0.0, z, v, P, P0)
+    h = 1e-6 * np.array([L, L, 1.0, L, L, 1.0])
+    for exact, exact_F, moved in ((f_z, F_z, "z"), (f_h, F_h, "v")):
+        for j in range(6):
+            e = np.eye(6)[j] * h[j]
+            plus = corotational_pseudo_loads(seg, z + e * (moved == "z"), v + e * (moved == "v"), P, P0)
+            minus = corotational_pseudo_loads(seg, z - e * (moved == "z"), v - e * (moved == "v"), P, P0)
+            np.testing.assert_allclose(exact[:, j], (plus[0] - minus[0]) / (2 * h[j]), rtol=1e-6,
+                                       atol=1e-7 * np.max(np.abs(exact)), err_msg=f"{moved}{j}")
+            np.testing.assert_allclose(exact_F[0, j], (plus[1] - minus[1])[0] / (2 * h[j]), rtol=1e-6,
+                                       atol=1e-7 * np.max(np.abs(exact_F)), err_msg=f"F {moved}{j}")
+    dP = 1e-3
+    difference = (corotational_pseudo_loads(seg, z, v, P + dP, P0)[0] - corotational_pseudo_loads(seg, z, v, P - dP, P0)[0])
+    np.testing.assert_allclose(f_P[:, 0], difference / (2 * dP), rtol=1e-6, atol=1e-9)
+
+
+def test_the_compiled_derivatives_are_the_numpy_ones():
+    """tmm_core.compiled.time_step.corotational_tangent against the numpy reference, with the axial
+    force given and with the state's own (the reduced model's, checked against
+    corotational_node_forces)."""
+    seg, z, v, P, P0 = _random_segment_state()
+    section = (L, EA, 2e-4, 4 * EI / L, 2 * EI / L, 4 * EI / L)
+    jz, jv, jp, Fz, Fv = np.zeros((6, 6)), np.zeros((6, 6)), np.zeros(6), np.zeros(6), np.zeros(6)
+    corotational_tangent(section, z, v, P[0], False, P0[0], jz, jv, jp, Fz, Fv)
+    f_z, f_P, f_h, F_z, F_h = corotational_linearization(seg, 6, 0.0, z, v, P, P0)
+    for got, expected in ((jz, f_z), (jv, f_h), (jp, f_P[:, 0]), (Fz, F_z[0]), (Fv, F_h[0])):
+        np.testing.assert_allclose(got, expected, rtol=0, atol=1e-12 * np.max(np.abs(expected)))
+    corotational_tangent(section, z, v, 0.0, True, 0.0, jz, jv, jp, Fz, Fv)
+    _, _, _, g_z, g_v = corotational_node_forces(seg, z[None], v[None])
+    np.testing.assert_allclose(-jz, g_z[0], rtol=0, atol=1e-12 * np.max(np.abs(g_z)))
+    np.testing.assert_allclose(-jv, g_v[0], rtol=0, atol=1e-12 * np.max(np.abs(g_v)))
+    assert not np.any(jp)
+
+
 def test_the_compiled_march_is_the_numpy_step():
     """The compiled march's co-rotational pseudo-loads (tmm_core.compiled.march.corotational_loads)
     against the numpy step's (the reference): two revolutions of the FE rig at 373 rpm, 1 %."""
@@ -194,8 +242,9 @@ def test_the_compiled_monodromy_is_the_numpy_one():
     """The compiled linearized revolution with co-rotational segments
     (tmm_core.compiled.periodic.corotational_blocks / corotational_response) against the numpy
     reference (tmm_core.periodic._monodromy with corotational_linearization): FE rig at 373 rpm,
-    2 %, 1 deg, about its orbit. Both difference the same forces with the same steps; their
-    roundings differ, which central differences magnify to 5e-7 of the largest entry (measured)."""
+    2 %, 1 deg, about its orbit. Both take the segments' exact derivatives (numpy
+    second_order._corotational_tangent, compiled time_step.corotational_tangent). Measured: equal
+    to 6e-11 of the largest entry (with central differences, before: 5e-7)."""
     spec = {**light_damping.VARIANTS["corotational"][1], "step_deg": 1.0}
     td, speed, step = light_damping.time_domain(373, 2.0, spec)
     model = td.model
@@ -207,7 +256,7 @@ def test_the_compiled_monodromy_is_the_numpy_one():
     _, trajectory, _ = periodic._revolution(model, cfg, keys, x0, N, crank.dt)
     reference = periodic._monodromy(model, cfg, keys, trajectory, crank.dt)
     compiled = periodic._compiled_monodromy(model, cfg, keys, trajectory, crank.dt)
-    assert np.max(np.abs(compiled - reference)) < 2e-6 * np.max(np.abs(reference))
+    assert np.max(np.abs(compiled - reference)) < 1e-9 * np.max(np.abs(reference))
 
 
 def test_the_reduced_model_with_corotational_segments_is_the_full_ones():
@@ -228,8 +277,8 @@ def test_the_reduced_model_with_corotational_segments_is_the_full_ones():
 def test_the_compiled_reduced_revolution_is_the_numpy_one():
     """One revolution of the reduced model with co-rotational segments, with its outputs and
     monodromy, compiled against numpy (corotational_node_forces, the reference), from the orbit at
-    373 rpm, 2 %. Measured: state and outputs equal to 1e-13, the monodromy to 7e-8 (the central
-    differences' round-off)."""
+    373 rpm, 2 %. Measured: state and outputs equal to 1e-14, the monodromy to 1.2e-11 (exact
+    derivatives in both; with central differences, before: 7e-8)."""
     spec = {**light_damping.VARIANTS["corotational"][1], "step_deg": 0.25}
     td, speed, _ = light_damping.time_domain(373, 2.0, spec)
     crank = CrankMotion.constant_speed(speed, step_deg=1.0, revolutions=1.0)
@@ -243,7 +292,7 @@ def test_the_compiled_reduced_revolution_is_the_numpy_one():
     (x_ref, mono_ref, out_ref), (x, mono, out) = results
     np.testing.assert_allclose(x, x_ref, rtol=0, atol=1e-12 * np.max(np.abs(x_ref)))
     np.testing.assert_allclose(out, out_ref, rtol=0, atol=1e-12 * np.max(np.abs(out_ref)))
-    assert np.max(np.abs(mono - mono_ref)) < 1e-6 * np.max(np.abs(mono_ref))
+    assert np.max(np.abs(mono - mono_ref)) < 1e-9 * np.max(np.abs(mono_ref))
 
 
 def test_the_segment_energy_converges_to_the_exact_bending_energy():

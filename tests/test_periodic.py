@@ -142,8 +142,7 @@ def test_compiled_periodic_solution_matches_numpy():
     """The whole periodic solve at 373 rpm (Newton shooting, two monodromies) of the second-order
     segments, whose derivatives are analytic: with the compiled backend and with the numpy one (as
     without numba) the responses agree to 1e-10 of their range and the Floquet spectral radius to
-    1e-10. (The co-rotational segments' derivatives are central differences, equal to their
-    round-off: tests/test_corotational.py.)"""
+    1e-10. (The co-rotational segments' twin: tests/test_corotational.py.)"""
     s = load("crank_rocker_373rpm")
 
     def solve(backend):

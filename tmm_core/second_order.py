@@ -32,7 +32,7 @@ co-rotational strain measure (:func:`corotational_pseudo_loads`) removes it: eac
 the cubic beam in a frame that turns with its chord, exactly, with its Kelvin-Voigt damping on its
 rotations against the chord; the pseudo-loads are then the difference between its exact forces
 and the solver's linear ones (elastic and damping), and their derivatives (the periodic solver's
-linearization, the reduced model's Jacobian) come from central differences of those forces. It
+linearization, the reduced model's Jacobian) are exact, written forward-mode by hand. It
 is the default (:data:`tmm_core.discretization.DEFAULT_TERMS`). Its end rotations against the
 chord exceed the linear segment's by the chord lag (:func:`chord_lag`), which the gauges' bending
 reads (:func:`tmm_core.discretization.bending_sampling`).
@@ -315,43 +315,98 @@ def _corotational_local(seg: Segments, zl: np.ndarray, vl: np.ndarray, P, P0):
     return loads, F, excess, P
 
 
-#: Central-difference steps of the co-rotational linearization, per local degree of freedom, as a
-#: fraction of the segment's length (displacements) or in radians (rotations). The round-off of
-#: the differences sets the monodromy's error: on the FE rig at 373 rpm, 1 deg, steps of 1e-5 and
-#: 1e-7 move it by 2.4e-7 and 7e-6 of its largest entry from 1e-6, and two roundings of the same
-#: forces (numpy, compiled) by 5e-7. The multipliers agree to about 1e-6; Newton's convergence
-#: does not need more.
-_FD_STEP = 1e-6
-
-
-def _difference_steps(length: np.ndarray) -> np.ndarray:
-    """The central-difference steps (:data:`_FD_STEP`) on each segment's ``(u0, w0, theta0, u1,
-    w1, theta1)`` for segment lengths ``length`` [m], ``(n_seg, 6)``: [m] on displacements,
-    [rad] on rotations (velocities: the same numbers per second)."""
-    return _FD_STEP * np.stack([length, length, np.ones_like(length)] * 2, axis=1)
+def _corotational_tangent(seg: Segments, zl: np.ndarray, vl: np.ndarray, P, P0):
+    """:func:`_corotational_local` with its exact derivatives: ``(loads, F, excess, loads_z,
+    loads_v, loads_P, F_z, F_v)``, the pseudo-loads (n_seg, 6), the shortening force [N] and ``L
+    (e - a)`` [m], and their derivatives by the segment's six displacements and six velocities
+    (n_seg, 6, 6 and n_seg, 6) and by its axial force ``P`` (n_seg, 6) given. ``P`` None: the
+    physical axial force of the state (as :func:`_corotational_local`), its dependence on the
+    state then in the derivatives (and ``loads_P`` zero). Forward-mode by hand: every
+    intermediate of :func:`_corotational_local` carries its gradient over ``(x, y, q0, q1, x', y',
+    q0', q1', P)`` with ``x = L + u1 - u0``, ``y = w1 - w0``; tests/test_corotational.py checks it
+    against central differences of :func:`_corotational_local`."""
+    L, EA, EI, beta = seg.length, seg.EA, seg.EI, seg.beta
+    ns = len(L)
+    x, y, q0, q1 = L + zl[:, 3] - zl[:, 0], zl[:, 4] - zl[:, 1], zl[:, 2], zl[:, 5]
+    xd, yd = vl[:, 3] - vl[:, 0], vl[:, 4] - vl[:, 1]
+    P0 = np.broadcast_to(np.asarray(P0, dtype=float), (ns,))
+    unit = np.eye(9)
+    X, Y, Q0, Q1, XD, YD, Q0D, Q1D, PP = (np.broadcast_to(unit[i], (ns, 9)) for i in range(9))
+    col = lambda a: np.asarray(a)[:, None]          # noqa: E731  a per-segment scalar against a gradient
+    l2 = x * x + y * y
+    l = np.sqrt(l2)
+    c, s = x / l, y / l
+    b = np.arctan2(y, x)
+    grad_b = col(-y / l2) * X + col(x / l2) * Y
+    bd = (x * yd - y * xd) / l2
+    grad_bd = col((yd - 2 * x * bd) / l2) * X + col((-xd - 2 * y * bd) / l2) * Y + col(-y / l2) * XD + col(x / l2) * YD
+    t0, t1 = q0 - b, q1 - b
+    t0d, t1d = vl[:, 2] - bd, vl[:, 5] - bd
+    g_t0, g_t1, g_t0d, g_t1d = Q0 - grad_b, Q1 - grad_b, Q0D - grad_bd, Q1D - grad_bd
+    h0, h1 = L / 30.0 * (4 * t0 - t1), L / 30.0 * (4 * t1 - t0)
+    g_h0, g_h1 = col(L / 30.0) * (4 * g_t0 - g_t1), col(L / 30.0) * (4 * g_t1 - g_t0)
+    forward = x > 0
+    chord = np.where(forward, y * y / np.where(forward, l + x, 1.0), l - x)
+    excess = chord + L / 60.0 * (4 * t0 * t0 - 2 * t0 * t1 + 4 * t1 * t1)
+    g_excess = col(c - 1.0) * X + col(s) * Y + col(h0) * g_t0 + col(h1) * g_t1
+    rate = (c - 1.0) * xd + s * yd + h0 * t0d + h1 * t1d
+    g_rate = (col(-s * bd) * X + col(c * bd) * Y + col(c - 1.0) * XD + col(s) * YD + col(h0) * g_t0d
+              + col(h1) * g_t1d + col(t0d) * g_h0 + col(t1d) * g_h1)
+    F = EA / L * (excess + beta * rate)
+    g_F = col(EA / L) * (g_excess + col(beta) * g_rate)
+    if P is None:           # the physical axial force of the state, with its gradient
+        P = EA / L * (x - L + beta * xd) + F
+        PP = col(EA / L) * (X + col(beta) * XD) + g_F
+    P = np.broadcast_to(np.asarray(P, dtype=float), (ns,))
+    k00, k01 = 4 * EI / L, 2 * EI / L
+    r0, r1 = t0 + beta * t0d, t1 + beta * t1d
+    g_r0, g_r1 = g_t0 + col(beta) * g_t0d, g_t1 + col(beta) * g_t1d
+    m0, m1 = k00 * r0 + k01 * r1 + P * h0, k01 * r0 + k00 * r1 + P * h1
+    g_m0 = col(k00) * g_r0 + col(k01) * g_r1 + col(h0) * PP + col(P) * g_h0
+    g_m1 = col(k01) * g_r0 + col(k00) * g_r1 + col(h1) * PP + col(P) * g_h1
+    M, g_M = m0 + m1, g_m0 + g_m1
+    g_c, g_s = col(s * s / l) * X - col(c * s / l) * Y, col(-c * s / l) * X + col(c * c / l) * Y
+    g_sl = col(-2 * c * s / l2) * X + col((c * c - s * s) / l2) * Y          # of s / l
+    g_cl = col((s * s - c * c) / l2) * X + col(-2 * c * s / l2) * Y          # of c / l
+    axial = P * c + M * s / l - P + F
+    g_axial = col(c - 1.0) * PP + col(P) * g_c + col(s / l) * g_M + col(M) * g_sl + g_F
+    # The solver's bending: K (d + beta d') with d the rotations against the linearized chord, and
+    # P0 G d (shape_products', on (w0, theta0, w1, theta1) = (0, q0, y, q1)).
+    e0 = q0 - y / L + beta * (vl[:, 2] - yd / L)
+    e1 = q1 - y / L + beta * (vl[:, 5] - yd / L)
+    g_e0 = Q0 - col(1 / L) * Y + col(beta) * (Q0D - col(1 / L) * YD)
+    g_e1 = Q1 - col(1 / L) * Y + col(beta) * (Q1D - col(1 / L) * YD)
+    kb0, kb1 = k00 * e0 + k01 * e1, k01 * e0 + k00 * e1
+    g_kb0, g_kb1 = col(k00) * g_e0 + col(k01) * g_e1, col(k01) * g_e0 + col(k00) * g_e1
+    g0 = (-36.0 * y + 3.0 * L * (q0 + q1)) / (30.0 * L)
+    g1 = (-3.0 * y + L * (4.0 * q0 - q1)) / 30.0
+    g3 = (-3.0 * y + L * (4.0 * q1 - q0)) / 30.0
+    g_g0 = col(-1.2 / L) * Y + 0.1 * (Q0 + Q1)
+    g_g1 = -0.1 * Y + col(L / 30.0) * (4 * Q0 - Q1)
+    g_g3 = -0.1 * Y + col(L / 30.0) * (4 * Q1 - Q0)
+    shear = P * s - M * c / l + (kb0 + kb1) / L + P0 * g0
+    g_shear = (col(s) * PP + col(P) * g_s - col(c / l) * g_M - col(M) * g_cl + col(1 / L) * (g_kb0 + g_kb1)
+               + col(P0) * g_g0)
+    mom0, mom1 = -(m0 - kb0 - P0 * g1), -(m1 - kb1 - P0 * g3)
+    g_mom0, g_mom1 = -(g_m0 - g_kb0 - col(P0) * g_g1), -(g_m1 - g_kb1 - col(P0) * g_g3)
+    loads = np.stack([axial, shear, mom0, -axial, -shear, mom1], axis=1)
+    grads = np.stack([g_axial, g_shear, g_mom0, -g_axial, -g_shear, g_mom1], axis=1)     # (ns, 6, 9)
+    # (x, y, q0, q1) of (u0, w0, theta0, u1, w1, theta1), and the rates alike.
+    to_dofs = np.zeros((4, 6))
+    to_dofs[0, [0, 3]] = -1.0, 1.0
+    to_dofs[1, [1, 4]] = -1.0, 1.0
+    to_dofs[2, 2] = to_dofs[3, 5] = 1.0
+    return (loads, F, excess, grads[..., :4] @ to_dofs, grads[..., 4:8] @ to_dofs, grads[..., 8],
+            g_F[:, :4] @ to_dofs, g_F[:, 4:8] @ to_dofs)
 
 
 def corotational_linearization(seg: Segments, n: int, c_v: float, z, v, P, P0):
     """:func:`linearization` of the co-rotational pseudo-loads (the same five derivatives, dense),
-    by central differences of each segment's local forces in its six degrees of freedom, its
-    velocities and its axial force (the forces are exact functions; tests/test_corotational.py
-    checks these derivatives against the energy's)."""
+    from each segment's exact derivatives in its six degrees of freedom, its velocities and its
+    axial force (:func:`_corotational_tangent`)."""
     idx = segment_dofs(seg)
-    zl, vl = z[idx], v[idx]
     ns = len(seg.length)
-    step = _difference_steps(seg.length)
-    f_d, f_v, F_d, F_v = (np.zeros((ns, 6, 6)), np.zeros((ns, 6, 6)), np.zeros((ns, 6)), np.zeros((ns, 6)))
-    for j in range(6):
-        e = np.zeros((ns, 6))
-        e[:, j] = step[:, j]
-        for arrays, (za, va, zb, vb) in (((f_d, F_d), (zl + e, vl, zl - e, vl)), ((f_v, F_v), (zl, vl + e, zl, vl - e))):
-            fa, Fa, _, _ = _corotational_local(seg, za, va, P, P0)
-            fb, Fb, _, _ = _corotational_local(seg, zb, vb, P, P0)
-            arrays[0][:, :, j] = (fa - fb) / (2 * step[:, j:j + 1])
-            arrays[1][:, j] = (Fa - Fb) / (2 * step[:, j])
-    dP = 1e-6 * np.maximum(np.abs(P), seg.EA * 1e-9)
-    f_P_local = (_corotational_local(seg, zl, vl, P + dP, P0)[0] - _corotational_local(seg, zl, vl, P - dP, P0)[0]) \
-        / (2 * dP[:, None])
+    _, _, _, f_d, f_v, f_P_local, F_d, F_v = _corotational_tangent(seg, z[idx], v[idx], P, P0)
     f_z, f_h = np.zeros((n, n)), np.zeros((n, n))
     F_z, F_h = np.zeros((ns, n)), np.zeros((ns, n))
     f_P = np.zeros((n, ns))
@@ -370,28 +425,19 @@ def corotational_node_forces(seg: Segments, zl: np.ndarray, vl: np.ndarray, jaco
     """The co-rotational segments' nonlinear internal forces on their six dofs beyond the linear
     ones (``K q`` and the axial ``EA/L (u1 - u0 + beta (u1 - u0)')``), at their physical axial
     force, for local displacements and velocities ``zl, vl`` (..., n_seg, 6): ``(g, P, Delta)``
-    and, with ``jacobian``, ``g``'s derivatives by ``zl`` and ``vl`` (..., n_seg, 6, 6), by central
-    differences (steps as :func:`corotational_linearization`). The reduced model's second-order
-    term (:class:`tmm_core.reduced_periodic.ReducedModel`): ``-`` the pseudo-loads with P0 = 0."""
+    and, with ``jacobian``, ``g``'s exact derivatives by ``zl`` and ``vl`` (..., n_seg, 6, 6)
+    (:func:`_corotational_tangent`, the axial force's dependence on the state included). The
+    reduced model's second-order term (:class:`tmm_core.reduced_periodic.ReducedModel`): ``-`` the
+    pseudo-loads with P0 = 0."""
     shape = zl.shape[:-1]
     flat = int(np.prod(shape))
     tile = lambda x: np.broadcast_to(x, shape).reshape(flat)  # noqa: E731  per segment, for every stage
     tiled = Segments(seg.start, seg.end, tile(seg.length), tile(seg.EA), tile(seg.beta), tile(seg.EI))
     z2, v2 = zl.reshape(flat, 6), vl.reshape(flat, 6)
-
-    def forces(z, v):
-        loads, _, excess, P = _corotational_local(tiled, z, v, None, 0.0)
-        return -loads, P, excess
-
-    g, P, excess = forces(z2, v2)
-    out = (g.reshape(*shape, 6), P.reshape(shape), excess.reshape(shape))
+    loads, _, excess, P = _corotational_local(tiled, z2, v2, None, 0.0)
+    out = (-loads.reshape(*shape, 6), P.reshape(shape), excess.reshape(shape))
     if not jacobian:
         return out
-    step = _difference_steps(tiled.length)
-    g_z, g_v = np.empty((flat, 6, 6)), np.empty((flat, 6, 6))
-    for j in range(6):
-        e = np.zeros((flat, 6))
-        e[:, j] = step[:, j]
-        g_z[:, :, j] = (forces(z2 + e, v2)[0] - forces(z2 - e, v2)[0]) / (2 * step[:, j:j + 1])
-        g_v[:, :, j] = (forces(z2, v2 + e)[0] - forces(z2, v2 - e)[0]) / (2 * step[:, j:j + 1])
+    _, _, _, g_z, g_v, _, _, _ = _corotational_tangent(tiled, z2, v2, None, 0.0)
+    g_z, g_v = -g_z, -g_v
     return (*out, g_z.reshape(*shape, 6, 6), g_v.reshape(*shape, 6, 6))

@@ -40,9 +40,10 @@ MAPS = ("sweep_member", "copy_sweep", "solve_loads_many")
 #: The march's own helpers (tmm_core.compiled.march).
 MARCH = ("shape_products", "corotational_loads", "affine", "anderson_coefficients")
 #: The step's parts the march and the linearized revolutions share: the integrator's history and
-#: update (tmm_core.compiled.integrators), the history loads, the co-rotational segment and its
-#: chord lag (tmm_core.compiled.time_step).
-STEP = {integrators: ("history", "advance"), time_step: ("history_loads", "corotational_segment", "chord_lag")}
+#: update (tmm_core.compiled.integrators), the history loads, the co-rotational segment, its
+#: derivatives and its chord lag (tmm_core.compiled.time_step).
+STEP = {integrators: ("history", "advance"),
+        time_step: ("history_loads", "corotational_segment", "corotational_tangent", "chord_lag")}
 #: The linearized revolution's helpers (tmm_core.compiled.periodic).
 LINEARIZED = ("jacobian_row", "close_row", "solved_response", "corotational_blocks", "corotational_response")
 #: The reduced revolution's helpers (tmm_core.compiled.reduced_periodic).

@@ -43,7 +43,7 @@ import numpy as np
 
 from ..integrators import linear_maps
 from .integrators import advance, history
-from .time_step import FD_STEP, corotational_segment, history_loads
+from .time_step import corotational_tangent, history_loads
 
 
 def push(S, coef, idx, forced, maps, model, flags, c_v, trajectory):
@@ -216,8 +216,8 @@ def solved_response(system, L, D):
 
 def corotational_blocks(j, k, segments, trajectory, P0, blocks, local):
     """The co-rotational segments' derivatives at step ``j`` (configuration ``k``) of the
-    trajectory, by central differences of :func:`tmm_core.compiled.time_step.corotational_segment`
-    (:func:`tmm_core.second_order.corotational_linearization` is the reference, step for step):
+    trajectory, exact (:func:`tmm_core.compiled.time_step.corotational_tangent`;
+    :func:`tmm_core.second_order.corotational_linearization` is the reference, step for step):
     into ``blocks = (f_d, f_v, F_d, F_v, f_P)``, the pseudo-loads on the segment's six dofs by its
     displacements and its velocities (n_seg, 6, 6), its shortening force by them (n_seg, 6) and
     the pseudo-loads by its axial force (n_seg, 6). Records: ``segments = (start, L, EA, beta,
@@ -231,30 +231,8 @@ def corotational_blocks(j, k, segments, trajectory, P0, blocks, local):
         for q in range(6):
             local[0, q] = zs[j, i0 + q]
             local[1, q] = vs[j, i0 + q]
-        P, p0 = Ps[j, s], P0[k, s]
-        for q in range(6):
-            h = FD_STEP * (1.0 if q == 2 or q == 5 else seg_L[s])
-            for which in range(2):                 # displacement, then velocity
-                keep = local[which, q]
-                local[which, q] = keep + h
-                a = corotational_segment(section, local[0], local[1], P, p0)
-                local[which, q] = keep - h
-                b = corotational_segment(section, local[0], local[1], P, p0)
-                local[which, q] = keep
-                for p in range(6):
-                    if which == 0:
-                        f_d[s, p, q] = (a[p] - b[p]) / (2 * h)
-                    else:
-                        f_v[s, p, q] = (a[p] - b[p]) / (2 * h)
-                if which == 0:
-                    F_d[s, q] = (a[6] - b[6]) / (2 * h)
-                else:
-                    F_v[s, q] = (a[6] - b[6]) / (2 * h)
-        dP = 1e-6 * max(abs(P), seg_EA[s] * 1e-9)
-        a = corotational_segment(section, local[0], local[1], P + dP, p0)
-        b = corotational_segment(section, local[0], local[1], P - dP, p0)
-        for p in range(6):
-            f_P[s, p] = (a[p] - b[p]) / (2 * dP)
+        corotational_tangent(section, local[0], local[1], Ps[j, s], False, P0[k, s], f_d[s], f_v[s], f_P[s], F_d[s],
+                             F_v[s])
 
 
 def corotational_response(j, k, sizes, segments, maps, blocks, h_v, work):

@@ -37,7 +37,7 @@ from __future__ import annotations
 import numpy as np
 
 from .dense import dot, lu_factor, lu_solve, lu_solve_many  # the compiled ones once bound (tmm_core.compiled.binding)
-from .time_step import FD_STEP, chord_lag, corotational_segment
+from .time_step import chord_lag, corotational_segment, corotational_tangent
 
 
 #: Refactorize while the chord iteration contracts slower than this (update ratio).
@@ -178,12 +178,12 @@ def corotational_term(Tp, Tdp, eta, v, jac, sections, work, terms):
     """:func:`second_order` with co-rotational segments: ``N = T^T g`` (the segments' forces of
     :func:`corotational_forces` at ``q = T eta``, ``q' = T eta' + T' eta``) and, with ``jac``,
     ``Ne = sum_s T_s^T (g_q T_s + g_v T'_s)``, ``Nv = sum_s T_s^T g_v T_s`` with the segments'
-    derivatives by central differences (the numpy reference's steps). Records: ``sections =
+    exact derivatives (:func:`tmm_core.compiled.time_step.corotational_tangent`). Records: ``sections =
     (start, data)`` with ``data`` (n_seg, 6) each segment's ``(L, EA, beta, k00, k01, k11)``;
-    ``work = (q, dq, g, local (2, 6), plus (6,), minus (6,), gz (6, 6), gv (6, 6), M1 (6, r), M2
+    ``work = (q, dq, g, local (2, 6), plus (6,), scratch (3, 6), gz (6, 6), gv (6, 6), M1 (6, r), M2
     (6, r))``; ``terms = (N, Ne, Nv)`` (written)."""
     start, data = sections
-    q, dq, g, local, plus, minus, gz, gv, M1, M2 = work
+    q, dq, g, local, plus, scratch, gz, gv, M1, M2 = work
     N, Ne, Nv = terms
     r = Tp.shape[1]
     node_state(Tp, Tdp, eta, v, q, dq)
@@ -202,20 +202,13 @@ def corotational_term(Tp, Tdp, eta, v, jac, sections, work, terms):
             g[i0 + a] += plus[a]
         if not jac:
             continue
-        for col in range(6):
-            h = FD_STEP * (1.0 if col == 2 or col == 5 else data[s, 0])
-            for which in range(2):                 # displacement, then velocity
-                keep = local[which, col]
-                local[which, col] = keep + h
-                corotational_forces(section, local[0], local[1], plus)
-                local[which, col] = keep - h
-                corotational_forces(section, local[0], local[1], minus)
-                local[which, col] = keep
-                for a in range(6):
-                    if which == 0:
-                        gz[a, col] = (plus[a] - minus[a]) / (2 * h)
-                    else:
-                        gv[a, col] = (plus[a] - minus[a]) / (2 * h)
+        # g = -(pseudo-loads at the segment's own axial force, P0 = 0): its derivatives are minus
+        # the tangent's (scratch rows: by P, unused here, and the shortening force's).
+        corotational_tangent(section, local[0], local[1], 0.0, True, 0.0, gz, gv, scratch[0], scratch[1], scratch[2])
+        for a in range(6):
+            for col in range(6):
+                gz[a, col] = -gz[a, col]
+                gv[a, col] = -gv[a, col]
         for a in range(6):
             for j in range(r):
                 acc1 = 0.0
@@ -344,7 +337,7 @@ def revolution(x0, guess, options, tableau, stages, segments, output_maps, newto
     Rm, S, prod = np.empty((n3, 2 * r)), np.empty((2 * r, 2 * r)), np.empty((2 * r, 2 * r))
     work = (q, dq, g, w4, Lt, Re, Rv, Z)
     local = np.empty((2, 6))
-    corotational_work = (q, dq, g, local, np.empty(6), np.empty(6), np.empty((6, 6)), np.empty((6, 6)),
+    corotational_work = (q, dq, g, local, np.empty(6), np.empty((3, 6)), np.empty((6, 6)), np.empty((6, 6)),
                          np.empty((6, r)), np.empty((6, r)))
     if want_jac:
         mono[:, :] = 0.0

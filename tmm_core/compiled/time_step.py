@@ -75,12 +75,6 @@ def history_loads(k, h_a, h_v, model, omega, flags, L):
                     L[(i0 + p) * M + r] -= beta_node[i0 + p] * acc
 
 
-#: Central-difference steps of the co-rotational segments' linearization (the periodic solver's
-#: monodromy), as :data:`tmm_core.second_order._FD_STEP`: a fraction of the segment's length for
-#: displacements, radians for rotations.
-FD_STEP = 1e-6
-
-
 def corotational_segment(section, z, v, P, P0):
     """One co-rotational segment's pseudo-loads on its ``(u0, w0, theta0, u1, w1, theta1)``, its
     shortening force ``F`` [N] and ``L (e - a)`` [m] (an 8-tuple), from its six displacements
@@ -122,6 +116,84 @@ def corotational_segment(section, z, v, P, P0):
     axial = P * c + (m0 + m1) * sn / l - (P - F)
     shear = P * sn - (m0 + m1) * c / l - (-(kb0 + kb1) / L - P0 * g0)
     return axial, shear, -(m0 - kb0 - P0 * g1), -axial, -shear, -(m1 - kb1 - P0 * g3), F, excess
+
+
+def corotational_tangent(section, z, v, P, own, P0, jz, jv, jp, Fz, Fv):
+    """The derivatives of one co-rotational segment's pseudo-loads (:func:`corotational_segment`)
+    by its six displacements ``z`` and six velocities ``v`` into ``jz``, ``jv`` (6, 6), by its
+    axial force into ``jp`` (6,), and of its shortening force into ``Fz``, ``Fv`` (6,). ``own``:
+    the axial force is the state's own, ``EA/L ((u1 - u0) + beta (u1 - u0)') + F`` (``P`` is then
+    not read, and ``jp`` is zero), else ``P`` [N]. Forward mode, one direction at a time over
+    ``(x, y, q0, q1, x', y', q0', q1', P)`` (``x = L + u1 - u0``, ``y = w1 - w0``), scalar by
+    scalar; :func:`tmm_core.second_order._corotational_tangent` is the reference (its formulas,
+    term by term). Returns the axial force used [N]."""
+    L, EA, beta, k00, k01, k11 = section
+    x, y, q0, q1 = L + z[3] - z[0], z[4] - z[1], z[2], z[5]
+    xd, yd = v[3] - v[0], v[4] - v[1]
+    l2 = x * x + y * y
+    l = np.sqrt(l2)
+    c, s = x / l, y / l
+    b = np.arctan2(y, x)
+    bd = (x * yd - y * xd) / l2
+    t0, t1 = q0 - b, q1 - b
+    t0d, t1d = v[2] - bd, v[5] - bd
+    h0, h1 = L / 30.0 * (4.0 * t0 - t1), L / 30.0 * (4.0 * t1 - t0)
+    chord = y * y / (l + x) if x > 0.0 else l - x
+    excess = chord + L / 60.0 * (4.0 * t0 * t0 - 2.0 * t0 * t1 + 4.0 * t1 * t1)
+    F = EA / L * (excess + beta * ((c - 1.0) * xd + s * yd + h0 * t0d + h1 * t1d))
+    if own:
+        P = EA / L * (x - L + beta * xd) + F
+    m0 = k00 * (t0 + beta * t0d) + k01 * (t1 + beta * t1d) + P * h0
+    m1 = k01 * (t0 + beta * t0d) + k11 * (t1 + beta * t1d) + P * h1
+    M = m0 + m1
+    for i in range(9):
+        dx, dy, dq0, dq1 = 1.0 * (i == 0), 1.0 * (i == 1), 1.0 * (i == 2), 1.0 * (i == 3)
+        dxd, dyd, dq0d, dq1d, dP = 1.0 * (i == 4), 1.0 * (i == 5), 1.0 * (i == 6), 1.0 * (i == 7), 1.0 * (i == 8)
+        db = (-y * dx + x * dy) / l2
+        dbd = ((yd - 2.0 * x * bd) * dx + (-xd - 2.0 * y * bd) * dy - y * dxd + x * dyd) / l2
+        dt0, dt1, dt0d, dt1d = dq0 - db, dq1 - db, dq0d - dbd, dq1d - dbd
+        dh0, dh1 = L / 30.0 * (4.0 * dt0 - dt1), L / 30.0 * (4.0 * dt1 - dt0)
+        dexcess = (c - 1.0) * dx + s * dy + h0 * dt0 + h1 * dt1
+        drate = (-s * bd * dx + c * bd * dy + (c - 1.0) * dxd + s * dyd + h0 * dt0d + h1 * dt1d + t0d * dh0
+                 + t1d * dh1)
+        dF = EA / L * (dexcess + beta * drate)
+        if own:
+            dP = EA / L * (dx + beta * dxd) + dF
+        dm0 = k00 * (dt0 + beta * dt0d) + k01 * (dt1 + beta * dt1d) + h0 * dP + P * dh0
+        dm1 = k01 * (dt0 + beta * dt0d) + k11 * (dt1 + beta * dt1d) + h1 * dP + P * dh1
+        dM = dm0 + dm1
+        dc, ds = (s * s * dx - c * s * dy) / l, (-c * s * dx + c * c * dy) / l
+        dsl = (-2.0 * c * s * dx + (c * c - s * s) * dy) / l2
+        dcl = ((s * s - c * c) * dx - 2.0 * c * s * dy) / l2
+        daxial = (c - 1.0) * dP + P * dc + s / l * dM + M * dsl + dF
+        de0 = dq0 - dy / L + beta * (dq0d - dyd / L)
+        de1 = dq1 - dy / L + beta * (dq1d - dyd / L)
+        dkb0, dkb1 = k00 * de0 + k01 * de1, k01 * de0 + k11 * de1
+        dg0 = -1.2 / L * dy + 0.1 * (dq0 + dq1)
+        dg1 = -0.1 * dy + L / 30.0 * (4.0 * dq0 - dq1)
+        dg3 = -0.1 * dy + L / 30.0 * (4.0 * dq1 - dq0)
+        dshear = s * dP + P * ds - c / l * dM - M * dcl + (dkb0 + dkb1) / L + P0 * dg0
+        dmom0 = -(dm0 - dkb0 - P0 * dg1)
+        dmom1 = -(dm1 - dkb1 - P0 * dg3)
+        column = (daxial, dshear, dmom0, -daxial, -dshear, dmom1)
+        if i == 8:
+            for p in range(6):
+                jp[p] = 0.0 if own else column[p]
+            continue
+        # Direction i of (x, y, q0, q1) is dof (u1, w1, theta1 less u0, w0, theta0) of z or v.
+        J, Fj, d = (jz, Fz, i) if i < 4 else (jv, Fv, i - 4)
+        for p in range(6):
+            if d < 2:
+                J[p, d + 3] = column[p]
+                J[p, d] = -column[p]
+            else:
+                J[p, 2 if d == 2 else 5] = column[p]
+        if d < 2:
+            Fj[d + 3] = dF
+            Fj[d] = -dF
+        else:
+            Fj[2 if d == 2 else 5] = dF
+    return P
 
 
 def chord_lag(L, du, dw):
