@@ -50,3 +50,27 @@ def test_the_amplitude_table_of_the_docs_is_the_studys(capsys):
     assert len(rows) == len(light_damping.CRANKS_IN)
     for row in rows:
         assert row in doc, row
+
+
+#: Issue 34's grid on the FE rig (light_damping.CASES: the cases with an exudyn reference) and the
+#: TMM step of each: 0.25 deg, except 373 rpm at 0.5 %, whose march reaches the stable orbit from
+#: its quasi-static start at 0.125 deg (as the shipped variant runs; at 0.25 deg it stays in the
+#: irregular response that coexists with the orbit, docs/light_damping.md).
+GRID = [(rpm, zeta, 0.125 if (rpm, zeta) == (373, 0.5) else 0.25) for rpm, zeta in light_damping.CASES]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("rpm, zeta, step_deg", GRID, ids=[f"{r}rpm-{z:g}pct" for r, z, _ in GRID])
+def test_the_march_settles_within_2_percent_of_exudyn(rpm, zeta, step_deg):
+    """The TMM with its default (co-rotational) segments, marched from its quasi-static start
+    (light_damping.march, 40 revolutions, 60 at 0.5 %), settles, and every bending and axial peak
+    of both gauges lies within 2 % of exudyn's finest steady run of the case (an independent,
+    geometrically exact engine; studies/light_damping_exudyn.json: 32 elements / 0.1 deg where
+    run, else 16 / 0.2 deg). Measured (docs/light_damping.md): within 1.7 % at 0.25 deg, and
+    within 0.8 % at 373 rpm, 0.5 %, 0.125 deg."""
+    spec = {**light_damping.VARIANTS["corotational"][1], "step_deg": step_deg}
+    result = light_damping.march(rpm, zeta, spec, revolutions=60 if zeta < 1 else 40)
+    assert result["change"] < 1e-3, (result["change"], result["trend"])
+    reference, _ = light_damping.reference(rpm, zeta)
+    errors = light_damping.errors(result["last"], reference, 4)
+    assert max(abs(e) for peaks in errors.values() for e in peaks) < 2.0, errors
