@@ -39,7 +39,7 @@ VARIANTS = (
     ("step's own axial force only + rotating-frame terms", "dynamic", ("axial_force",), Coupling.all()),
     ("shortening from bending only + rotating-frame terms", "dynamic", ("shortening",), Coupling.all()),
     ("own axial force + shortening, no rotating-frame terms", "dynamic", ("shortening", "axial_force"), Coupling()),
-    ("own axial force + shortening + rotating-frame terms (default)", "dynamic", ("shortening", "axial_force"),
+    ("own axial force + shortening + rotating-frame terms (second order)", "dynamic", ("shortening", "axial_force"),
      Coupling.all()),
 )
 

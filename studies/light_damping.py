@@ -143,7 +143,7 @@ SECOND_ORDER = ("shortening", "axial_force")
 #: segments per link, 0.5 deg step, generalized-alpha rho_inf 0.9, second-order step with the
 #: shortening from bending and the step's own axial force, rotating-frame terms on).
 VARIANTS = {
-    "base": ("the shipped TMM setting (second-order segments)", {}),
+    "base": ("the shipped TMM setting before issue 34 (second-order segments)", {}),
     "exact_strain": ("prototype: the segments' exact strain instead of the second-order one (numpy step)",
                      {"dynamic_terms": ("shortening", "axial_force", "exact_strain")}),
     "corotational": ("segments exact in their rotation (co-rotational; the default since issue 34), step halved "
