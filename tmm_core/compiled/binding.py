@@ -47,8 +47,8 @@ STEP = {integrators: ("history", "advance"),
 #: The linearized revolution's helpers (tmm_core.compiled.periodic).
 LINEARIZED = ("jacobian_row", "close_row", "solved_response", "corotational_blocks", "corotational_response")
 #: The reduced revolution's helpers (tmm_core.compiled.reduced_periodic).
-REDUCED = ("node_state", "second_order", "corotational_forces", "corotational_term", "segment_state", "gauge_excess",
-           "stage_states", "newton_matrix")
+REDUCED = ("node_state", "second_order", "corotational_forces", "corotational_term", "segment_state",
+           "corotational_gauges", "stage_states", "newton_matrix")
 
 _ENTRY: dict = {}        # the one registry: a stage's (or a single kernel's) compiled entry points
 

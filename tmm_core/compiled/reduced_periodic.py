@@ -244,7 +244,7 @@ def segment_state(Tp, Tdp, eta, v, i0, local):
         local[1, a] = va
 
 
-def gauge_excess(Tp, Tdp, eta, v, sections, local, out6, gauge_reading, out):
+def corotational_gauges(Tp, Tdp, eta, v, sections, local, out6, gauge_reading, out):
     """The gauges' co-rotational readings at one stage point, added into the stage's outputs
     ``out``: the axial strain from their segments' ``L (e - a)`` (:func:`corotational_forces`)
     with the weights [1/m] (columns ``2 + 2 g``) and the bending from their segment's chord lag
@@ -298,7 +298,7 @@ def revolution(x0, guess, options, tableau, stages, segments, output_maps, newto
     ``outs`` (3N, n_out): ``O0[p] + Oe[p] eta_i + Ov[p] eta'_i + Oa[p] acc_i`` plus, with
     ``nonlinear``, the shortenings of gauge g's two segments ``gauge_seg[g]`` times their weights
     ``gauge_w[g]`` [1/m] in column ``2 + 2 g`` (with ``corotational`` also the bending from the
-    chord lag of ``bend_seg[g]`` times ``bend_w[g]``, :func:`gauge_excess`); ``counts`` (2,): Newton
+    chord lag of ``bend_seg[g]`` times ``bend_w[g]``, :func:`corotational_gauges`); ``counts`` (2,): Newton
     iterations and factorizations (added to).
 
     ``chord_start``, ``chord_rate``: :data:`CHORD_START`, :data:`CHORD_CONTRACTION`.
@@ -451,7 +451,7 @@ def revolution(x0, guess, options, tableau, stages, segments, output_maps, newto
                         s += Oe[p, o, j] * es[i, j] + Ov[p, o, j] * vs[i, j] + Oa[p, o, j] * acc[i, j]
                     outs[p, o] = s
                 if nonlinear and corotational:
-                    gauge_excess(T[p], Td[p], es[i], vs[i], sections, local, corotational_work[4],
+                    corotational_gauges(T[p], Td[p], es[i], vs[i], sections, local, corotational_work[4],
                                  (gauge_seg, gauge_w, bend_seg, bend_w), outs[p])
                 elif nonlinear:
                     for gi in range(gauge_seg.shape[0]):
