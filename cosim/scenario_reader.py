@@ -185,6 +185,10 @@ class Reader:
             raise self.fail(key, "must be finite", raw)
         if abs(raw) > MAX_MAGNITUDE:
             raise self.fail(key, f"must be at most {MAX_MAGNITUDE:g} in magnitude", raw)
+        if 0 < abs(raw) < MIN_MAGNITUDE:
+            # As for quantities: such a number underflows in the products made of it (a gear ratio
+            # of 1e-300 squared divided by zero in the motor's controller design).
+            raise self.fail(key, f"must be 0 or at least {MIN_MAGNITUDE:g} in magnitude", raw)
         if positive and raw <= 0:
             raise self.fail(key, "must be positive", raw)
         return kind(raw)

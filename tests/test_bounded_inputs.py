@@ -92,3 +92,12 @@ def test_records_and_summaries_linked_to_a_device_are_refused(tmp_path):
     (tmp_path / "rec.toml").symlink_to("/dev/zero")
     with pytest.raises(RecordError, match="rec.toml.*character device"):
         load_record(tmp_path / "rec.toml")
+
+
+def test_a_number_too_small_for_its_arithmetic_is_refused_naming_the_key():
+    """A gear ratio of 1e-300 is positive, but its square underflows and the motor's controller
+    design divided by zero (found by tests/test_fuzz_scenarios.py): plain numbers, like
+    quantities, are 0 or at least 1e-30 in magnitude."""
+    with pytest.raises(ScenarioError) as refused:
+        load("crank_rocker_373rpm_damping_0p5pct").with_overrides({"motor.gear_ratio": 1e-300})
+    assert "motor.gear_ratio" in str(refused.value) and "1e-30" in str(refused.value), str(refused.value)
