@@ -34,7 +34,7 @@ from .integrators import get_integrator
 from .ked import Coupling, node_mass_arrays
 from .matrices import field_matrix
 from .mechanism import FourBarMechanism
-from .post import Gauge
+from .post import Gauge, segment_at
 from .riccati import segment_stiffness
 from .second_order import Segments
 
@@ -377,7 +377,7 @@ def axial_sampling(link, position: float) -> tuple:
     force jumps: there the gauge's own segment alone, ``(j, j), (1, 0)``."""
     x = link.stations
     n = link.total_segments
-    j = int(np.clip(np.searchsorted(x, position, side="right") - 1, 0, n - 1))
+    j = segment_at(x, position)
     middle = 0.5 * (x[:-1] + x[1:])
     k = j + 1 if position >= middle[j] else j - 1
     if not 0 <= k < n or not _same_segments(link, j, k):
@@ -411,7 +411,7 @@ def bending_sampling(link, gauge: Gauge) -> tuple:
     does not see them. It grows as 1/L: small on a slender link, it moved a node gauge on thick
     bars with the mesh (docs/light_damping.md)."""
     x = link.stations
-    j = int(np.clip(np.searchsorted(x, gauge.position_m, side="right") - 1, 0, link.total_segments - 1))
+    j = segment_at(x, gauge.position_m)
     length = float(x[j + 1] - x[j])
     xi = (gauge.position_m - x[j]) / length
     sign = -1.0 if gauge.face == "top" else 1.0      # as gauge_strains: sigma = N/A - M y / I

@@ -111,6 +111,14 @@ class Gauge:
         require_finite(f"gauge '{self.name}': position_m", self.position_m)
 
 
+def segment_at(stations: np.ndarray, x: float) -> int:
+    """The segment (numbered from the member's start) that a position ``x`` [m] lies in, for node
+    coordinates ``stations`` (n + 1,): the one starting at or before ``x``, the last at the end. A
+    gauge reads its state there (:func:`state_at`), and the time step samples it from there
+    (:func:`tmm_core.discretization.axial_sampling`, :func:`tmm_core.discretization.bending_sampling`)."""
+    return int(np.clip(np.searchsorted(stations, x, side="right") - 1, 0, len(stations) - 2))
+
+
 def state_at(result: MemberResult, x, distributed=(0.0, 0.0)) -> np.ndarray:
     """State ``(..., 6)`` = (u, w, theta, M, V, N) at ``x`` [m] along the member, by carrying the
     right-side state of the node before ``x`` through a partial field matrix (exact within the
@@ -119,7 +127,7 @@ def state_at(result: MemberResult, x, distributed=(0.0, 0.0)) -> np.ndarray:
     st = m.stations
     if not (-1e-12 * m.length <= x <= m.length * (1 + 1e-12)):
         raise InputError(f"member '{m.name}': position {x!r} m is outside the member (length {m.length:.6g} m)")
-    j = int(np.clip(np.searchsorted(st, x, side="right") - 1, 0, m.n_segments - 1))
+    j = segment_at(st, x)
     dx = float(x - st[j])
     S = result.state[..., j, 1, :]
     if dx <= 1e-15 * m.length:
@@ -140,7 +148,7 @@ def gauge_strains(result: MemberResult, gauge: Gauge, distributed=(0.0, 0.0), ax
     axial force at the gauge's position."""
     m = result.member
     S = state_at(result, gauge.position_m, distributed)
-    j = int(np.clip(np.searchsorted(m.stations, gauge.position_m, side="right") - 1, 0, m.n_segments - 1))
+    j = segment_at(m.stations, gauge.position_m)
     sec, mat = m.sections[j], m.materials[j]
     curvature = S[..., 3] / (mat.E_Pa * sec.inertia_m4 * _stiffness_factor(result, j))
     sign = -1.0 if gauge.face == "top" else 1.0      # sigma = N/A - M y / I
