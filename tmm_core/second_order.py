@@ -315,13 +315,13 @@ def _corotational_local(seg: Segments, zl: np.ndarray, vl: np.ndarray, P, P0):
     return loads, F, excess, P
 
 
-def _corotational_tangent(seg: Segments, zl: np.ndarray, vl: np.ndarray, P, P0):
-    """:func:`_corotational_local` with its exact derivatives: ``(loads, F, excess, loads_z,
-    loads_v, loads_P, F_z, F_v)``, the pseudo-loads (n_seg, 6), the shortening force [N] and ``L
-    (e - a)`` [m], and their derivatives by the segment's six displacements and six velocities
-    (n_seg, 6, 6 and n_seg, 6) and by its axial force ``P`` (n_seg, 6) given. ``P`` None: the
-    physical axial force of the state (as :func:`_corotational_local`), its dependence on the
-    state then in the derivatives (and ``loads_P`` zero). Forward-mode by hand: every
+def _corotational_tangent(seg: Segments, zl: np.ndarray, vl: np.ndarray, P, P0, own: bool = False):
+    """The exact derivatives of :func:`_corotational_local`: ``(loads_z, loads_v, loads_P, F_z,
+    F_v)``, those of the pseudo-loads and of the shortening force by the segment's six
+    displacements and six velocities (n_seg, 6, 6 and n_seg, 6) and of the pseudo-loads by its
+    axial force ``P`` [N] (n_seg, 6). ``own``: ``P`` is the physical axial force of the state
+    (``_corotational_local``'s with ``P`` None), its dependence on the state then in the
+    derivatives (and ``loads_P`` zero), as the compiled twin's ``own``. Forward-mode by hand: every
     intermediate of :func:`_corotational_local` carries its gradient over ``(x, y, q0, q1, x', y',
     q0', q1', P)`` with ``x = L + u1 - u0``, ``y = w1 - w0``; tests/test_corotational.py checks it
     against central differences of :func:`_corotational_local`."""
@@ -345,17 +345,11 @@ def _corotational_tangent(seg: Segments, zl: np.ndarray, vl: np.ndarray, P, P0):
     g_t0, g_t1, g_t0d, g_t1d = Q0 - grad_b, Q1 - grad_b, Q0D - grad_bd, Q1D - grad_bd
     h0, h1 = L / 30.0 * (4 * t0 - t1), L / 30.0 * (4 * t1 - t0)
     g_h0, g_h1 = col(L / 30.0) * (4 * g_t0 - g_t1), col(L / 30.0) * (4 * g_t1 - g_t0)
-    forward = x > 0
-    chord = np.where(forward, y * y / np.where(forward, l + x, 1.0), l - x)
-    excess = chord + L / 60.0 * (4 * t0 * t0 - 2 * t0 * t1 + 4 * t1 * t1)
     g_excess = col(c - 1.0) * X + col(s) * Y + col(h0) * g_t0 + col(h1) * g_t1
-    rate = (c - 1.0) * xd + s * yd + h0 * t0d + h1 * t1d
     g_rate = (col(-s * bd) * X + col(c * bd) * Y + col(c - 1.0) * XD + col(s) * YD + col(h0) * g_t0d
               + col(h1) * g_t1d + col(t0d) * g_h0 + col(t1d) * g_h1)
-    F = EA / L * (excess + beta * rate)
     g_F = col(EA / L) * (g_excess + col(beta) * g_rate)
-    if P is None:           # the physical axial force of the state, with its gradient
-        P = EA / L * (x - L + beta * xd) + F
+    if own:                 # the physical axial force of the state: its gradient too
         PP = col(EA / L) * (X + col(beta) * XD) + g_F
     P = np.broadcast_to(np.asarray(P, dtype=float), (ns,))
     k00, k01 = 4 * EI / L, 2 * EI / L
@@ -368,36 +362,26 @@ def _corotational_tangent(seg: Segments, zl: np.ndarray, vl: np.ndarray, P, P0):
     g_c, g_s = col(s * s / l) * X - col(c * s / l) * Y, col(-c * s / l) * X + col(c * c / l) * Y
     g_sl = col(-2 * c * s / l2) * X + col((c * c - s * s) / l2) * Y          # of s / l
     g_cl = col((s * s - c * c) / l2) * X + col(-2 * c * s / l2) * Y          # of c / l
-    axial = P * c + M * s / l - P + F
     g_axial = col(c - 1.0) * PP + col(P) * g_c + col(s / l) * g_M + col(M) * g_sl + g_F
     # The solver's bending: K (d + beta d') with d the rotations against the linearized chord, and
     # P0 G d (shape_products', on (w0, theta0, w1, theta1) = (0, q0, y, q1)).
-    e0 = q0 - y / L + beta * (vl[:, 2] - yd / L)
-    e1 = q1 - y / L + beta * (vl[:, 5] - yd / L)
     g_e0 = Q0 - col(1 / L) * Y + col(beta) * (Q0D - col(1 / L) * YD)
     g_e1 = Q1 - col(1 / L) * Y + col(beta) * (Q1D - col(1 / L) * YD)
-    kb0, kb1 = k00 * e0 + k01 * e1, k01 * e0 + k00 * e1
     g_kb0, g_kb1 = col(k00) * g_e0 + col(k01) * g_e1, col(k01) * g_e0 + col(k00) * g_e1
-    g0 = (-36.0 * y + 3.0 * L * (q0 + q1)) / (30.0 * L)
-    g1 = (-3.0 * y + L * (4.0 * q0 - q1)) / 30.0
-    g3 = (-3.0 * y + L * (4.0 * q1 - q0)) / 30.0
     g_g0 = col(-1.2 / L) * Y + 0.1 * (Q0 + Q1)
     g_g1 = -0.1 * Y + col(L / 30.0) * (4 * Q0 - Q1)
     g_g3 = -0.1 * Y + col(L / 30.0) * (4 * Q1 - Q0)
-    shear = P * s - M * c / l + (kb0 + kb1) / L + P0 * g0
     g_shear = (col(s) * PP + col(P) * g_s - col(c / l) * g_M - col(M) * g_cl + col(1 / L) * (g_kb0 + g_kb1)
                + col(P0) * g_g0)
-    mom0, mom1 = -(m0 - kb0 - P0 * g1), -(m1 - kb1 - P0 * g3)
     g_mom0, g_mom1 = -(g_m0 - g_kb0 - col(P0) * g_g1), -(g_m1 - g_kb1 - col(P0) * g_g3)
-    loads = np.stack([axial, shear, mom0, -axial, -shear, mom1], axis=1)
     grads = np.stack([g_axial, g_shear, g_mom0, -g_axial, -g_shear, g_mom1], axis=1)     # (ns, 6, 9)
     # (x, y, q0, q1) of (u0, w0, theta0, u1, w1, theta1), and the rates alike.
     to_dofs = np.zeros((4, 6))
     to_dofs[0, [0, 3]] = -1.0, 1.0
     to_dofs[1, [1, 4]] = -1.0, 1.0
     to_dofs[2, 2] = to_dofs[3, 5] = 1.0
-    return (loads, F, excess, grads[..., :4] @ to_dofs, grads[..., 4:8] @ to_dofs, grads[..., 8],
-            g_F[:, :4] @ to_dofs, g_F[:, 4:8] @ to_dofs)
+    return (grads[..., :4] @ to_dofs, grads[..., 4:8] @ to_dofs, grads[..., 8], g_F[:, :4] @ to_dofs,
+            g_F[:, 4:8] @ to_dofs)
 
 
 def corotational_linearization(seg: Segments, n: int, c_v: float, z, v, P, P0):
@@ -406,7 +390,7 @@ def corotational_linearization(seg: Segments, n: int, c_v: float, z, v, P, P0):
     axial force (:func:`_corotational_tangent`)."""
     idx = segment_dofs(seg)
     ns = len(seg.length)
-    _, _, _, f_d, f_v, f_P_local, F_d, F_v = _corotational_tangent(seg, z[idx], v[idx], P, P0)
+    f_d, f_v, f_P_local, F_d, F_v = _corotational_tangent(seg, z[idx], v[idx], P, P0)
     f_z, f_h = np.zeros((n, n)), np.zeros((n, n))
     F_z, F_h = np.zeros((ns, n)), np.zeros((ns, n))
     f_P = np.zeros((n, ns))
@@ -438,6 +422,6 @@ def corotational_node_forces(seg: Segments, zl: np.ndarray, vl: np.ndarray, jaco
     out = (-loads.reshape(*shape, 6), P.reshape(shape), excess.reshape(shape))
     if not jacobian:
         return out
-    _, _, _, g_z, g_v, _, _, _ = _corotational_tangent(tiled, z2, v2, None, 0.0)
+    g_z, g_v, _, _, _ = _corotational_tangent(tiled, z2, v2, P, 0.0, own=True)
     g_z, g_v = -g_z, -g_v
     return (*out, g_z.reshape(*shape, 6, 6), g_v.reshape(*shape, 6, 6))
