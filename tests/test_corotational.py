@@ -177,8 +177,8 @@ def test_the_compiled_derivatives_are_the_numpy_ones():
     f_z, f_P, f_h, F_z, F_h = corotational_linearization(seg, 6, 0.0, z, v, P, P0)
     for got, expected in ((jz, f_z), (jv, f_h), (jp, f_P[:, 0]), (Fz, F_z[0]), (Fv, F_h[0])):
         np.testing.assert_allclose(got, expected, rtol=0, atol=1e-12 * np.max(np.abs(expected)))
-    corotational_tangent(section, z, v, 0.0, True, 0.0, jz, jv, jp, Fz, Fv)
-    _, _, _, g_z, g_v = corotational_node_forces(seg, z[None], v[None])
+    _, P_own, _, g_z, g_v = corotational_node_forces(seg, z[None], v[None])
+    corotational_tangent(section, z, v, P_own[0], True, 0.0, jz, jv, jp, Fz, Fv)
     np.testing.assert_allclose(-jz, g_z[0], rtol=0, atol=1e-12 * np.max(np.abs(g_z)))
     np.testing.assert_allclose(-jv, g_v[0], rtol=0, atol=1e-12 * np.max(np.abs(g_v)))
     assert not np.any(jp)

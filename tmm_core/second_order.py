@@ -321,7 +321,7 @@ def _corotational_tangent(seg: Segments, zl: np.ndarray, vl: np.ndarray, P, P0, 
     displacements and six velocities (n_seg, 6, 6 and n_seg, 6) and of the pseudo-loads by its
     axial force ``P`` [N] (n_seg, 6). ``own``: ``P`` is the physical axial force of the state
     (``_corotational_local``'s with ``P`` None), its dependence on the state then in the
-    derivatives (and ``loads_P`` zero), as the compiled twin's ``own``. Forward-mode by hand: every
+    derivatives (and ``loads_P`` zero), as in the compiled twin. Forward-mode by hand: every
     intermediate of :func:`_corotational_local` carries its gradient over ``(x, y, q0, q1, x', y',
     q0', q1', P)`` with ``x = L + u1 - u0``, ``y = w1 - w0``; tests/test_corotational.py checks it
     against central differences of :func:`_corotational_local`."""

@@ -197,14 +197,14 @@ def corotational_term(Tp, Tdp, eta, v, jac, sections, work, terms):
         for a in range(6):
             local[0, a] = q[i0 + a]
             local[1, a] = dq[i0 + a]
-        corotational_forces(section, local[0], local[1], plus)
+        P, _ = corotational_forces(section, local[0], local[1], plus)
         for a in range(6):
             g[i0 + a] += plus[a]
         if not jac:
             continue
         # g = -(pseudo-loads at the segment's own axial force, P0 = 0): its derivatives are minus
         # the tangent's (scratch rows: by P, unused here, and the shortening force's).
-        corotational_tangent(section, local[0], local[1], 0.0, True, 0.0, gz, gv, scratch[0], scratch[1], scratch[2])
+        corotational_tangent(section, local[0], local[1], P, True, 0.0, gz, gv, scratch[0], scratch[1], scratch[2])
         for a in range(6):
             for col in range(6):
                 gz[a, col] = -gz[a, col]

@@ -121,12 +121,13 @@ def corotational_segment(section, z, v, P, P0):
 def corotational_tangent(section, z, v, P, own, P0, jz, jv, jp, Fz, Fv):
     """The derivatives of one co-rotational segment's pseudo-loads (:func:`corotational_segment`)
     by its six displacements ``z`` and six velocities ``v`` into ``jz``, ``jv`` (6, 6), by its
-    axial force into ``jp`` (6,), and of its shortening force into ``Fz``, ``Fv`` (6,). ``own``:
-    the axial force is the state's own, ``EA/L ((u1 - u0) + beta (u1 - u0)') + F`` (``P`` is then
-    not read, and ``jp`` is zero), else ``P`` [N]. Forward mode, one direction at a time over
-    ``(x, y, q0, q1, x', y', q0', q1', P)`` (``x = L + u1 - u0``, ``y = w1 - w0``), scalar by
-    scalar; :func:`tmm_core.second_order._corotational_tangent` is the reference (its formulas,
-    term by term). Returns the axial force used [N]."""
+    axial force ``P`` [N] into ``jp`` (6,), and of its shortening force into ``Fz``, ``Fv`` (6,).
+    ``own``: ``P`` is the state's own axial force, ``EA/L ((u1 - u0) + beta (u1 - u0)') + F``
+    (:func:`tmm_core.compiled.reduced_periodic.corotational_forces` returns it), whose dependence
+    on the state is then in the derivatives (and ``jp`` is zero). Forward mode, one direction at a
+    time over ``(x, y, q0, q1, x', y', q0', q1', P)`` (``x = L + u1 - u0``, ``y = w1 - w0``), scalar
+    by scalar; :func:`tmm_core.second_order._corotational_tangent` is the reference (its formulas,
+    term by term)."""
     L, EA, beta, k00, k01, k11 = section
     x, y, q0, q1 = L + z[3] - z[0], z[4] - z[1], z[2], z[5]
     xd, yd = v[3] - v[0], v[4] - v[1]
@@ -138,11 +139,6 @@ def corotational_tangent(section, z, v, P, own, P0, jz, jv, jp, Fz, Fv):
     t0, t1 = q0 - b, q1 - b
     t0d, t1d = v[2] - bd, v[5] - bd
     h0, h1 = L / 30.0 * (4.0 * t0 - t1), L / 30.0 * (4.0 * t1 - t0)
-    chord = y * y / (l + x) if x > 0.0 else l - x
-    excess = chord + L / 60.0 * (4.0 * t0 * t0 - 2.0 * t0 * t1 + 4.0 * t1 * t1)
-    F = EA / L * (excess + beta * ((c - 1.0) * xd + s * yd + h0 * t0d + h1 * t1d))
-    if own:
-        P = EA / L * (x - L + beta * xd) + F
     m0 = k00 * (t0 + beta * t0d) + k01 * (t1 + beta * t1d) + P * h0
     m1 = k01 * (t0 + beta * t0d) + k11 * (t1 + beta * t1d) + P * h1
     M = m0 + m1
@@ -193,7 +189,6 @@ def corotational_tangent(section, z, v, P, own, P0, jz, jv, jp, Fz, Fv):
             Fj[d] = -dF
         else:
             Fj[2 if d == 2 else 5] = dF
-    return P
 
 
 def chord_lag(L, du, dw):
